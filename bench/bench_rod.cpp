@@ -1,0 +1,98 @@
+// Rod-solver benchmarks on the HydroJet scene along a path of jet forces (scripts/bench runs them).
+//   BM_ColdSolve             solve with no warm start (reset before each solve)
+//   BM_WarmSolve             solve warm-started from the previous point of the path
+//   BM_WarmSolveCompliance   the same plus C^b
+// Each reports the counter tip_error_m: the largest tip-position error along the path against a
+// reference (RK8, 256 steps, residual 1e-13).
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "hydrojet_control/config/scene.h"
+#include "hydrojet_control/rod/shooting_solver.h"
+
+namespace {
+
+using hydrojet::rod::TipWrench;
+using hydrojet::rod::Vec3;
+
+hydrojet::config::Scene scene() {
+  return hydrojet::config::load_scene(std::string(HYDROJET_SOURCE_DIR) + "/config/scenes/hydrojet_30deg.yaml");
+}
+
+/// Jet map of eq. (24), Table 1 misalignments.
+Vec3 jets(double q1, double q2, double q3) {
+  const double p3 = M_PI / 3.0, da = 0.12, db = 0.06, dg = -0.08;
+  return Vec3(std::sin(p3 - db) * q1 + std::sin(da) * q2 - std::sin(p3 - dg) * q3,
+              std::cos(p3 - db) * q1 - std::cos(da) * q2 + std::cos(p3 - dg) * q3, 0.0);
+}
+
+/// A closed path through the actuation space: 200 points, consecutive points 10 ms apart on a
+/// spiral-like sweep (as a 100 Hz controller would request them).
+const std::vector<TipWrench>& path() {
+  static std::vector<TipWrench> p = [] {
+    std::vector<TipWrench> v;
+    for (int i = 0; i < 200; ++i) {
+      const double t = 2.0 * M_PI * i / 200.0;
+      TipWrench w;
+      w.force = jets(0.12 + 0.11 * std::sin(t), 0.11 + 0.10 * std::sin(t + 2.1), 0.12 + 0.11 * std::sin(t + 4.2));
+      v.push_back(w);
+    }
+    return v;
+  }();
+  return p;
+}
+
+double path_tip_error(const hydrojet::config::Scene& sc) {
+  hydrojet::rod::ShootingSettings ref = sc.solver;
+  ref.integrator.type = hydrojet::rod::IntegratorType::kRk8;
+  ref.integrator.steps = 256;
+  ref.residual_tolerance = 1e-13;
+  hydrojet::rod::ShootingSolver a(sc.model, sc.solver), b(sc.model, ref);
+  double worst = 0.0;
+  for (const auto& w : path()) {
+    const auto sa = a.solve(w), sb = b.solve(w);
+    if (!sa.converged || !sb.converged) return NAN;
+    worst = std::max(worst, (sa.tip_position - sb.tip_position).norm());
+  }
+  return worst;
+}
+
+void BM_ColdSolve(benchmark::State& state) {
+  const auto sc = scene();
+  hydrojet::rod::ShootingSolver s(sc.model, sc.solver);
+  size_t i = 0;
+  for (auto _ : state) {
+    s.reset();
+    benchmark::DoNotOptimize(s.solve(path()[i++ % path().size()]));
+  }
+  state.counters["tip_error_m"] = path_tip_error(sc);
+}
+
+void BM_WarmSolve(benchmark::State& state) {
+  const auto sc = scene();
+  hydrojet::rod::ShootingSolver s(sc.model, sc.solver);
+  size_t i = 0;
+  for (auto _ : state) benchmark::DoNotOptimize(s.solve(path()[i++ % path().size()]));
+  state.counters["tip_error_m"] = path_tip_error(sc);
+}
+
+void BM_WarmSolveCompliance(benchmark::State& state) {
+  const auto sc = scene();
+  hydrojet::rod::ShootingSolver s(sc.model, sc.solver);
+  size_t i = 0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(s.solve(path()[i++ % path().size()]));
+    benchmark::DoNotOptimize(s.compliance());
+  }
+  state.counters["tip_error_m"] = path_tip_error(sc);
+}
+
+}  // namespace
+
+BENCHMARK(BM_ColdSolve)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_WarmSolve)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_WarmSolveCompliance)->Unit(benchmark::kMicrosecond);
+BENCHMARK_MAIN();

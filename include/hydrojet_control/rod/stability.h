@@ -1,0 +1,34 @@
+// Elastic stability of an equilibrium (paper §4.1, eqs. 21–23) and the hybrid compliance of eq. (19).
+// ROS-free (Eigen only).
+#pragma once
+
+#include <array>
+
+#include "hydrojet_control/rod/rod_model.h"
+
+namespace hydrojet {
+namespace rod {
+
+/// Which body-wrench components (f_x, f_y, f_z, l_x, l_y, l_z) the actuators produce. The stability
+/// block of C^b takes these columns and their work-conjugate rows (v_x, v_y, v_z, ω_x, ω_y, ω_z), so
+/// that S = (C^b_block)^† is a stiffness. The HydroJet's jets lie in the tip xy-plane: {f_x, f_y}.
+using ActuatedSet = std::array<bool, 6>;
+inline ActuatedSet lateral_force_actuation() { return {true, true, false, false, false, false}; }
+
+struct StabilityReport {
+  /// σ_c of eq. (23): the smallest singular value of S = (C^b_block)^†, i.e. 1/σ_max(C^b_block)
+  /// [N/m for force blocks]. Never negative, so it cannot flag an instability by itself.
+  double margin = 0.0;
+  /// The smallest real part of the eigenvalues of S on the same block: ≤ 0 marks an unstable
+  /// equilibrium (a restoring stiffness that has vanished or reversed).
+  double eig_min = 0.0;
+  bool ok = false;
+};
+
+StabilityReport stability(const Mat6& compliance_body, const ActuatedSet& actuated);
+
+/// Hybrid compliance R^h(L) C^b of eq. (19): tip twist in base-frame axes per body wrench.
+Mat6 hybrid_compliance(const Mat3& tip_rotation, const Mat6& compliance_body);
+
+}  // namespace rod
+}  // namespace hydrojet

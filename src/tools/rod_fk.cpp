@@ -1,0 +1,197 @@
+// rod_fk: solves the HydroJet rod model for tip wrenches and prints one JSON object per solve.
+// The interface is a contract other tools rely on (README, "rod_fk"); keep it stable.
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "hydrojet_control/config/scene.h"
+#include "hydrojet_control/rod/shooting_solver.h"
+#include "hydrojet_control/rod/stability.h"
+#include "hydrojet_control/util/json_writer.h"
+
+using hydrojet::rod::Vec3;
+using hydrojet::util::JsonObject;
+
+namespace {
+
+const char* kUsage =
+    "usage: rod_fk --scene FILE [--force FX FY FZ] [--moment MX MY MZ] [--integrator NAME]\n"
+    "              [--steps N] [--tol X] [--compliance] [--shape K] [--batch FILE|-]\n";
+
+/// Bad input: one line on stderr naming the argument or key, nothing on stdout, exit 2.
+struct BadInput {
+  std::string what;
+};
+
+double parse_number(const std::string& text, const std::string& arg) {
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size()) throw BadInput{arg + ": not a number '" + text + "'"};
+  if (!std::isfinite(v)) throw BadInput{arg + ": not a finite number '" + text + "'"};
+  return v;
+}
+
+struct Options {
+  std::string scene;
+  hydrojet::rod::TipWrench wrench;
+  std::string integrator;
+  int steps = 0;
+  double tol = 0.0;
+  bool compliance = false;
+  int shape = 0;
+  std::string batch;
+};
+
+Options parse_args(int argc, char** argv) {
+  Options o;
+  auto need = [&](int i, int n, const std::string& a) {
+    if (i + n >= argc) throw BadInput{a + ": expects " + std::to_string(n) + " value(s)"};
+  };
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--scene") {
+      need(i, 1, a);
+      o.scene = argv[++i];
+    } else if (a == "--force" || a == "--moment") {
+      need(i, 3, a);
+      Vec3 v;
+      for (int k = 0; k < 3; ++k) v[k] = parse_number(argv[++i], a);
+      (a == "--force" ? o.wrench.force : o.wrench.moment) = v;
+    } else if (a == "--integrator") {
+      need(i, 1, a);
+      o.integrator = argv[++i];
+    } else if (a == "--steps") {
+      need(i, 1, a);
+      const double v = parse_number(argv[++i], a);
+      if (v < 1 || v > 100000 || v != std::floor(v)) throw BadInput{a + ": must be an integer in [1, 100000]"};
+      o.steps = static_cast<int>(v);
+    } else if (a == "--tol") {
+      need(i, 1, a);
+      o.tol = parse_number(argv[++i], a);
+      if (!(o.tol > 0.0)) throw BadInput{a + ": must be positive"};
+    } else if (a == "--compliance") {
+      o.compliance = true;
+    } else if (a == "--shape") {
+      need(i, 1, a);
+      const double v = parse_number(argv[++i], a);
+      if (v < 1 || v > 100000 || v != std::floor(v)) throw BadInput{a + ": must be an integer in [1, 100000]"};
+      o.shape = static_cast<int>(v);
+    } else if (a == "--batch") {
+      need(i, 1, a);
+      o.batch = argv[++i];
+    } else if (a == "--help" || a == "-h") {
+      std::cout << kUsage;
+      std::exit(0);
+    } else {
+      throw BadInput{a + ": unknown argument"};
+    }
+  }
+  if (o.scene.empty()) throw BadInput{"--scene: missing (required)"};
+  return o;
+}
+
+std::vector<hydrojet::rod::TipWrench> read_batch(const std::string& src) {
+  std::ifstream file;
+  std::istream* in = &std::cin;
+  if (src != "-") {
+    file.open(src);
+    if (!file) throw BadInput{"--batch: cannot read file '" + src + "'"};
+    in = &file;
+  }
+  std::vector<hydrojet::rod::TipWrench> out;
+  std::string line;
+  for (int lineno = 1; std::getline(*in, line); ++lineno) {
+    for (char& c : line)
+      if (c == ',' || c == '\t' || c == '\r') c = ' ';
+    std::istringstream ss(line);
+    std::vector<std::string> tok;
+    std::string t;
+    while (ss >> t) tok.push_back(t);
+    if (tok.empty() || tok[0][0] == '#') continue;
+    const std::string where = "--batch line " + std::to_string(lineno);
+    if (tok.size() != 6) throw BadInput{where + ": expected 6 numbers fx fy fz mx my mz, got " + std::to_string(tok.size())};
+    hydrojet::rod::TipWrench w;
+    for (int k = 0; k < 3; ++k) w.force[k] = parse_number(tok[k], where);
+    for (int k = 0; k < 3; ++k) w.moment[k] = parse_number(tok[3 + k], where);
+    out.push_back(w);
+  }
+  return out;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options opt;
+  hydrojet::config::Scene scene;
+  std::vector<hydrojet::rod::TipWrench> wrenches;
+  try {
+    opt = parse_args(argc, argv);
+    scene = hydrojet::config::load_scene(opt.scene);
+    if (!opt.integrator.empty() && !hydrojet::rod::parse_integrator(opt.integrator, &scene.solver.integrator.type))
+      throw BadInput{"--integrator: unknown integrator '" + opt.integrator + "' (rk4, rk8, dopri5)"};
+    if (opt.steps) scene.solver.integrator.steps = opt.steps;
+    if (opt.tol > 0.0) scene.solver.integrator.tolerance = opt.tol;
+    wrenches = opt.batch.empty() ? std::vector<hydrojet::rod::TipWrench>{opt.wrench} : read_batch(opt.batch);
+  } catch (const BadInput& e) {
+    std::cerr << "rod_fk: " << e.what << "\n";
+    return 2;
+  } catch (const hydrojet::config::SceneError& e) {
+    std::cerr << "rod_fk: scene " << opt.scene << ": " << e.what() << "\n";
+    return 2;
+  }
+
+  hydrojet::rod::ShootingSolver solver(scene.model, scene.solver);
+  bool all_converged = true;
+  for (const auto& w : wrenches) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const hydrojet::rod::RodSolution sol = solver.solve(w);
+    const auto t1 = std::chrono::steady_clock::now();
+    all_converged = all_converged && sol.converged;
+
+    JsonObject j;
+    j.add("converged", sol.converged)
+        .add("iterations", sol.iterations)
+        .add("residual", sol.residual)
+        .add("tip_position", sol.tip_position)
+        .add("tip_quaternion_wxyz", hydrojet::so3::quaternion_wxyz(sol.tip_rotation))
+        .add("solve_time_us", std::chrono::duration<double, std::micro>(t1 - t0).count())
+        .add("rhs_evaluations", sol.rhs_evaluations)
+        .add("continuation_steps", sol.continuation_steps)
+        .add("shooting_jacobian_det", sol.jacobian_det)
+        .add("integrator", hydrojet::rod::integrator_name(scene.solver.integrator.type));
+    if (!sol.converged) j.add("message", sol.message);
+    if (opt.compliance) {
+      if (sol.converged) {
+        const auto tc0 = std::chrono::steady_clock::now();
+        const hydrojet::rod::Compliance c = solver.compliance();
+        const auto tc1 = std::chrono::steady_clock::now();
+        const auto st = hydrojet::rod::stability(c.body, scene.actuated);
+        j.add("compliance", c.body)
+            .add("stability_margin", st.margin)
+            .add("stability_eig_min", st.eig_min)
+            .add("compliance_time_us", std::chrono::duration<double, std::micro>(tc1 - tc0).count());
+      } else {
+        j.add_null("compliance").add_null("stability_margin").add_null("stability_eig_min");
+      }
+    }
+    if (opt.shape > 0) {
+      if (sol.converged) {
+        std::string pts = "[";
+        const auto shape = solver.shape(opt.shape);
+        for (size_t i = 0; i < shape.size(); ++i) pts += (i ? ", " : "") + JsonObject::matrix(shape[i]);
+        j.raw("shape", pts + "]");
+      } else {
+        j.add_null("shape");
+      }
+    }
+    std::cout << j.str() << "\n";
+  }
+  std::cout.flush();
+  return all_converged ? 0 : 1;
+}

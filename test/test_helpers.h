@@ -1,0 +1,44 @@
+// Shared fixtures for the rod tests: the scenes shipped in config/scenes and small helpers.
+#pragma once
+
+#include <string>
+
+#include "hydrojet_control/config/scene.h"
+#include "hydrojet_control/rod/shooting_solver.h"
+
+namespace hydrojet {
+namespace test {
+
+inline config::Scene scene(const std::string& name) {
+  return config::load_scene(std::string(HYDROJET_SOURCE_DIR) + "/config/scenes/" + name + ".yaml");
+}
+
+/// Jet map of eq. (24) with Table 1's misalignments: tip-frame force from three jet forces [N].
+inline rod::Vec3 jet_force(double q1, double q2, double q3, double da = 0.12, double db = 0.06,
+                           double dg = -0.08) {
+  const double p3 = M_PI / 3.0;
+  return rod::Vec3(std::sin(p3 - db) * q1 + std::sin(da) * q2 - std::sin(p3 - dg) * q3,
+                   std::cos(p3 - db) * q1 - std::cos(da) * q2 + std::cos(p3 - dg) * q3, 0.0);
+}
+
+/// A straight, unloaded, isotropic rod with no gravity (for closed-form checks).
+inline rod::RodModel plain_rod(double L = 0.09, double EI = 6.01e-4, double GJ = 2.23e-4) {
+  rod::RodModel m;
+  m.rod.length = L;
+  m.rod.stiffness = rod::Vec3(EI, EI, GJ);
+  m.rod.precurvature.setZero();
+  m.tip_mass = 0.0;
+  m.gravity.setZero();
+  return m;
+}
+
+inline rod::ShootingSettings rk8(int steps, double residual_tol = 1e-12) {
+  rod::ShootingSettings s;
+  s.integrator.type = rod::IntegratorType::kRk8;
+  s.integrator.steps = steps;
+  s.residual_tolerance = residual_tol;
+  return s;
+}
+
+}  // namespace test
+}  // namespace hydrojet

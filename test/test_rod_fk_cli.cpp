@@ -1,0 +1,150 @@
+// rod_fk as a user runs it: exit codes, one JSON line per solve, and errors that name the input.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <vector>
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <sys/wait.h>
+
+namespace {
+
+struct CliRun {
+  int status;
+  std::string out;
+  std::string err;
+};
+
+CliRun run(const std::string& args, const std::string& stdin_text = "") {
+  const std::string in = ::testing::TempDir() + "rod_fk_in.txt";
+  const std::string err = ::testing::TempDir() + "rod_fk_err.txt";
+  std::ofstream(in) << stdin_text;
+  const std::string cmd = std::string(HYDROJET_ROD_FK) + " " + args + " < " + in + " 2> " + err;
+  FILE* p = popen(cmd.c_str(), "r");
+  std::string out;
+  std::array<char, 4096> buf;
+  size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) out.append(buf.data(), n);
+  const int st = pclose(p);
+  std::ifstream e(err);
+  std::string errtext((std::istreambuf_iterator<char>(e)), std::istreambuf_iterator<char>());
+  return {WIFEXITED(st) ? WEXITSTATUS(st) : -1, out, errtext};
+}
+
+std::string scene(const std::string& name) {
+  return std::string(HYDROJET_SOURCE_DIR) + "/config/scenes/" + name + ".yaml";
+}
+
+std::string write_scene(const std::string& text) {
+  const std::string path = ::testing::TempDir() + "rod_fk_scene.yaml";
+  std::ofstream(path) << text;
+  return path;
+}
+
+// Extracts the numbers of a JSON array field `"key": [a, b, c]` (flat arrays only).
+std::vector<double> array_field(const std::string& json, const std::string& key) {
+  std::vector<double> v;
+  size_t i = json.find("\"" + key + "\": [");
+  if (i == std::string::npos) return v;
+  i = json.find('[', i) + 1;
+  const size_t end = json.find(']', i);
+  std::string body = json.substr(i, end - i);
+  size_t pos = 0;
+  while (pos < body.size()) {
+    size_t used = 0;
+    v.push_back(std::stod(body.substr(pos), &used));
+    pos += used;
+    while (pos < body.size() && (body[pos] == ',' || body[pos] == ' ')) ++pos;
+  }
+  return v;
+}
+
+const char* kGoodScene = R"(
+rod: {length: 0.09, bending_stiffness: [6.01e-4, 6.01e-4], torsional_stiffness: 2.23e-4}
+tip: {mass: 0.0}
+gravity: [0, 0, 0]
+)";
+
+}  // namespace
+
+TEST(RodFkCli, SolvesAndPrintsContractFields) {
+  const CliRun r = run("--scene " + scene("hydrojet_0deg") + " --force 0.1 0.05 0 --compliance --shape 4");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1);
+  for (const char* key : {"\"converged\": true", "\"iterations\"", "\"residual\"", "\"tip_position\"",
+                          "\"tip_quaternion_wxyz\"", "\"solve_time_us\"", "\"compliance\": [[",
+                          "\"stability_margin\"", "\"stability_eig_min\"", "\"shape\": [["})
+    EXPECT_NE(r.out.find(key), std::string::npos) << key << "\n" << r.out;
+  const auto q = array_field(r.out, "tip_quaternion_wxyz");
+  ASSERT_EQ(q.size(), 4u);
+  EXPECT_NEAR(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3], 1.0, 1e-12);
+  EXPECT_GE(q[0], 0.0);
+}
+
+// A straight weightless rod with a small lateral force: linear beam tip deflection FL³/(3EI).
+TEST(RodFkCli, BatchSolvesEachLineInOrder) {
+  const std::string sc = write_scene(kGoodScene);
+  const CliRun r = run("--scene " + sc + " --batch -", "1e-5 0 0 0 0 0\n# comment\n\n0, 1e-5, 0, 0, 0, 0\n");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const size_t nl = r.out.find('\n');
+  const std::string first = r.out.substr(0, nl), second = r.out.substr(nl + 1);
+  const double delta = 1e-5 * 0.09 * 0.09 * 0.09 / (3 * 6.01e-4);
+  EXPECT_NEAR(array_field(first, "tip_position")[0], delta, 1e-4 * delta);
+  EXPECT_NEAR(array_field(second, "tip_position")[1], delta, 1e-4 * delta);
+}
+
+TEST(RodFkCli, BadInputExitsTwoAndNamesIt) {
+  struct Case {
+    std::string args, stdin_text, expect;
+  };
+  const std::string good = write_scene(kGoodScene);
+  const std::vector<Case> cases = {
+      {"--scene " + good + " --force nan 0 0", "", "--force"},
+      {"--scene " + good + " --force 0.1 0", "", "--force"},
+      {"--scene " + good + " --integrator euler", "", "--integrator"},
+      {"--scene " + good + " --steps 0", "", "--steps"},
+      {"--scene " + good + " --batch -", "0 0 0 0 0\n", "--batch line 1"},
+      {"--scene " + good + " --batch -", "0 0 0 0 0 0\n0 0 inf 0 0 0\n", "--batch line 2"},
+      {"--scene " + good + " --frobnicate", "", "--frobnicate"},
+      {"--force 0 0 0", "", "--scene"},
+      {"--scene /nonexistent.yaml", "", "cannot read"},
+  };
+  for (const Case& c : cases) {
+    const CliRun r = run(c.args, c.stdin_text);
+    EXPECT_EQ(r.status, 2) << c.args;
+    EXPECT_TRUE(r.out.empty()) << c.args << " printed " << r.out;
+    EXPECT_NE(r.err.find(c.expect), std::string::npos) << c.args << " -> " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
+  // Scene errors name the key.
+  const std::vector<std::pair<std::string, std::string>> scenes = {
+      {"rod: {length: 0.09, bending_stiffness: [-6.01e-4, 6.01e-4], torsional_stiffness: 2.23e-4}\ntip: {mass: 0}\ngravity: [0,0,0]\n",
+       "rod.bending_stiffness[0]"},
+      {"rod: {bending_stiffness: [6.01e-4, 6.01e-4], torsional_stiffness: 2.23e-4}\ntip: {mass: 0}\ngravity: [0,0,0]\n",
+       "rod.length"},
+      {std::string(kGoodScene) + "solver: {colour: 1}\n", "solver.colour"},
+      {"rod: {length: 0.09, bending_stiffness: [6.01e-4, 6.01e-4], torsional_stiffness: 2.23e-4, shear: 1}\ntip: {mass: 0}\ngravity: [0,0,0]\n",
+       "rod.shear"},
+  };
+  for (const auto& s : scenes) {
+    const CliRun r = run("--scene " + write_scene(s.first));
+    EXPECT_EQ(r.status, 2);
+    EXPECT_TRUE(r.out.empty());
+    EXPECT_NE(r.err.find(s.second), std::string::npos) << r.err;
+  }
+}
+
+// Exit 1 with "converged": false when a solve does not converge: one Newton step and no load
+// continuation cannot finish a large bend from the cold start.
+TEST(RodFkCli, NonConvergenceExitsOne) {
+  const std::string sc =
+      write_scene(std::string(kGoodScene) + "solver: {max_iterations: 1, max_continuation_steps: 0}\n");
+  const CliRun r = run("--scene " + sc + " --batch -", "0 0 0 0 0 0\n0.2 0 0 0 0 0\n");
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  const size_t nl = r.out.find('\n');
+  EXPECT_NE(r.out.substr(0, nl).find("\"converged\": true"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.substr(nl + 1).find("\"converged\": false"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.substr(nl + 1).find("\"message\""), std::string::npos) << r.out;
+}

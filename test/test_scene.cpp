@@ -1,0 +1,94 @@
+// Scene YAML loading and validation: every bad key is named in the error.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "hydrojet_control/config/scene.h"
+#include "test_helpers.h"
+
+using hydrojet::config::parse_scene;
+using hydrojet::config::SceneError;
+
+namespace {
+
+const char* kGood = R"(
+rod:
+  length: 0.09
+  bending_stiffness: [6.01e-4, 5.0e-4]
+  torsional_stiffness: 2.23e-4
+  precurvature: [0.034, 0.88, 0.0]
+  linear_density: 0.01
+tip:
+  mass: 0.00258
+gravity: [0.0, 0.0, 9.81]
+)";
+
+std::string error_key(const std::string& yaml) {
+  try {
+    parse_scene(yaml);
+  } catch (const SceneError& e) {
+    return e.key();
+  }
+  return "(no error)";
+}
+
+std::string replace(std::string s, const std::string& from, const std::string& to) {
+  const size_t i = s.find(from);
+  EXPECT_NE(i, std::string::npos) << from;
+  return s.replace(i, from.size(), to);
+}
+
+}  // namespace
+
+TEST(Scene, ParsesAllKeys) {
+  const auto s = parse_scene(kGood);
+  EXPECT_DOUBLE_EQ(s.model.rod.length, 0.09);
+  EXPECT_DOUBLE_EQ(s.model.rod.stiffness[0], 6.01e-4);
+  EXPECT_DOUBLE_EQ(s.model.rod.stiffness[1], 5.0e-4);
+  EXPECT_DOUBLE_EQ(s.model.rod.stiffness[2], 2.23e-4);
+  EXPECT_DOUBLE_EQ(s.model.rod.precurvature[1], 0.88);
+  EXPECT_DOUBLE_EQ(s.model.rod.linear_density, 0.01);
+  EXPECT_DOUBLE_EQ(s.model.tip_mass, 0.00258);
+  EXPECT_DOUBLE_EQ(s.model.gravity[2], 9.81);
+}
+
+TEST(Scene, ShippedScenesLoad) {
+  const auto a = hydrojet::test::scene("hydrojet_0deg");
+  const auto b = hydrojet::test::scene("hydrojet_30deg");
+  EXPECT_NEAR(a.model.gravity.norm(), 9.81, 1e-9);
+  EXPECT_NEAR(b.model.gravity.norm(), 9.81, 1e-9);
+  // 30° between the two gravity directions.
+  EXPECT_NEAR(std::acos(a.model.gravity.normalized().dot(b.model.gravity.normalized())), M_PI / 6, 1e-9);
+}
+
+// Hollow cylinder: EI = E·π(D⁴ − d⁴)/64, GJ = G·π(D⁴ − d⁴)/32.
+TEST(Scene, ModuliAndDiametersGiveStiffness) {
+  const auto s = parse_scene(R"(
+rod: {length: 0.09, youngs_modulus: 1.0e5, shear_modulus: 3.4e4, outer_diameter: 0.008, inner_diameter: 0.006}
+tip: {mass: 0.0}
+gravity: [0, 0, 0]
+)");
+  const double I = M_PI * (std::pow(0.008, 4) - std::pow(0.006, 4)) / 64.0;
+  EXPECT_NEAR(s.model.rod.stiffness[0], 1.0e5 * I, 1e-15);
+  EXPECT_NEAR(s.model.rod.stiffness[2], 3.4e4 * 2 * I, 1e-15);
+}
+
+TEST(Scene, ErrorsNameTheKey) {
+  EXPECT_EQ(error_key(replace(kGood, "  length: 0.09\n", "")), "rod.length");
+  EXPECT_EQ(error_key(replace(kGood, "6.01e-4, 5.0e-4", "-6.01e-4, 5.0e-4")), "rod.bending_stiffness[0]");
+  EXPECT_EQ(error_key(replace(kGood, "2.23e-4", "0")), "rod.torsional_stiffness");
+  EXPECT_EQ(error_key(replace(kGood, "0.034, 0.88, 0.0", ".nan, 0.88, 0.0")), "rod.precurvature[0]");
+  EXPECT_EQ(error_key(replace(kGood, "0.034, 0.88, 0.0", "0.034, 0.88")), "rod.precurvature");
+  EXPECT_EQ(error_key(replace(kGood, "  mass: 0.00258", "  mass: heavy")), "tip.mass");
+  EXPECT_EQ(error_key(replace(kGood, "  mass: 0.00258", "  mass: -1")), "tip.mass");
+  EXPECT_EQ(error_key(replace(kGood, "  mass: 0.00258", "  mass: 0.00258\n  colour: red")), "tip.colour");
+  EXPECT_EQ(error_key(replace(kGood, "  length: 0.09", "  length: 0.09\n  lenght: 0.1")), "rod.lenght");
+  EXPECT_EQ(error_key(replace(kGood, "gravity: [0.0, 0.0, 9.81]\n", "")), "gravity");
+  EXPECT_EQ(error_key(replace(kGood, "tip:\n  mass: 0.00258\n", "")), "tip");
+  EXPECT_EQ(error_key("rod: [1, 2"), "scene");  // malformed YAML
+  EXPECT_EQ(error_key(std::string(kGood) + "solver: {integrator: euler}\n"), "solver.integrator");
+  EXPECT_EQ(error_key(std::string(kGood) + "solver: {steps: 2.5}\n"), "solver.steps");
+  EXPECT_EQ(error_key(std::string(kGood) + "solver: {stepz: 2}\n"), "solver.stepz");
+  // Unknown top-level sections are allowed (later tools add their own).
+  EXPECT_EQ(error_key(std::string(kGood) + "plant: {anything: 1}\n"), "(no error)");
+}
