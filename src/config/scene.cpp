@@ -133,6 +133,22 @@ void parse_solver(const YAML::Node& n, rod::ShootingSettings* st) {
     st->max_continuation_steps = get_int(n["max_continuation_steps"], "solver.max_continuation_steps", 0, 100000);
 }
 
+void parse_jets(const YAML::Node& n, Scene* s) {
+  check_keys(n, "jets", {"misalignment", "max_force", "inlet_area", "outlet_area", "water_density", "nozzle_offset"});
+  s->has_jets = true;
+  s->jets.misalignment = get_vec3(n["misalignment"], "jets.misalignment");
+  const rod::Vec3 qmax = get_vec3(n["max_force"], "jets.max_force");
+  for (int i = 0; i < 3; ++i)
+    if (!(qmax[i] > 0.0)) throw SceneError("jets.max_force[" + std::to_string(i) + "]", "must be positive, got " + fmt(qmax[i]));
+  s->max_jet_force = qmax;
+  s->nozzle.inlet_area = get_positive(n["inlet_area"], "jets.inlet_area");
+  s->nozzle.outlet_area = get_positive(n["outlet_area"], "jets.outlet_area");
+  s->nozzle.water_density = get_positive(n["water_density"], "jets.water_density");
+  if (s->nozzle.outlet_area >= s->nozzle.inlet_area)
+    throw SceneError("jets.outlet_area", "must be smaller than jets.inlet_area (else the thrust of eq. 26 is not positive)");
+  s->jets.nozzle_offset = n["nozzle_offset"] ? get_double(n["nozzle_offset"], "jets.nozzle_offset") : 0.0;
+}
+
 }  // namespace
 
 Scene parse_scene(const std::string& text) {
@@ -150,6 +166,7 @@ Scene parse_scene(const std::string& text) {
   parse_tip(root["tip"], &s);
   s.model.gravity = get_vec3(root["gravity"], "gravity");
   if (root["solver"]) parse_solver(root["solver"], &s.solver);
+  if (root["jets"]) parse_jets(root["jets"], &s);
   return s;
 }
 
@@ -159,6 +176,25 @@ Scene load_scene(const std::string& path) {
   std::stringstream ss;
   ss << f.rdbuf();
   return parse_scene(ss.str());
+}
+
+}  // namespace config
+}  // namespace hydrojet
+
+namespace hydrojet {
+namespace config {
+
+control::ControllerModel make_controller_model(const Scene& scene, const actuation::FlowRegulatorParameters& flow) {
+  if (!scene.has_jets) throw SceneError("jets", "missing (the controller needs the jet geometry)");
+  control::ControllerModel m;
+  m.rod = scene.model;
+  m.solver = scene.solver;
+  m.actuated = scene.actuated;
+  m.jets = scene.jets;
+  m.nozzle = scene.nozzle;
+  m.max_jet_force = scene.max_jet_force;
+  m.flow = flow;
+  return m;
 }
 
 }  // namespace config

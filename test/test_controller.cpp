@@ -1,0 +1,322 @@
+// The PD resolved-rates controller (Algorithm 1) with the quasi-static rod model as the plant, no
+// ROS: convergence on static targets in closed and open loop, the value of feedback under model
+// mismatch, and every safety trigger.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "hydrojet_control/control/controller.h"
+#include "test_helpers.h"
+
+using namespace hydrojet;
+using control::Controller;
+using control::ControllerInputs;
+using control::ControllerOutput;
+using control::ControllerState;
+using control::Vec3;
+
+namespace {
+
+constexpr double kDt = 0.01;            // 100 Hz
+constexpr double kFlowPerDuty = 1.6e-5; // plant valve: full duty gives 1.6e-5 m^3/s
+
+actuation::FlowRegulatorParameters flow_gains() {
+  actuation::FlowRegulatorParameters p;
+  p.feedforward = 1.0 / kFlowPerDuty;
+  p.kp = 0.3 / kFlowPerDuty;
+  p.ki = 5.0 / kFlowPerDuty;
+  return p;
+}
+
+/// Quasi-static plant: valves set flows instantly, flows set jet forces by eq. (26), the rod
+/// settles at once. Its rod may differ from the controller's model.
+struct StaticPlant {
+  rod::ShootingSolver rod;
+  actuation::JetMap jets;
+  actuation::NozzleParameters nozzle;
+  Vec3 flows = Vec3::Zero();
+  control::Mat3 tip = control::Mat3::Identity();
+
+  StaticPlant(const config::Scene& sc, const rod::RodModel& truth)
+      : rod(truth, sc.solver), jets(sc.jets), nozzle(sc.nozzle) {
+    apply(Vec3::Zero());
+  }
+  void apply(const Vec3& duty) {
+    flows = duty.cwiseMax(0.0).cwiseMin(1.0) * kFlowPerDuty;
+    Vec3 q;
+    for (int i = 0; i < 3; ++i) q[i] = actuation::force_from_flow(flows[i], nozzle);
+    rod::TipWrench w;
+    w.force = jets.wrench(q).head<3>();
+    const rod::RodSolution s = rod.solve(w);
+    ASSERT_TRUE(s.converged);
+    tip = s.tip_rotation;
+  }
+  ControllerInputs inputs(double t) const {
+    ControllerInputs in;
+    in.t = t;
+    in.tip_valid = in.flow_valid = true;
+    in.tip_stamp = in.flow_stamp = t;
+    in.tip_rotation = tip;
+    in.flows = flows;
+    return in;
+  }
+};
+
+control::ControllerParams static_target(double theta, double phi) {
+  control::ControllerParams p;
+  p.path.theta_start = p.path.theta_end = theta;
+  p.path.phi_start = p.path.phi_end = phi;
+  p.path.duration = 1000.0;
+  return p;
+}
+
+/// Runs `seconds` of control; returns the last output.
+ControllerOutput run(Controller& c, StaticPlant& plant, double t0, double seconds) {
+  ControllerOutput out;
+  const int n = static_cast<int>(std::lround(seconds / kDt));
+  for (int k = 0; k < n; ++k) {
+    out = c.update(plant.inputs(t0 + k * kDt));
+    plant.apply(out.valve_command);
+    if (out.state == ControllerState::kAborted) break;
+  }
+  return out;
+}
+
+}  // namespace
+
+// With an exact model both loops reach static targets across the workspace.
+TEST(Controller, ConvergesOnStaticTargetsClosedAndOpenLoop) {
+  for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
+    const config::Scene sc = test::scene(name);
+    for (control::LoopMode mode : {control::LoopMode::kClosed, control::LoopMode::kOpen}) {
+      for (const auto& target : {std::make_pair(0.4, 0.5), std::make_pair(0.9, 2.5), std::make_pair(0.2, -2.0)}) {
+        control::ControllerParams p = static_target(target.first, target.second);
+        p.mode = mode;
+        Controller c(config::make_controller_model(sc, flow_gains()), p);
+        StaticPlant plant(sc, sc.model);
+        c.start(0.0);
+        const ControllerOutput out = run(c, plant, 0.0, 8.0);
+        ASSERT_EQ(out.state, ControllerState::kRunning) << out.reason;
+        EXPECT_LT(out.error_geodesic, 1e-3) << name << " " << control::to_string(mode) << " target "
+                                             << target.first << "," << target.second;
+        EXPECT_NEAR(control::bend_angle(plant.tip.col(2)), target.first, 1e-3);
+      }
+    }
+  }
+}
+
+// Model mismatch (plant 25 % stiffer, precurvature off): closed loop still converges, open loop
+// keeps the model's error — the paper's case for pose feedback.
+TEST(Controller, FeedbackRemovesModelMismatch) {
+  const config::Scene sc = test::scene("hydrojet_0deg");
+  rod::RodModel truth = sc.model;
+  truth.rod.stiffness *= 1.25;
+  truth.rod.precurvature *= 0.0;
+  double err[2];
+  for (int m = 0; m < 2; ++m) {
+    control::ControllerParams p = static_target(0.7, 1.0);
+    p.mode = m == 0 ? control::LoopMode::kClosed : control::LoopMode::kOpen;
+    Controller c(config::make_controller_model(sc, flow_gains()), p);
+    StaticPlant plant(sc, truth);
+    c.start(0.0);
+    const ControllerOutput out = run(c, plant, 0.0, 8.0);
+    ASSERT_EQ(out.state, ControllerState::kRunning) << out.reason;
+    err[m] = out.error_geodesic;
+  }
+  EXPECT_LT(err[0], 1e-3);
+  EXPECT_GT(err[1], 0.05);
+}
+
+// The spiral of eq. (28), shortened: the closed loop follows it with a small error.
+TEST(Controller, FollowsShortenedSpiral) {
+  const config::Scene sc = test::scene("hydrojet_30deg");
+  control::ControllerParams p;
+  p.path.duration = 60.0;
+  p.path.theta_end = 1.04;
+  p.path.phi_end = 14.0;
+  Controller c(config::make_controller_model(sc, flow_gains()), p);
+  StaticPlant plant(sc, sc.model);
+  c.start(0.0);
+  double sum2 = 0.0;
+  int n = 0;
+  for (int k = 0; k <= 6000; ++k) {
+    const ControllerOutput out = c.update(plant.inputs(k * kDt));
+    ASSERT_NE(out.state, ControllerState::kAborted) << out.reason << " at " << k * kDt;
+    plant.apply(out.valve_command);
+    if (k * kDt > 5.0) {
+      sum2 += out.error_geodesic * out.error_geodesic;
+      ++n;
+    }
+  }
+  EXPECT_LT(std::sqrt(sum2 / n), 0.02);
+  EXPECT_EQ(c.state(), ControllerState::kFinished);
+}
+
+// --- Safety -------------------------------------------------------------------------------------
+
+namespace {
+struct SafetyRig {
+  config::Scene sc = test::scene("hydrojet_0deg");
+  Controller c;
+  StaticPlant plant;
+  explicit SafetyRig(control::ControllerParams p = static_target(0.5, 0.0),
+                     rod::ShootingSettings solver = test::scene("hydrojet_0deg").solver)
+      : c([&] {
+          auto m = config::make_controller_model(sc, flow_gains());
+          m.solver = solver;
+          return m;
+        }(), p),
+        plant(sc, sc.model) {
+    c.start(0.0);
+    const ControllerOutput out = run(c, plant, 0.0, 1.0);  // running, jets on
+    EXPECT_EQ(out.state, ControllerState::kRunning) << out.reason;
+    EXPECT_GT(out.valve_command.sum(), 0.0);
+  }
+  ControllerOutput step(const ControllerInputs& in) {
+    const ControllerOutput out = c.update(in);
+    plant.apply(out.valve_command);
+    return out;
+  }
+};
+
+void expect_aborted(const ControllerOutput& out, const std::string& reason_part) {
+  EXPECT_EQ(out.state, ControllerState::kAborted);
+  EXPECT_EQ(out.valve_command, Vec3::Zero());
+  EXPECT_NE(out.reason.find(reason_part), std::string::npos) << out.reason;
+}
+}  // namespace
+
+TEST(ControllerSafety, StartsAndStopsWithJetsAtZero) {
+  const config::Scene sc = test::scene("hydrojet_0deg");
+  Controller c(config::make_controller_model(sc, flow_gains()), static_target(0.5, 0.0));
+  StaticPlant plant(sc, sc.model);
+  EXPECT_EQ(c.update(plant.inputs(0.0)).valve_command, Vec3::Zero());  // idle before start
+  c.start(0.0);
+  ControllerOutput out = run(c, plant, 0.0, 1.0);
+  EXPECT_GT(out.valve_command.sum(), 0.0);
+  c.stop();
+  out = c.update(plant.inputs(1.0));
+  EXPECT_EQ(out.state, ControllerState::kIdle);
+  EXPECT_EQ(out.valve_command, Vec3::Zero());
+}
+
+TEST(ControllerSafety, StaleTrackerAbortsWithinThreeSamplePeriods) {
+  SafetyRig r;
+  const double t_last = 0.99;  // last tracker sample
+  ControllerOutput out;
+  int k = 0;
+  for (; k < 10; ++k) {
+    ControllerInputs in = r.plant.inputs(1.0 + k * kDt);
+    in.tip_stamp = t_last;
+    out = r.step(in);
+    if (out.state == ControllerState::kAborted) break;
+  }
+  EXPECT_LE(1.0 + k * kDt - t_last, 3 * kDt + 1e-9 + kDt);
+  expect_aborted(out, "tracker");
+  // Latched: healthy data again does not restart the jets.
+  out = r.step(r.plant.inputs(1.2));
+  expect_aborted(out, "tracker");
+  r.c.start(1.3);  // until commanded
+  EXPECT_EQ(r.step(r.plant.inputs(1.3)).state, ControllerState::kRunning);
+}
+
+TEST(ControllerSafety, NonFiniteTrackerPoseAborts) {
+  SafetyRig r;
+  ControllerInputs in = r.plant.inputs(1.0);
+  in.tip_rotation(0, 0) = std::nan("");
+  expect_aborted(r.step(in), "tracker");
+}
+
+TEST(ControllerSafety, StaleNanOrNegativeFlowAborts) {
+  {
+    SafetyRig r;
+    ControllerInputs in = r.plant.inputs(1.05);
+    in.flow_stamp = 1.0;
+    expect_aborted(r.step(in), "flow");
+  }
+  {
+    SafetyRig r;
+    ControllerInputs in = r.plant.inputs(1.0);
+    in.flows[1] = std::nan("");
+    expect_aborted(r.step(in), "jet 2");
+  }
+  {
+    SafetyRig r;
+    ControllerInputs in = r.plant.inputs(1.0);
+    in.flows[2] = -1e-6;
+    expect_aborted(r.step(in), "jet 3");
+  }
+}
+
+TEST(ControllerSafety, SolverFailingTwiceInARowAborts) {
+  rod::ShootingSettings weak = test::scene("hydrojet_0deg").solver;
+  SafetyRig r(static_target(0.5, 0.0), weak);
+  // Now cripple the controller's solver: one Newton step, no continuation, and a large jump of
+  // the measured flows that it cannot follow in one step.
+  control::ControllerModel m = config::make_controller_model(r.sc, flow_gains());
+  m.solver.max_iterations = 1;
+  m.solver.max_continuation_steps = 0;
+  Controller c(m, static_target(0.5, 0.0));
+  c.start(0.0);
+  ControllerInputs in = r.plant.inputs(0.0);
+  in.flows = Vec3(1.2e-5, 0.0, 0.0);
+  ControllerOutput out = c.update(in);
+  EXPECT_EQ(out.state, ControllerState::kRunning);  // one failure is tolerated
+  EXPECT_FALSE(out.solver_converged);
+  in.t = in.tip_stamp = in.flow_stamp = kDt;
+  in.flows = Vec3(0.0, 1.2e-5, 0.0);
+  out = c.update(in);
+  expect_aborted(out, "did not converge");
+}
+
+TEST(ControllerSafety, LowStabilityMarginAborts) {
+  control::ControllerParams p = static_target(0.5, 0.0);
+  const config::Scene sc = test::scene("hydrojet_0deg");
+  Controller c(config::make_controller_model(sc, flow_gains()), p);
+  StaticPlant plant(sc, sc.model);
+  p.min_stability_margin = 100.0;  // N/m, far above the HydroJet's ~3 N/m
+  c.set_params(p);
+  c.start(0.0);
+  expect_aborted(c.update(plant.inputs(0.0)), "sigma_c");
+}
+
+TEST(ControllerSafety, OscillationBeyondHalfRadianAborts) {
+  SafetyRig r;
+  ControllerInputs in = r.plant.inputs(1.0);
+  in.tip_rotation = so3::exp(Vec3(0.0, 0.5 + 0.6, 0.0));  // 0.6 rad past the 0.5 rad target
+  expect_aborted(r.step(in), "oscillation");
+}
+
+TEST(ControllerParams, ValidationNamesTheField) {
+  control::ControllerParams p;
+  EXPECT_EQ(p.validate(), "");
+  p.kp = -1;
+  EXPECT_EQ(p.validate().rfind("kp:", 0), 0u) << p.validate();
+  p = control::ControllerParams();
+  p.sample_period = std::nan("");
+  EXPECT_EQ(p.validate().rfind("sample_period:", 0), 0u);
+  p = control::ControllerParams();
+  p.path.duration = 0;
+  EXPECT_EQ(p.validate().rfind("path.duration:", 0), 0u);
+}
+
+TEST(TaskSpace, AnglesDirectionsAndMetrics) {
+  for (double th : {0.0, 0.3, 1.04, 1.5})
+    for (double ph : {-3.0, -0.5, 0.0, 2.0}) {
+      const Vec3 d = control::direction(th, ph);
+      EXPECT_NEAR(d.norm(), 1.0, 1e-15);
+      EXPECT_NEAR(control::bend_angle(d), th, 1e-12);
+      if (th > 0) EXPECT_NEAR(std::remainder(control::azimuth(d) - ph, 2 * M_PI), 0.0, 1e-12);
+    }
+  const Vec3 a = control::direction(0.4, 0.2), b = control::direction(0.9, 1.7);
+  const Vec3 r = control::rotation_between(a, b);
+  EXPECT_LT((so3::exp(r) * a - b).norm(), 1e-12);
+  EXPECT_NEAR(r.norm(), control::geodesic_error(a, b), 1e-12);
+  // Pure pitch: the paper's metric equals the geodesic angle.
+  EXPECT_NEAR(control::pitch_yaw_error(control::direction(0.2, 0.0), control::direction(0.5, 0.0)), 0.3, 1e-12);
+  // Spiral end point (eq. 28 defaults).
+  control::SpiralPath s;
+  EXPECT_NEAR(s.angles(600.0)[0], 1.04, 1e-12);
+  EXPECT_NEAR(s.angles(600.0)[1], 14.0, 1e-12);
+  EXPECT_NEAR(s.angles(300.0)[0], 0.52, 1e-12);
+}
