@@ -41,10 +41,12 @@ std::string ControllerParams::validate() const {
   if (!finite_nonneg(min_stability_margin)) return bad("min_stability_margin", min_stability_margin, "must be finite and >= 0");
   if (!finite_pos(unreachable_tolerance)) return bad("unreachable_tolerance", unreachable_tolerance, "must be finite and > 0");
   if (!finite_pos(path.duration)) return bad("path.duration", path.duration, "must be finite and > 0");
-  for (double v : {path.theta_start, path.theta_end, path.phi_start, path.phi_end})
-    if (!std::isfinite(v)) return bad("path", v, "angles must be finite");
-  if (path.theta_start < 0 || path.theta_end < 0 || path.theta_start > M_PI / 2 || path.theta_end > M_PI / 2)
-    return bad("path.theta_start/theta_end", path.theta_end, "must lie in [0, pi/2]");
+  if (!(path.theta_start >= 0 && path.theta_start <= M_PI / 2))
+    return bad("path.theta_start", path.theta_start, "must lie in [0, pi/2]");
+  if (!(path.theta_end >= 0 && path.theta_end <= M_PI / 2))
+    return bad("path.theta_end", path.theta_end, "must lie in [0, pi/2]");
+  if (!std::isfinite(path.phi_start)) return bad("path.phi_start", path.phi_start, "must be finite");
+  if (!std::isfinite(path.phi_end)) return bad("path.phi_end", path.phi_end, "must be finite");
   return "";
 }
 

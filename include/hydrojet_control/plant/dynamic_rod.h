@@ -1,0 +1,191 @@
+// Dynamic Cosserat rod of the simulated HydroJet plant, after Till, Aloi & Rucker, "Real-time
+// dynamics of soft and continuum robots based on Cosserat rod models", IJRR 38(6), 2019
+// (referred to below as "Till"). ROS-free (Eigen only).
+//
+// Model (Till §2, eqs. for the Cosserat rod PDEs), s ∈ [0, L], t = time. Global (base-frame)
+// internal force n and moment m; body-frame strains v, u, velocity q and angular velocity ω:
+//   p_s = R v                        R_s = R û
+//   n_s = R(ρA(ω̂ q + q_t) + c_d(q) q) − ρA g            (linear + quadratic drag, body frame)
+//   m_s = R(ω̂ ρJ ω + ρJ ω_t) − p_s × n
+//   q_s = v_t − û q + ω̂ v           ω_s = u_t − û ω       (kinematic compatibility)
+// with the Kelvin–Voigt constitutive law (Till's viscoelastic law, B = τ_kv K)
+//   n = R(K_se(v − e_z) + B_se v_t),  m = R(K_bt(u − ũ) + B_bt u_t),
+//   K_se = diag(GA, GA, EA), K_bt = diag(EI_x, EI_y, GJ), B_se = τ_kv K_se, B_bt = τ_kv K_bt.
+// Base (s = 0) clamped and at rest: p = 0, R = I, q = ω = 0.
+// Tip (s = L): the capsule, a rigid body (mass m_t, tip-frame inertia J_t, centre at p(L)) under
+// the follower wrench (f_b, l_b), gravity and drag:
+//   n(L) = R f_b + m_t g − m_t R(ω̂ q + q_t) − R c_t(q) q
+//   m(L) = R l_b − R(ω̂ J_t ω + J_t ω_t) − R c_ω ω
+//
+// Time discretisation: BDF-α (Till §3.1). For every variable y with a time derivative
+// (here z = [v, u, q, ω], 12 numbers) at every spatial evaluation point,
+//   y_t(i) ≈ c0 y(i) + y_h,   y_h = c1 y(i−1) + c2 y(i−2) + d1 y_t(i−1),
+//   c0 = (1.5 + α)/(Δt(1 + α)), c1 = −2/Δt, c2 = (0.5 + α)/(Δt(1 + α)), d1 = α/(1 + α).
+// α = 0 is BDF2 (L-stable), α = −0.5 the trapezoidal rule (no numerical dissipation); Till uses
+// α = −0.2, which damps the highest frequencies by |d1| = 0.25 per step while second-order accurate.
+// Substituting y_t into the PDEs gives an ODE in s per time step (Till's "semi-discretised"
+// system); the strains follow from the internal forces by the diagonal linear solve
+//   v = (K_se + c0 B_se)⁻¹(Rᵀn + K_se e_z − B_se v_h),  u = (K_bt + c0 B_bt)⁻¹(Rᵀm + K_bt ũ − B_bt u_h).
+// When Δt changes between steps the BDF-α history (which assumes equal steps) is not valid, and that
+// one step uses the one-step θ-method with the same high-frequency damping, θ = 1/(1 − d1).
+//
+// Space: a fixed grid of N nodes (N − 1 classic RK4 steps). The history is stored at every RK4
+// stage point (4 per step, plus the tip), so each stage sees its own consistent time history; RK4
+// (rather than Till's explicit Euler) keeps the static limit accurate to ~1e-10 m with N ≈ 20.
+//
+// Shooting (Till §3.2): unknowns n(0), m(0) (6); residual: the tip boundary condition above (6).
+// Newton with a finite-difference Jacobian that is kept across time steps and refined by Broyden
+// rank-one updates (refreshed when the contraction is poor), warm-started by extrapolating the
+// previous steps' base values. No heap allocation per step (all arrays are sized in the constructor).
+//
+// Static limit: with all time derivatives zero this is the static Cosserat rod; as EA, GA → ∞ it is
+// the Kirchhoff rod of rod_model.h (ShootingSolver). The tip-position difference is about
+// L·|n|/min(GA, EA) (shear + extension), ≈ 2e-7 m for the HydroJet at 0.2 N with the defaults.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/LU>
+#include <string>
+#include <vector>
+
+#include "hydrojet_control/rod/rod_model.h"
+
+namespace hydrojet {
+namespace plant {
+
+using rod::Mat3;
+using rod::Vec3;
+using rod::Vec6;
+using rod::Mat6;
+
+/// Parameters of the dynamic rod. SI units. The RodModel supplies L, EI_x, EI_y, GJ, ũ, ρA (used
+/// for both the body weight and the body's translational inertia), m_t and g, exactly as in the
+/// quasi-static ShootingSolver, so both models share one static equilibrium (up to shear/extension).
+///
+/// ρA = 0 (the paper's massless body) is supported: the body is then a (visco)elastic spring
+/// slaved to the capsule, whose mass and tip_inertia carry the dynamics. A small positive ρA (e.g.
+/// 1e-3 kg/m) adds the body's own (higher) modes; either way the per-step problem is well posed.
+struct DynamicRodParameters {
+  rod::RodModel model;                   ///< statics: geometry, stiffness, ũ, ρA, m_t, gravity
+  double shear_stiffness = 1e5;          ///< GA [N]; stiff by default (≈1e6·EI/L² for HydroJet)
+  double axial_stiffness = 1e5;          ///< EA [N]; stiff by default (nearly inextensible)
+  double kelvin_voigt_time = 0.01;       ///< τ_kv [s]: B_se = τ_kv K_se, B_bt = τ_kv K_bt. With
+                                         ///< 0.01 s the HydroJet's first mode (≈5 Hz) has ζ ≈ 0.15
+  double linear_drag = 0.0;              ///< c_lin, body drag [N s/m per m of rod] (body frame)
+  double quadratic_drag = 0.0;           ///< c_quad, body drag [N s²/m² per m]: force −c_quad|q|q
+  double tip_drag = 0.0;                 ///< c_t, capsule linear drag [N s/m]
+  double tip_quadratic_drag = 0.0;       ///< capsule quadratic drag [N s²/m²]: force −c|q|q
+  double tip_angular_drag = 0.0;         ///< c_ω, capsule rotational drag [N m s/rad]
+  /// J_t, capsule inertia about its centre, tip frame, diagonal [kg m²]. Default: a 2.58 g
+  /// cylinder of radius ≈7 mm and length ≈15 mm (an estimate; the paper does not give it).
+  Vec3 tip_inertia = Vec3(8e-8, 8e-8, 6e-8);
+  /// ρI [kg m]: body rotational inertia per length; ρJ = ρI·diag(1, 1, 2). 0 = none.
+  double rotational_inertia_per_length = 0.0;
+  int nodes = 21;                        ///< N spatial nodes (N − 1 RK4 steps), 2 ≤ N ≤ 2000
+  double alpha = -0.2;                   ///< BDF-α parameter in [−0.5, 0] (Till: −0.2)
+  /// Newton stops when |residual| ≤ tolerance·F0, F0 = max(EI, GJ)/L² [N] (the residual is the tip
+  /// force error [N] and the tip moment error / L).
+  double tolerance = 1e-9;
+  int max_iterations = 25;               ///< Newton iterations per time step (and per attempt)
+
+  /// Empty if valid, otherwise a message naming the first bad field (e.g. "shear_stiffness ...").
+  std::string validate() const;
+};
+
+/// Dynamic Cosserat rod with BDF-α time stepping and per-step shooting. Not thread-safe.
+class DynamicRod {
+ public:
+  /// Throws std::invalid_argument with DynamicRodParameters::validate()'s message if invalid.
+  /// The rod starts at rest at the static equilibrium under a zero tip wrench (reset_to_static is
+  /// called); if that fails, last_error() says so and step() refuses until a reset succeeds.
+  explicit DynamicRod(const DynamicRodParameters& params);
+
+  /// Puts the rod at rest in the static equilibrium under the tip wrench `w` (same model, same
+  /// grid, all velocities zero, history consistent with rest) and sets time() to 0. Initialised
+  /// from the quasi-static rod::ShootingSolver, then refined on this model (finite GA, EA).
+  /// Returns false (state unchanged) and sets last_error() if no equilibrium was found.
+  bool reset_to_static(const rod::TipWrench& w);
+
+  /// Advances by dt [s] under the tip wrench w (held over the step; implicit: w is the wrench at
+  /// the end of the step). Returns false and sets last_error() if the wrench or dt is invalid or
+  /// the boundary-value problem did not converge; the state is then unchanged.
+  bool step(const rod::TipWrench& w, double dt);
+
+  Mat3 tip_rotation() const;            ///< R(L), tip frame in the base frame (orthonormalised)
+  Vec3 tip_position() const;            ///< p(L) [m], base frame
+  Vec3 tip_velocity() const;            ///< R(L) q(L) [m/s], base frame
+  Vec3 tip_angular_velocity() const;    ///< R(L) ω(L) [rad/s], base frame
+  std::vector<Vec3> backbone() const;   ///< the N node positions [m], base to tip, base frame
+  Vec3 base_force() const;              ///< n(0) [N], base frame: force the rod exerts on the mount
+  Vec3 base_moment() const;             ///< m(0) [N m], base frame: moment on the mount
+
+  /// Sets g [m/s²] in the base frame (a tilted base); takes effect from the next step. A
+  /// non-finite vector is ignored and reported through last_error().
+  void set_gravity(const Vec3& g);
+  Vec3 gravity() const { return params_.model.gravity; }
+
+  int last_iterations() const { return last_iterations_; }  ///< Newton iterations, last solve
+  int last_evaluations() const { return last_evaluations_; } ///< shooting passes, last solve
+  std::string last_error() const { return last_error_; }    ///< empty after a success
+  double time() const { return time_; }                      ///< [s] since the last reset
+  const DynamicRodParameters& parameters() const { return params_; }
+
+ private:
+  using Vec12 = Eigen::Matrix<double, 12, 1>;
+  using Vec24 = Eigen::Matrix<double, 24, 1>;
+  using Mat12X = Eigen::Matrix<double, 12, Eigen::Dynamic>;
+
+  struct Coefficients {
+    double c0 = 0.0;
+    double c1 = 0.0;
+    double c2 = 0.0;
+    double d1 = 0.0;
+  };
+
+  template <bool kRecord>
+  void rhs(const Vec24& y, int slot, Vec24& dy, Mat12X* rec) const;
+  /// One shooting pass from the base with unknowns x = [n(0); m(0)/L]; returns the scaled tip
+  /// residual. Records z at every slot into `rec` and node states into `nodes` when non-null.
+  Vec6 pass(const Vec6& x, const rod::TipWrench& w, Mat12X* rec, std::vector<Vec24>* nodes);
+  bool refresh_jacobian(const Vec6& x, const Vec6& r, const rod::TipWrench& w);
+  bool newton(Vec6* x, const rod::TipWrench& w, bool full_newton);
+  void set_coefficients(const Coefficients& c);
+  Vec6 kirchhoff_guess(const rod::TipWrench& w, bool* ok);
+
+  DynamicRodParameters params_;
+  // Derived constants.
+  double length_ = 0.0, h_ = 0.0, force_scale_ = 1.0;
+  int steps_ = 0, slots_ = 0;
+  Vec3 k_se_, k_bt_, kse_vstar_, kbt_ustar_, b_se_, b_bt_, inv_se_, inv_bt_, rho_j_;
+  double rho_a_ = 0.0;
+  Vec3 dist_weight_ = Vec3::Zero();  // ρA g [N/m], base frame, for the current solve
+  bool drag_active_ = false;
+  Coefficients coef_;
+
+  // History per evaluation slot (columns): z = [v, u, q, ω] at t(i−1), t(i−2), z_t at t(i−1), and
+  // the current step's y_h.
+  Mat12X z1_, z2_, zt1_, zh_;
+  Mat12X rec_, rec_trial_;  // z of the accepted / trial pass in the current solve
+  std::vector<Vec24> nodes_, nodes_solve_, nodes_trial_;
+  bool at_rest_history_ = true;  // z1 == z2, zt1 == 0: valid for any dt
+  double dt_prev_ = 0.0;
+
+  Vec6 x_ = Vec6::Zero(), x_prev_ = Vec6::Zero();  // base unknowns now and one step back
+  bool have_prev_ = false;
+  bool initialised_ = false;
+
+  // Shooting Jacobian (scaled), kept across steps while c0 is unchanged.
+  Mat6 jac_ = Mat6::Identity();
+  Eigen::PartialPivLU<Mat6> lu_;
+  bool jac_valid_ = false;
+  bool jac_fresh_ = false;
+  double jac_c0_ = -1.0;
+
+  double time_ = 0.0;
+  int last_iterations_ = 0;
+  int last_evaluations_ = 0;
+  std::string last_error_;
+};
+
+}  // namespace plant
+}  // namespace hydrojet

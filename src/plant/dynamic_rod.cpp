@@ -1,0 +1,511 @@
+// Dynamic Cosserat rod (Till, Aloi & Rucker, IJRR 2019): BDF-α in time, shooting in space.
+// See include/hydrojet_control/plant/dynamic_rod.h for the model and the numerical scheme.
+#include "hydrojet_control/plant/dynamic_rod.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+#include "hydrojet_control/rod/shooting_solver.h"
+#include "hydrojet_control/rod/so3.h"
+
+namespace hydrojet {
+namespace plant {
+
+namespace {
+
+bool finite_nonneg(double x) { return std::isfinite(x) && x >= 0.0; }
+bool finite_pos(double x) { return std::isfinite(x) && x > 0.0; }
+
+std::string bad(const char* name, const char* what, double value) {
+  std::ostringstream os;
+  os << name << " " << what << " (got " << value << ")";
+  return os.str();
+}
+
+std::string bad_vec(const char* name, const char* what, const Vec3& v) {
+  std::ostringstream os;
+  os << name << " " << what << " (got [" << v.x() << ", " << v.y() << ", " << v.z() << "])";
+  return os.str();
+}
+
+}  // namespace
+
+std::string DynamicRodParameters::validate() const {
+  const rod::RodParameters& r = model.rod;
+  if (!finite_pos(r.length)) return bad("model.rod.length", "must be positive and finite", r.length);
+  if (!r.stiffness.allFinite() || (r.stiffness.array() <= 0.0).any())
+    return bad_vec("model.rod.stiffness", "must be positive and finite", r.stiffness);
+  if (!r.precurvature.allFinite())
+    return bad_vec("model.rod.precurvature", "must be finite", r.precurvature);
+  if (!finite_nonneg(r.linear_density))
+    return bad("model.rod.linear_density", "must be non-negative and finite", r.linear_density);
+  if (!finite_nonneg(model.tip_mass))
+    return bad("model.tip_mass", "must be non-negative and finite", model.tip_mass);
+  if (!model.gravity.allFinite()) return bad_vec("model.gravity", "must be finite", model.gravity);
+  if (!finite_pos(shear_stiffness))
+    return bad("shear_stiffness", "must be positive and finite", shear_stiffness);
+  if (!finite_pos(axial_stiffness))
+    return bad("axial_stiffness", "must be positive and finite", axial_stiffness);
+  if (!finite_nonneg(kelvin_voigt_time))
+    return bad("kelvin_voigt_time", "must be non-negative and finite", kelvin_voigt_time);
+  if (!finite_nonneg(linear_drag))
+    return bad("linear_drag", "must be non-negative and finite", linear_drag);
+  if (!finite_nonneg(quadratic_drag))
+    return bad("quadratic_drag", "must be non-negative and finite", quadratic_drag);
+  if (!finite_nonneg(tip_drag)) return bad("tip_drag", "must be non-negative and finite", tip_drag);
+  if (!finite_nonneg(tip_quadratic_drag))
+    return bad("tip_quadratic_drag", "must be non-negative and finite", tip_quadratic_drag);
+  if (!finite_nonneg(tip_angular_drag))
+    return bad("tip_angular_drag", "must be non-negative and finite", tip_angular_drag);
+  if (!tip_inertia.allFinite() || (tip_inertia.array() < 0.0).any())
+    return bad_vec("tip_inertia", "must be non-negative and finite", tip_inertia);
+  if (!finite_nonneg(rotational_inertia_per_length))
+    return bad("rotational_inertia_per_length", "must be non-negative and finite",
+               rotational_inertia_per_length);
+  if (nodes < 2 || nodes > 2000) return bad("nodes", "must be in [2, 2000]", nodes);
+  if (!std::isfinite(alpha) || alpha < -0.5 || alpha > 0.0)
+    return bad("alpha", "must be in [-0.5, 0]", alpha);
+  if (!finite_pos(tolerance)) return bad("tolerance", "must be positive and finite", tolerance);
+  if (max_iterations < 1) return bad("max_iterations", "must be at least 1", max_iterations);
+  return std::string();
+}
+
+DynamicRod::DynamicRod(const DynamicRodParameters& params) : params_(params) {
+  const std::string err = params_.validate();
+  if (!err.empty()) throw std::invalid_argument("DynamicRodParameters: " + err);
+  const rod::RodParameters& r = params_.model.rod;
+  length_ = r.length;
+  steps_ = params_.nodes - 1;
+  h_ = length_ / steps_;
+  slots_ = 4 * steps_ + 1;  // four RK4 stages per step, plus the tip
+  // Uniform rod: K(s) and ũ(s) are taken at s = 0 (RodParameters' seams are uniform today).
+  k_se_ = Vec3(params_.shear_stiffness, params_.shear_stiffness, params_.axial_stiffness);
+  k_bt_ = r.stiffness_at(0.0);
+  kse_vstar_ = Vec3(0.0, 0.0, params_.axial_stiffness);  // K_se v*, v* = e_z
+  kbt_ustar_ = k_bt_.cwiseProduct(r.precurvature_at(0.0));
+  b_se_ = params_.kelvin_voigt_time * k_se_;
+  b_bt_ = params_.kelvin_voigt_time * k_bt_;
+  rho_a_ = r.linear_density;
+  rho_j_ = params_.rotational_inertia_per_length * Vec3(1.0, 1.0, 2.0);
+  force_scale_ = k_bt_.maxCoeff() / (length_ * length_);
+
+  z1_.setZero(12, slots_);
+  z2_.setZero(12, slots_);
+  zt1_.setZero(12, slots_);
+  zh_.setZero(12, slots_);
+  rec_.setZero(12, slots_);
+  rec_trial_.setZero(12, slots_);
+  nodes_.assign(params_.nodes, Vec24::Zero());
+  nodes_solve_.assign(params_.nodes, Vec24::Zero());
+  nodes_trial_.assign(params_.nodes, Vec24::Zero());
+
+  reset_to_static(rod::TipWrench());
+}
+
+void DynamicRod::set_coefficients(const Coefficients& c) {
+  coef_ = c;
+  // Semi-discretised constitutive law (Till §3.1): (K + c0 B) is diagonal.
+  inv_se_ = (k_se_ + c.c0 * b_se_).cwiseInverse();
+  inv_bt_ = (k_bt_ + c.c0 * b_bt_).cwiseInverse();
+}
+
+// Right-hand side of the semi-discretised rod ODE at one evaluation slot (Till eqs. for p_s, R_s,
+// n_s, m_s, q_s, ω_s with y_t = c0 y + y_h substituted). State y = [p, R (col-major), n, m, q, ω].
+template <bool kRecord>
+void DynamicRod::rhs(const Vec24& y, int slot, Vec24& dy, Mat12X* rec) const {
+  const Eigen::Map<const Mat3> R(y.data() + 3);
+  const Vec3 n = y.segment<3>(12);
+  const Vec3 m = y.segment<3>(15);
+  const Vec3 q = y.segment<3>(18);
+  const Vec3 w = y.segment<3>(21);
+  const Vec12 zh = zh_.col(slot);
+  const Vec3 vh = zh.segment<3>(0), uh = zh.segment<3>(3), qh = zh.segment<3>(6),
+             wh = zh.segment<3>(9);
+  const double c0 = coef_.c0;
+  // Constitutive law with Kelvin–Voigt damping, solved for the strains (diagonal).
+  const Vec3 v = inv_se_.cwiseProduct(R.transpose() * n + kse_vstar_ - b_se_.cwiseProduct(vh));
+  const Vec3 u = inv_bt_.cwiseProduct(R.transpose() * m + kbt_ustar_ - b_bt_.cwiseProduct(uh));
+  // BDF-α time derivatives.
+  const Vec3 vt = c0 * v + vh;
+  const Vec3 ut = c0 * u + uh;
+  const Vec3 qt = c0 * q + qh;
+  const Vec3 wt = c0 * w + wh;
+
+  const Vec3 ps = R * v;  // p_s = R v
+  dy.segment<3>(0) = ps;
+  Eigen::Map<Mat3> dR(dy.data() + 3);  // R_s = R û
+  dR.col(0) = R.col(1) * u.z() - R.col(2) * u.y();
+  dR.col(1) = R.col(2) * u.x() - R.col(0) * u.z();
+  dR.col(2) = R.col(0) * u.y() - R.col(1) * u.x();
+  // n_s = ρA R(ω̂q + q_t) − ρA g + R c_d(q) q   (drag is the body-frame force −c_d q per length)
+  Vec3 fb = rho_a_ * (w.cross(q) + qt);
+  if (drag_active_) fb += (params_.linear_drag + params_.quadratic_drag * q.norm()) * q;
+  dy.segment<3>(12) = R * fb - dist_weight_;
+  // m_s = R(ω̂ ρJ ω + ρJ ω_t) − p_s × n
+  dy.segment<3>(15) = R * (w.cross(rho_j_.cwiseProduct(w)) + rho_j_.cwiseProduct(wt)) - ps.cross(n);
+  // Kinematic compatibility: q_s = v_t − û q + ω̂ v,  ω_s = u_t − û ω
+  dy.segment<3>(18) = vt - u.cross(q) + w.cross(v);
+  dy.segment<3>(21) = ut - u.cross(w);
+  if (kRecord) {
+    auto col = rec->col(slot);
+    col.segment<3>(0) = v;
+    col.segment<3>(3) = u;
+    col.segment<3>(6) = q;
+    col.segment<3>(9) = w;
+  }
+}
+
+DynamicRod::Vec6 DynamicRod::pass(const Vec6& x, const rod::TipWrench& wr, Mat12X* rec,
+                                  std::vector<Vec24>* nodes) {
+  ++last_evaluations_;
+  // Base boundary condition: p(0) = 0, R(0) = I, q(0) = ω(0) = 0; n(0), m(0) are the unknowns.
+  Vec24 y = Vec24::Zero();
+  y[3] = y[7] = y[11] = 1.0;
+  y.segment<3>(12) = x.head<3>();
+  y.segment<3>(15) = length_ * x.tail<3>();
+  if (nodes) (*nodes)[0] = y;
+  Vec24 k1, k2, k3, k4, t;
+  const double h = h_;
+  for (int j = 0; j < steps_; ++j) {
+    const int sl = 4 * j;
+    if (rec) {
+      rhs<true>(y, sl, k1, rec);
+      t = y + (0.5 * h) * k1;
+      rhs<true>(t, sl + 1, k2, rec);
+      t = y + (0.5 * h) * k2;
+      rhs<true>(t, sl + 2, k3, rec);
+      t = y + h * k3;
+      rhs<true>(t, sl + 3, k4, rec);
+    } else {
+      rhs<false>(y, sl, k1, nullptr);
+      t = y + (0.5 * h) * k1;
+      rhs<false>(t, sl + 1, k2, nullptr);
+      t = y + (0.5 * h) * k2;
+      rhs<false>(t, sl + 2, k3, nullptr);
+      t = y + h * k3;
+      rhs<false>(t, sl + 3, k4, nullptr);
+    }
+    y += (h / 6.0) * (k1 + 2.0 * (k2 + k3) + k4);
+    if (nodes) (*nodes)[j + 1] = y;
+  }
+
+  // Tip boundary condition: the capsule as a rigid body.
+  const Eigen::Map<const Mat3> R(y.data() + 3);
+  const Vec3 n = y.segment<3>(12);
+  const Vec3 m = y.segment<3>(15);
+  const Vec3 q = y.segment<3>(18);
+  const Vec3 w = y.segment<3>(21);
+  const int tip = slots_ - 1;
+  const Vec12 zh = zh_.col(tip);
+  const double c0 = coef_.c0;
+  const Vec3 qt = c0 * q + zh.segment<3>(6);
+  const Vec3 wt = c0 * w + zh.segment<3>(9);
+  const double mt = params_.model.tip_mass;
+  const Vec3& Jt = params_.tip_inertia;
+  // n(L) = R f_b + m_t g − m_t R(ω̂q + q_t) − R c_t(q) q
+  const Vec3 f_body = wr.force - mt * (w.cross(q) + qt) -
+                      (params_.tip_drag + params_.tip_quadratic_drag * q.norm()) * q;
+  // m(L) = R l_b − R(ω̂ J_t ω + J_t ω_t) − R c_ω ω
+  const Vec3 l_body = wr.moment - w.cross(Jt.cwiseProduct(w)) - Jt.cwiseProduct(wt) -
+                      params_.tip_angular_drag * w;
+  Vec6 r;
+  r.head<3>() = n - R * f_body - mt * params_.model.gravity;
+  r.tail<3>() = (m - R * l_body) / length_;
+  if (rec) {
+    auto col = rec->col(tip);
+    col.segment<3>(0) = inv_se_.cwiseProduct(R.transpose() * n + kse_vstar_ -
+                                             b_se_.cwiseProduct(zh.segment<3>(0)));
+    col.segment<3>(3) = inv_bt_.cwiseProduct(R.transpose() * m + kbt_ustar_ -
+                                             b_bt_.cwiseProduct(zh.segment<3>(3)));
+    col.segment<3>(6) = q;
+    col.segment<3>(9) = w;
+  }
+  if (!y.allFinite()) r.setConstant(std::numeric_limits<double>::quiet_NaN());
+  return r;
+}
+
+bool DynamicRod::refresh_jacobian(const Vec6& x, const Vec6& r, const rod::TipWrench& w) {
+  // Forward differences; the unknowns and residuals are all in newtons (moments scaled by 1/L).
+  for (int j = 0; j < 6; ++j) {
+    const double dx = 1e-7 * (force_scale_ + std::abs(x[j]));
+    Vec6 xp = x;
+    xp[j] += dx;
+    jac_.col(j) = (pass(xp, w, nullptr, nullptr) - r) / dx;
+  }
+  jac_valid_ = jac_.allFinite();
+  if (jac_valid_) {
+    lu_.compute(jac_);
+    jac_valid_ = std::isfinite(lu_.determinant()) && lu_.determinant() != 0.0;
+  }
+  jac_fresh_ = jac_valid_;
+  jac_c0_ = coef_.c0;
+  return jac_valid_;
+}
+
+bool DynamicRod::newton(Vec6* x, const rod::TipWrench& w, bool full_newton) {
+  const double tol = params_.tolerance * force_scale_;
+  Vec6 r = pass(*x, w, &rec_, &nodes_solve_);
+  double rn = r.norm();
+  if (!std::isfinite(rn)) {
+    last_error_ = "shooting pass produced a non-finite state at the initial guess";
+    return false;
+  }
+  if (rn <= tol) return true;
+  const bool c0_changed = std::abs(coef_.c0 - jac_c0_) > 1e-12 * std::max(1.0, std::abs(coef_.c0));
+  if (full_newton || !jac_valid_ || c0_changed) {
+    if (!refresh_jacobian(*x, r, w)) {
+      last_error_ = "singular or non-finite shooting Jacobian";
+      return false;
+    }
+  } else {
+    jac_fresh_ = false;
+  }
+  int iterations = 0;
+  while (rn > tol) {
+    if (iterations >= params_.max_iterations) {
+      std::ostringstream os;
+      os << "Newton did not converge in " << params_.max_iterations
+         << " iterations (|residual| = " << rn << " N, tolerance " << tol << " N)";
+      last_error_ = os.str();
+      return false;
+    }
+    const Vec6 dx = -lu_.solve(r);
+    if (!dx.allFinite()) {
+      last_error_ = "non-finite Newton step";
+      return false;
+    }
+    bool accepted = false;
+    double lambda = 1.0;
+    Vec6 xt, rt;
+    for (int k = 0; k < 10; ++k, lambda *= 0.5) {
+      xt = *x + lambda * dx;
+      rt = pass(xt, w, &rec_trial_, &nodes_trial_);
+      if (rt.allFinite() && rt.norm() < (1.0 - 1e-4 * lambda) * rn) {
+        accepted = true;
+        break;
+      }
+      if (!jac_fresh_) break;  // an outdated Jacobian: refresh rather than backtrack
+    }
+    ++iterations;
+    ++last_iterations_;
+    if (!accepted) {
+      if (!jac_fresh_) {
+        if (!refresh_jacobian(*x, r, w)) {
+          last_error_ = "singular or non-finite shooting Jacobian";
+          return false;
+        }
+        continue;
+      }
+      if (rn <= 1e3 * tol) return true;  // at the round-off floor: accept
+      std::ostringstream os;
+      os << "line search failed (|residual| = " << rn << " N)";
+      last_error_ = os.str();
+      return false;
+    }
+    // Broyden rank-one update of the Jacobian with the accepted step.
+    const Vec6 s = xt - *x;
+    jac_ += ((rt - r) - jac_ * s) * s.transpose() / s.squaredNorm();
+    lu_.compute(jac_);
+    jac_fresh_ = false;
+    const double ratio = rt.norm() / rn;
+    *x = xt;
+    r = rt;
+    rn = rt.norm();
+    std::swap(rec_, rec_trial_);
+    std::swap(nodes_solve_, nodes_trial_);
+    if (rn > tol && (full_newton || ratio > 0.3)) {
+      if (!refresh_jacobian(*x, r, w)) {
+        last_error_ = "singular or non-finite shooting Jacobian";
+        return false;
+      }
+    }
+  }
+  return true;
+}
+
+DynamicRod::Vec6 DynamicRod::kirchhoff_guess(const rod::TipWrench& w, bool* ok) {
+  // Quasi-static Kirchhoff solution (rod::ShootingSolver), then n(0), m(0) from the global force
+  // and moment balance of the whole rod:
+  //   n(0) = R(L) f_b + m_t g + ρA g L
+  //   m(0) = R(L) l_b + p(L) × n(L) + ∫₀ᴸ p × ρA g ds
+  rod::ShootingSettings st;
+  st.integrator.type = rod::IntegratorType::kRk8;
+  st.integrator.steps = 8;
+  st.residual_tolerance = 1e-12;
+  rod::ShootingSolver solver(params_.model, st);
+  const rod::RodSolution sol = solver.solve(w);
+  Vec6 x;
+  const Vec3 g = params_.model.gravity;
+  const Vec3 nL = (sol.converged ? sol.tip_rotation * w.force : w.force) + params_.model.tip_mass * g;
+  x.head<3>() = nL + rho_a_ * length_ * g;
+  x.tail<3>().setZero();
+  *ok = sol.converged;
+  if (!sol.converged) return x;
+  Vec3 m0 = sol.tip_rotation * w.moment + sol.tip_position.cross(nL);
+  if (rho_a_ > 0.0) {
+    const int K = 64;
+    const std::vector<Vec3> pts = solver.shape(K);
+    Vec3 integral = Vec3::Zero();
+    for (int k = 0; k < K; ++k) integral += 0.5 * (pts[k] + pts[k + 1]) * (length_ / K);
+    m0 += integral.cross(rho_a_ * g);
+  }
+  x.tail<3>() = m0 / length_;
+  return x;
+}
+
+bool DynamicRod::reset_to_static(const rod::TipWrench& w) {
+  last_iterations_ = 0;
+  last_evaluations_ = 0;
+  if (!w.force.allFinite()) {
+    last_error_ = "non-finite tip wrench: force";
+    return false;
+  }
+  if (!w.moment.allFinite()) {
+    last_error_ = "non-finite tip wrench: moment";
+    return false;
+  }
+  last_error_.clear();
+  bool kirchhoff_ok = false;
+  Vec6 x = kirchhoff_guess(w, &kirchhoff_ok);
+  // Static problem: all time derivatives zero (c0 = 0, y_h = 0) -> q ≡ ω ≡ 0.
+  set_coefficients(Coefficients());
+  zh_.setZero();
+  dist_weight_ = rho_a_ * params_.model.gravity;
+  drag_active_ = params_.linear_drag > 0.0 || params_.quadratic_drag > 0.0;
+  const bool ok = newton(&x, w, true);
+  jac_valid_ = false;  // the static Jacobian (c0 = 0) is not the dynamic one
+  if (!ok) {
+    last_error_ = "reset_to_static: " + last_error_ +
+                  (kirchhoff_ok ? "" : " (the quasi-static ShootingSolver did not converge either)");
+    return false;
+  }
+  z1_ = rec_;
+  z2_ = rec_;
+  zt1_.setZero();
+  nodes_.swap(nodes_solve_);
+  x_ = x;
+  x_prev_ = x;
+  have_prev_ = false;
+  at_rest_history_ = true;
+  dt_prev_ = 0.0;
+  time_ = 0.0;
+  initialised_ = true;
+  return true;
+}
+
+bool DynamicRod::step(const rod::TipWrench& w, double dt) {
+  last_iterations_ = 0;
+  last_evaluations_ = 0;
+  if (!initialised_) {
+    last_error_ = "not initialised: reset_to_static() has not succeeded";
+    return false;
+  }
+  if (!w.force.allFinite()) {
+    last_error_ = "non-finite tip wrench: force";
+    return false;
+  }
+  if (!w.moment.allFinite()) {
+    last_error_ = "non-finite tip wrench: moment";
+    return false;
+  }
+  if (!finite_pos(dt)) {
+    std::ostringstream os;
+    os << "dt must be positive and finite (got " << dt << ")";
+    last_error_ = os.str();
+    return false;
+  }
+  last_error_.clear();
+
+  // BDF-α coefficients (Till §3.1); the θ-method for a step whose Δt differs from the last one.
+  const double a = params_.alpha;
+  Coefficients c;
+  c.d1 = a / (1.0 + a);
+  if (at_rest_history_ || std::abs(dt - dt_prev_) <= 1e-12 * dt) {
+    c.c0 = (1.5 + a) / (dt * (1.0 + a));
+    c.c1 = -2.0 / dt;
+    c.c2 = (0.5 + a) / (dt * (1.0 + a));
+  } else {
+    const double theta = 1.0 / (1.0 - c.d1);  // ρ∞ = (1 − θ)/θ = |d1|
+    c.c0 = 1.0 / (theta * dt);
+    c.c1 = -c.c0;
+    c.c2 = 0.0;
+    c.d1 = -(1.0 - theta) / theta;
+  }
+  set_coefficients(c);
+  zh_.noalias() = c.c1 * z1_;
+  zh_.noalias() += c.c2 * z2_;
+  zh_.noalias() += c.d1 * zt1_;
+  dist_weight_ = rho_a_ * params_.model.gravity;
+  drag_active_ = params_.linear_drag > 0.0 || params_.quadratic_drag > 0.0;
+
+  // Warm start: linear extrapolation of the base unknowns from the last two steps.
+  Vec6 x = x_;
+  if (have_prev_ && dt_prev_ > 0.0) x += (x_ - x_prev_) * (dt / dt_prev_);
+  bool ok = newton(&x, w, false);
+  if (!ok) {
+    // Retry from the previous step's values with a fresh Jacobian.
+    const std::string first = last_error_;
+    x = x_;
+    jac_valid_ = false;
+    ok = newton(&x, w, false);
+    if (!ok) {
+      last_error_ = "step: " + last_error_ + " (first attempt: " + first + ")";
+      jac_valid_ = false;
+      return false;
+    }
+    last_error_.clear();
+  }
+
+  // Commit: shift the history, z_t(i) = c0 z(i) + z_h.
+  z2_.swap(z1_);
+  z1_ = rec_;
+  zt1_.noalias() = c.c0 * rec_;
+  zt1_ += zh_;
+  nodes_.swap(nodes_solve_);
+  x_prev_ = x_;
+  x_ = x;
+  have_prev_ = true;
+  at_rest_history_ = false;
+  dt_prev_ = dt;
+  time_ += dt;
+  return true;
+}
+
+void DynamicRod::set_gravity(const Vec3& g) {
+  if (!g.allFinite()) {
+    last_error_ = "set_gravity: non-finite gravity ignored";
+    return;
+  }
+  params_.model.gravity = g;
+}
+
+Mat3 DynamicRod::tip_rotation() const {
+  return so3::orthonormalize(Eigen::Map<const Mat3>(nodes_.back().data() + 3));
+}
+
+Vec3 DynamicRod::tip_position() const { return nodes_.back().segment<3>(0); }
+
+Vec3 DynamicRod::tip_velocity() const {
+  return Eigen::Map<const Mat3>(nodes_.back().data() + 3) * nodes_.back().segment<3>(18);
+}
+
+Vec3 DynamicRod::tip_angular_velocity() const {
+  return Eigen::Map<const Mat3>(nodes_.back().data() + 3) * nodes_.back().segment<3>(21);
+}
+
+std::vector<Vec3> DynamicRod::backbone() const {
+  std::vector<Vec3> pts;
+  pts.reserve(nodes_.size());
+  for (const Vec24& y : nodes_) pts.push_back(y.segment<3>(0));
+  return pts;
+}
+
+Vec3 DynamicRod::base_force() const { return nodes_.front().segment<3>(12); }
+Vec3 DynamicRod::base_moment() const { return nodes_.front().segment<3>(15); }
+
+}  // namespace plant
+}  // namespace hydrojet
