@@ -36,6 +36,8 @@ struct StaticPlant {
   actuation::NozzleParameters nozzle;
   Vec3 flows = Vec3::Zero();
   control::Mat3 tip = control::Mat3::Identity();
+  int stuck_jet = -1;       ///< fault injection: this jet's flow is stuck_flow whatever the valve
+  double stuck_flow = 0.0;  ///< [m^3/s]
 
   StaticPlant(const config::Scene& sc, const rod::RodModel& truth)
       : rod(truth, sc.solver), jets(sc.jets), nozzle(sc.nozzle) {
@@ -43,6 +45,7 @@ struct StaticPlant {
   }
   void apply(const Vec3& duty) {
     flows = duty.cwiseMax(0.0).cwiseMin(1.0) * kFlowPerDuty;
+    if (stuck_jet >= 0) flows[stuck_jet] = stuck_flow;
     Vec3 q;
     for (int i = 0; i < 3; ++i) q[i] = actuation::force_from_flow(flows[i], nozzle);
     rod::TipWrench w;
@@ -319,4 +322,26 @@ TEST(TaskSpace, AnglesDirectionsAndMetrics) {
   EXPECT_NEAR(s.angles(600.0)[0], 1.04, 1e-12);
   EXPECT_NEAR(s.angles(600.0)[1], 14.0, 1e-12);
   EXPECT_NEAR(s.angles(300.0)[0], 0.52, 1e-12);
+}
+
+// A valve stuck open: the measured flow of that jet stays far above its command; the controller
+// notices from flow feedback within flow_fault_time and stops.
+TEST(ControllerSafety, StuckOpenJetIsDetectedFromFlowFeedback) {
+  SafetyRig r;
+  r.plant.stuck_jet = 1;  // jet 2 partly open whatever it is told
+  r.plant.stuck_flow = 6e-6;
+  const double t0 = 1.0;
+  ControllerOutput out;
+  int k = 0;
+  for (; k < 200; ++k) {
+    out = r.c.update(r.plant.inputs(t0 + k * kDt));
+    r.plant.apply(out.valve_command);
+    if (out.state == ControllerState::kAborted) break;
+  }
+  expect_aborted(out, "jet 2 does not follow");
+  const double params_time = control::ControllerParams().flow_fault_time;
+  // Detected no sooner than flow_fault_time (a deviation must persist), and soon after the loop
+  // has pushed jet 2's command away from the stuck flow.
+  EXPECT_GE(k * kDt, params_time - 1e-9);
+  EXPECT_LE(k * kDt, 1.5);
 }

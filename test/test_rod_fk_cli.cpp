@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <vector>
 #include <cstdio>
 #include <fstream>
@@ -81,6 +82,23 @@ TEST(RodFkCli, SolvesAndPrintsContractFields) {
   ASSERT_EQ(q.size(), 4u);
   EXPECT_NEAR(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3], 1.0, 1e-12);
   EXPECT_GE(q[0], 0.0);
+}
+
+// --jets goes through the scene's jet map (eq. 24): the same pose as the equivalent --force.
+TEST(RodFkCli, JetsMatchEquivalentForce) {
+  const double p3 = M_PI / 3, da = 0.12, db = 0.06, dg = -0.08, q1 = 0.1, q2 = 0.05, q3 = 0.2;
+  const double fx = std::sin(p3 - db) * q1 + std::sin(da) * q2 - std::sin(p3 - dg) * q3;
+  const double fy = std::cos(p3 - db) * q1 - std::cos(da) * q2 + std::cos(p3 - dg) * q3;
+  const CliRun a = run("--scene " + scene("hydrojet_0deg") + " --jets 0.1 0.05 0.2");
+  char buf[128];
+  std::snprintf(buf, sizeof(buf), " --force %.17g %.17g 0", fx, fy);
+  const CliRun b = run("--scene " + scene("hydrojet_0deg") + buf);
+  ASSERT_EQ(a.status, 0) << a.err;
+  ASSERT_EQ(b.status, 0) << b.err;
+  const auto pa = array_field(a.out, "tip_position"), pb = array_field(b.out, "tip_position");
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(pa[i], pb[i], 1e-12);
+  EXPECT_EQ(run("--scene " + scene("hydrojet_0deg") + " --jets 0.1 -0.05 0").status, 2);
+  EXPECT_EQ(run("--scene " + scene("hydrojet_0deg") + " --jets 0.1 0.05 0 --force 0 0 0").status, 2);
 }
 
 // A straight weightless rod with a small lateral force: linear beam tip deflection FL³/(3EI).

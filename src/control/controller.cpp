@@ -40,6 +40,8 @@ std::string ControllerParams::validate() const {
   if (max_solver_failures < 1) return bad("max_solver_failures", max_solver_failures, "must be >= 1");
   if (!finite_nonneg(min_stability_margin)) return bad("min_stability_margin", min_stability_margin, "must be finite and >= 0");
   if (!finite_pos(unreachable_tolerance)) return bad("unreachable_tolerance", unreachable_tolerance, "must be finite and > 0");
+  if (!finite_pos(flow_fault_tolerance)) return bad("flow_fault_tolerance", flow_fault_tolerance, "must be finite and > 0");
+  if (!finite_pos(flow_fault_time)) return bad("flow_fault_time", flow_fault_time, "must be finite and > 0");
   if (!finite_pos(path.duration)) return bad("path.duration", path.duration, "must be finite and > 0");
   if (!(path.theta_start >= 0 && path.theta_start <= M_PI / 2))
     return bad("path.theta_start", path.theta_start, "must lie in [0, pi/2]");
@@ -66,6 +68,8 @@ void Controller::start(double t) {
   prev_force_cmd_.setZero();
   solver_failures_ = 0;
   oscillation_armed_ = false;
+  flow_fault_since_.setConstant(-1.0);
+  last_flow_command_.setZero();
   regulators_.reset();
 }
 
@@ -120,6 +124,20 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   for (int i = 0; i < 3; ++i)
     if (!std::isfinite(in.flows[i]) || in.flows[i] < 0.0)
       return abort(out, "flow: jet " + std::to_string(i + 1) + " reading invalid (" + std::to_string(in.flows[i]) + " m^3/s)");
+
+  // Actuator fault: a jet whose measured flow stays far from the flow it was commanded (a valve stuck
+  // open or closed, a blocked line) cannot be controlled; the flow loop would only wind up.
+  for (int i = 0; i < 3; ++i) {
+    if (std::abs(in.flows[i] - last_flow_command_[i]) > params_.flow_fault_tolerance) {
+      if (flow_fault_since_[i] < 0.0) flow_fault_since_[i] = in.t;
+      if (in.t - flow_fault_since_[i] >= params_.flow_fault_time)
+        return abort(out, "flow: jet " + std::to_string(i + 1) + " does not follow its command (measured " +
+                              std::to_string(in.flows[i]) + " m^3/s, commanded " + std::to_string(last_flow_command_[i]) +
+                              " m^3/s): valve stuck or line blocked");
+    } else {
+      flow_fault_since_[i] = -1.0;
+    }
+  }
 
   // Algorithm 1, line 4: w_a = A q_obs, with q_obs from measured flow by the thrust equation (26).
   for (int i = 0; i < 3; ++i) out.jet_force_observed[i] = actuation::force_from_flow(in.flows[i], model_.nozzle);
@@ -213,6 +231,7 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   // Actuator feedback: flow for each jet force by eq. (26), then the per-jet PI flow regulators.
   for (int i = 0; i < 3; ++i) out.flow_command[i] = actuation::flow_from_force(alloc.q[i], model_.nozzle);
   out.valve_command = regulators_.update(out.flow_command, in.flows, dt);
+  last_flow_command_ = out.flow_command;
 
   if (params_.path.finished(out.path_time)) state_ = ControllerState::kFinished;
   out.state = state_ == ControllerState::kFinished ? ControllerState::kFinished : ControllerState::kRunning;

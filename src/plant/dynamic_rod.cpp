@@ -159,7 +159,7 @@ void DynamicRod::rhs(const Vec24& y, int slot, Vec24& dy, Mat12X* rec) const {
   }
 }
 
-DynamicRod::Vec6 DynamicRod::pass(const Vec6& x, const rod::TipWrench& wr, Mat12X* rec,
+Vec6 DynamicRod::pass(const Vec6& x, const rod::TipWrench& wr, Mat12X* rec,
                                   std::vector<Vec24>* nodes) {
   ++last_evaluations_;
   // Base boundary condition: p(0) = 0, R(0) = I, q(0) = ω(0) = 0; n(0), m(0) are the unknowns.
@@ -327,7 +327,7 @@ bool DynamicRod::newton(Vec6* x, const rod::TipWrench& w, bool full_newton) {
   return true;
 }
 
-DynamicRod::Vec6 DynamicRod::kirchhoff_guess(const rod::TipWrench& w, bool* ok) {
+Vec6 DynamicRod::kirchhoff_guess(const rod::TipWrench& w, bool* ok) {
   // Quasi-static Kirchhoff solution (rod::ShootingSolver), then n(0), m(0) from the global force
   // and moment balance of the whole rod:
   //   n(0) = R(L) f_b + m_t g + ρA g L

@@ -46,9 +46,7 @@ bool finite_pose(const geometry_msgs::Pose& p) {
 class ControllerNode {
  public:
   ControllerNode(ros::NodeHandle& nh, ros::NodeHandle& pnh) : nh_(nh), pnh_(pnh) {
-    XmlRpc::XmlRpcValue params;
-    if (!pnh.getParam("", params)) params = XmlRpc::XmlRpcValue();
-    opts_ = ros_bridge::read_controller_options(params);
+    opts_ = ros_bridge::read_controller_options(pnh);
     const config::Scene scene = config::load_scene(opts_.scene);
     controller_.reset(new control::Controller(config::make_controller_model(scene, opts_.flow), opts_.controller));
 
@@ -201,6 +199,16 @@ class ControllerNode {
       rs.tip_pose.orientation.w = q.w(), rs.tip_pose.orientation.x = q.x();
       rs.tip_pose.orientation.y = q.y(), rs.tip_pose.orientation.z = q.z();
       for (int i = 0; i < 6; ++i) rs.tip_wrench[i] = out.wrench_observed[i];
+      for (const Eigen::Vector3d& p : controller_->model_shape(20)) {
+        geometry_msgs::Point pt;
+        pt.x = p.x(), pt.y = p.y(), pt.z = p.z();
+        rs.backbone.push_back(pt);
+      }
+      if (!rs.backbone.empty()) {
+        rs.tip_pose.position.x = rs.backbone.back().x;
+        rs.tip_pose.position.y = rs.backbone.back().y;
+        rs.tip_pose.position.z = rs.backbone.back().z;
+      }
       rs.stability_margin = out.stability_margin;
       rs.stability_eig_min = out.stability_eig_min;
       rs.converged = out.solver_converged;
@@ -227,7 +235,7 @@ class ControllerNode {
   }
 
   ros::NodeHandle nh_, pnh_;
-  ros_bridge::ControllerNodeOptions opts_;
+  config::ControllerOptions opts_;
   std::unique_ptr<control::Controller> controller_;
   ros::Subscriber tip_sub_, base_sub_, jet_sub_;
   ros::Publisher cmd_pub_, status_pub_, rod_pub_, target_pub_;

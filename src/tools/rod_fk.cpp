@@ -22,7 +22,8 @@ namespace {
 
 const char* kUsage =
     "usage: rod_fk --scene FILE [--force FX FY FZ] [--moment MX MY MZ] [--integrator NAME]\n"
-    "              [--steps N] [--tol X] [--compliance] [--shape K] [--batch FILE|-]\n";
+    "              [--steps N] [--tol X] [--compliance] [--shape K] [--batch FILE|-]\n"
+    "              [--jets Q1 Q2 Q3]   (jet forces [N] through the scene's jet map, eq. 24)\n";
 
 /// Bad input: one line on stderr naming the argument or key, nothing on stdout, exit 2.
 struct BadInput {
@@ -46,6 +47,9 @@ struct Options {
   bool compliance = false;
   int shape = 0;
   std::string batch;
+  bool have_jets = false;
+  Vec3 jets = Vec3::Zero();  ///< jet forces [N]
+  bool have_wrench = false;
 };
 
 Options parse_args(int argc, char** argv) {
@@ -63,6 +67,14 @@ Options parse_args(int argc, char** argv) {
       Vec3 v;
       for (int k = 0; k < 3; ++k) v[k] = parse_number(argv[++i], a);
       (a == "--force" ? o.wrench.force : o.wrench.moment) = v;
+      o.have_wrench = true;
+    } else if (a == "--jets") {
+      need(i, 3, a);
+      for (int k = 0; k < 3; ++k) {
+        o.jets[k] = parse_number(argv[++i], a);
+        if (o.jets[k] < 0.0) throw BadInput{a + ": jet forces must not be negative"};
+      }
+      o.have_jets = true;
     } else if (a == "--integrator") {
       need(i, 1, a);
       o.integrator = argv[++i];
@@ -93,6 +105,8 @@ Options parse_args(int argc, char** argv) {
     }
   }
   if (o.scene.empty()) throw BadInput{"--scene: missing (required)"};
+  if (o.have_jets && (o.have_wrench || !o.batch.empty()))
+    throw BadInput{"--jets: cannot be combined with --force/--moment/--batch"};
   return o;
 }
 
@@ -137,6 +151,12 @@ int main(int argc, char** argv) {
       throw BadInput{"--integrator: unknown integrator '" + opt.integrator + "' (rk4, rk8, dopri5)"};
     if (opt.steps) scene.solver.integrator.steps = opt.steps;
     if (opt.tol > 0.0) scene.solver.integrator.tolerance = opt.tol;
+    if (opt.have_jets) {
+      if (!scene.has_jets) throw BadInput{"--jets: scene " + opt.scene + " has no jets section"};
+      const hydrojet::rod::Vec6 w = hydrojet::actuation::JetMap(scene.jets).wrench(opt.jets);
+      opt.wrench.force = w.head<3>();
+      opt.wrench.moment = w.tail<3>();
+    }
     wrenches = opt.batch.empty() ? std::vector<hydrojet::rod::TipWrench>{opt.wrench} : read_batch(opt.batch);
   } catch (const BadInput& e) {
     std::cerr << "rod_fk: " << e.what << "\n";

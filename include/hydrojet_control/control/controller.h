@@ -42,6 +42,8 @@ struct ControllerParams {
   int max_solver_failures = 2;     ///< abort after this many non-converged solves in a row
   double min_stability_margin = 0.5;  ///< abort when σ_c (eq. 23) falls below this [N/m]
   double unreachable_tolerance = 1e-3; ///< allocation residual [N] above which the force is out of reach
+  double flow_fault_tolerance = 3e-6;  ///< |measured − commanded flow| that counts as a jet fault [m^3/s]
+  double flow_fault_time = 0.5;        ///< ... when it lasts this long (stuck valve, blocked line) [s]
   SpiralPath path;
 
   /// Empty when valid, else "<field>: <what is wrong>".
@@ -111,6 +113,9 @@ class Controller {
   /// One cycle of Algorithm 1. Call at the control rate with the latest samples.
   ControllerOutput update(const ControllerInputs& in);
 
+  /// Backbone of the model at the last converged solve: segments+1 points [m], base frame.
+  std::vector<Vec3> model_shape(int segments) const { return solver_.shape(segments); }
+
   /// The model's forward kinematics at jet forces q [N] (for open-loop prediction and tests).
   rod::RodSolution model_fk(const Vec3& q);
 
@@ -132,6 +137,8 @@ class Controller {
   Eigen::Vector2d prev_force_cmd_ = Eigen::Vector2d::Zero();
   int solver_failures_ = 0;
   bool oscillation_armed_ = false;
+  Vec3 flow_fault_since_ = Vec3::Constant(-1.0);  ///< when each jet started to deviate [s], < 0: not
+  Vec3 last_flow_command_ = Vec3::Zero();
 };
 
 }  // namespace control

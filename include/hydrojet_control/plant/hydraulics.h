@@ -1,0 +1,64 @@
+// The simulated plant's hydraulics: valve command → flow per jet through a static nonlinearity with
+// dead zone, hysteresis (play), a first-order lag and saturation; different constants per jet.
+// Flow → jet force is the thrust equation (26) (actuation/thrust.h). ROS-free (Eigen only).
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <string>
+
+namespace hydrojet {
+namespace plant {
+
+struct ValveParameters {
+  double max_flow = 1.6e-5;     ///< steady flow at full duty before saturation [m^3/s]
+  double dead_zone = 0.05;      ///< duty below which no water flows [0, 1)
+  double exponent = 0.8;        ///< Q_ss = max_flow · u^exponent, u the duty past the dead zone [-]
+  double hysteresis = 0.02;     ///< width of the play between command and effective duty [duty]
+  double time_constant = 0.04;  ///< first-order lag of the flow [s]
+  double saturation = 1.5e-5;   ///< flow ceiling [m^3/s]
+  /// Empty when valid, else "<field>: <what is wrong>".
+  std::string validate() const;
+};
+
+/// One valve and its line.
+class Valve {
+ public:
+  explicit Valve(const ValveParameters& p = ValveParameters()) : p_(p) {}
+  /// Advances by dt [s] under valve duty `duty` (clamped to [0, 1]; NaN counts as closed).
+  double step(double duty, double dt);
+  /// Steady-state flow for a constant duty reached from below (hysteresis lower branch) [m^3/s].
+  double steady_flow(double duty) const;
+  double flow() const { return flow_; }
+  void reset() { flow_ = 0.0, effective_ = 0.0; }
+  /// Fault injection: the valve is stuck fully open whatever the command.
+  void set_stuck_open(bool s) { stuck_open_ = s; }
+
+ private:
+  ValveParameters p_;
+  double flow_ = 0.0;
+  double effective_ = 0.0;  ///< duty after the hysteresis play
+  bool stuck_open_ = false;
+};
+
+/// The three jets' hydraulics.
+class Hydraulics {
+ public:
+  explicit Hydraulics(const std::array<ValveParameters, 3>& p) : valves_{Valve(p[0]), Valve(p[1]), Valve(p[2])} {}
+  Eigen::Vector3d step(const Eigen::Vector3d& duty, double dt) {
+    Eigen::Vector3d q;
+    for (int i = 0; i < 3; ++i) q[i] = valves_[i].step(duty[i], dt);
+    return q;
+  }
+  Eigen::Vector3d flows() const { return {valves_[0].flow(), valves_[1].flow(), valves_[2].flow()}; }
+  Valve& operator[](int i) { return valves_[i]; }
+  void reset() {
+    for (auto& v : valves_) v.reset();
+  }
+
+ private:
+  std::array<Valve, 3> valves_;
+};
+
+}  // namespace plant
+}  // namespace hydrojet

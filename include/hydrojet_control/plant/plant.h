@@ -1,0 +1,85 @@
+// The simulated HydroJet: dynamic rod + jets + hydraulics + sensors, with its own "true"
+// parameters (which differ from the controller's nominal scene: model mismatch). It speaks the same
+// signals as the rig: valve duties in, tracker poses (tip and base sensors, tracker frame) and flows
+// out. ROS-free (Eigen + the rod/actuation/plant libraries). Time is passed in.
+#pragma once
+
+#include <array>
+#include <memory>
+#include <string>
+
+#include "hydrojet_control/actuation/jet_map.h"
+#include "hydrojet_control/actuation/thrust.h"
+#include "hydrojet_control/plant/dynamic_rod.h"
+#include "hydrojet_control/plant/hydraulics.h"
+#include "hydrojet_control/plant/sensors.h"
+
+namespace hydrojet {
+namespace plant {
+
+struct PlantParameters {
+  DynamicRodParameters rod;              ///< the true rod (its model.gravity is set from base_tilt)
+  actuation::JetGeometry jets;           ///< the true jet misalignments
+  actuation::NozzleParameters nozzle;
+  std::array<ValveParameters, 3> valves;
+  TrackerNoise tracker;
+  FlowNoise flow;
+  bool sensor_noise = true;              ///< false: exact sensors (no noise, quantisation, latency)
+  double base_tilt = 0.0;                ///< base turned about its own x-axis [rad] (§7: 0 or 30°)
+  double gravity = 9.81;                 ///< [m/s^2]
+  Eigen::Vector3d base_position = Eigen::Vector3d(0.0, 0.0, 0.25);  ///< base origin in the tracker frame [m]
+  double internal_dt = 0.002;            ///< rod time step [s]
+  double command_timeout = 0.05;         ///< valves close when no command arrives for this long [s]
+  std::string validate() const;
+};
+
+/// Orientation of the base frame in the tracker frame (z up): the 0° set-up hangs the rod down,
+/// R = Rx(π + tilt), so that gravity in the base frame is g·[0, sin tilt, cos tilt].
+Eigen::Matrix3d base_orientation(double tilt);
+
+class Plant {
+ public:
+  Plant(const PlantParameters& p, unsigned seed);
+
+  /// At rest, jets off, time 0. False (with error()) if the rod could not be initialised.
+  bool reset();
+  /// The latest valve command (duty per jet [0, 1]) received at time t [s].
+  void command(const Eigen::Vector3d& duty, double t);
+  /// Integrates up to time t [s] (internal steps of internal_dt). False with error() if the rod
+  /// solver failed; the plant then holds its last state.
+  bool advance_to(double t);
+
+  /// What the tracker reports now (tip and base sensors in the tracker frame).
+  TrackerSample tracker_sample();
+  /// What the flow sensors report now [m^3/s].
+  Eigen::Vector3d flow_sample();
+
+  double time() const { return t_; }
+  Eigen::Matrix3d tip_rotation() const { return rod_->tip_rotation(); }  ///< truth, base frame
+  Eigen::Vector3d tip_position() const { return rod_->tip_position(); }  ///< truth, base frame [m]
+  std::vector<Eigen::Vector3d> backbone() const { return rod_->backbone(); }
+  Eigen::Vector3d flows() const { return hydraulics_.flows(); }          ///< truth [m^3/s]
+  Eigen::Vector3d jet_forces() const;                                    ///< truth [N]
+  Eigen::Vector3d valve_command() const { return duty_; }
+  bool valves_closed_by_timeout() const { return timed_out_; }
+  const std::string& error() const { return error_; }
+  Hydraulics& hydraulics() { return hydraulics_; }
+  TrackerModel& tracker() { return tracker_; }
+  const PlantParameters& parameters() const { return p_; }
+
+ private:
+  PlantParameters p_;
+  std::unique_ptr<DynamicRod> rod_;
+  actuation::JetMap jets_;
+  Hydraulics hydraulics_;
+  TrackerModel tracker_;
+  FlowSensorModel flow_sensors_;
+  Eigen::Matrix3d R_tracker_base_;
+  Eigen::Vector3d duty_ = Eigen::Vector3d::Zero();
+  double t_ = 0.0, t_command_ = -1e300;
+  bool timed_out_ = true;
+  std::string error_;
+};
+
+}  // namespace plant
+}  // namespace hydrojet

@@ -1,0 +1,168 @@
+#include "hydrojet_control/config/controller_config.h"
+
+#include <cmath>
+#include <set>
+
+namespace hydrojet {
+namespace config {
+namespace {
+
+/// Typed access to a YAML tree by "a/b" paths, remembering which keys were read.
+class Tree {
+ public:
+  explicit Tree(const YAML::Node& root) : root_(root) {}
+
+  YAML::Node find(const std::string& path) const {
+    YAML::Node n = YAML::Clone(root_);
+    size_t start = 0;
+    while (true) {
+      const size_t slash = path.find('/', start);
+      const std::string part = path.substr(start, slash - start);
+      if (!n.IsMap() || !n[part]) return YAML::Node(YAML::NodeType::Undefined);
+      n = n[part];
+      if (slash == std::string::npos) return n;
+      start = slash + 1;
+    }
+  }
+  double number(const std::string& path, double fallback) {
+    read_.insert(path);
+    const YAML::Node n = find(path);
+    if (!n.IsDefined()) return fallback;
+    double v;
+    try {
+      v = n.as<double>();
+    } catch (const YAML::Exception&) {
+      throw ParamError(path + ": must be a number");
+    }
+    if (!std::isfinite(v)) throw ParamError(path + ": must be finite");
+    return v;
+  }
+  int integer(const std::string& path, int fallback) {
+    read_.insert(path);
+    const YAML::Node n = find(path);
+    if (!n.IsDefined()) return fallback;
+    try {
+      return n.as<int>();
+    } catch (const YAML::Exception&) {
+      throw ParamError(path + ": must be an integer");
+    }
+  }
+  bool boolean(const std::string& path, bool fallback) {
+    read_.insert(path);
+    const YAML::Node n = find(path);
+    if (!n.IsDefined()) return fallback;
+    try {
+      return n.as<bool>();
+    } catch (const YAML::Exception&) {
+      throw ParamError(path + ": must be true or false");
+    }
+  }
+  std::string text(const std::string& path, const std::string& fallback) {
+    read_.insert(path);
+    const YAML::Node n = find(path);
+    if (!n.IsDefined()) return fallback;
+    if (!n.IsScalar()) throw ParamError(path + ": must be a string");
+    return n.Scalar();
+  }
+  void reject_unknown() const { visit(root_, ""); }
+
+ private:
+  void visit(const YAML::Node& n, const std::string& prefix) const {
+    if (!n.IsMap()) {
+      if (!prefix.empty() && !read_.count(prefix)) throw ParamError(prefix + ": unknown parameter");
+      return;
+    }
+    for (const auto& kv : n) {
+      const std::string k = prefix.empty() ? kv.first.as<std::string>() : prefix + "/" + kv.first.as<std::string>();
+      visit(kv.second, k);
+    }
+  }
+  YAML::Node root_;
+  std::set<std::string> read_;
+};
+
+}  // namespace
+
+ControllerOptions parse_controller_options(const YAML::Node& root) {
+  if (root.IsDefined() && !root.IsNull() && !root.IsMap()) throw ParamError("(root): must be a mapping");
+  Tree p(root);
+  ControllerOptions o;
+  o.scene = p.text("scene", "");
+  o.rate = p.number("rate", o.rate);
+  if (!(o.rate >= 1.0 && o.rate <= 1000.0)) throw ParamError("rate: must lie in [1, 1000] Hz");
+  o.autostart = p.boolean("autostart", o.autostart);
+  o.base_frame = p.text("base_frame", o.base_frame);
+  const std::string mode = p.text("mode", "closed");
+  if (mode == "closed") o.controller.mode = control::LoopMode::kClosed;
+  else if (mode == "open") o.controller.mode = control::LoopMode::kOpen;
+  else throw ParamError("mode: must be 'closed' or 'open', got '" + mode + "'");
+
+  // Each numeric parameter: its key, the core's field name (as ControllerParams::validate() names
+  // it) and where it lives.
+  control::ControllerParams& c = o.controller;
+  const struct {
+    const char* key;
+    const char* field;
+    double* value;
+  } numbers[] = {
+      {"gains/kp", "kp", &c.kp},
+      {"gains/kd", "kd", &c.kd},
+      {"gains/feedforward", "feedforward", &c.feedforward},
+      {"gains/damping", "damping", &c.damping},
+      {"limits/max_force", "max_force", &c.max_force},
+      {"limits/max_force_rate", "max_force_rate", &c.max_force_rate},
+      {"allocation_weight", "allocation_weight", &c.allocation_weight},
+      {"safety/max_oscillation", "max_oscillation", &c.max_oscillation},
+      {"safety/sample_period", "sample_period", &c.sample_period},
+      {"safety/min_stability_margin", "min_stability_margin", &c.min_stability_margin},
+      {"safety/unreachable_tolerance", "unreachable_tolerance", &c.unreachable_tolerance},
+      {"safety/flow_fault_tolerance", "flow_fault_tolerance", &c.flow_fault_tolerance},
+      {"safety/flow_fault_time", "flow_fault_time", &c.flow_fault_time},
+      {"path/theta_start", "path.theta_start", &c.path.theta_start},
+      {"path/theta_end", "path.theta_end", &c.path.theta_end},
+      {"path/phi_start", "path.phi_start", &c.path.phi_start},
+      {"path/phi_end", "path.phi_end", &c.path.phi_end},
+      {"path/duration", "path.duration", &c.path.duration},
+  };
+  for (const auto& n : numbers) *n.value = p.number(n.key, *n.value);
+  c.stale_periods = p.integer("safety/stale_periods", c.stale_periods);
+  c.max_solver_failures = p.integer("safety/max_solver_failures", c.max_solver_failures);
+  c.integrate_from_measured = p.boolean("integrate_from_measured", c.integrate_from_measured);
+  const std::string err = c.validate();
+  if (!err.empty()) {
+    const std::string field = err.substr(0, err.find(':'));
+    std::string k = field == "stale_periods" || field == "max_solver_failures" ? "safety/" + field : field;
+    for (const auto& n : numbers)
+      if (field == n.field) k = n.key;
+    throw ParamError(k + err.substr(field.size()));
+  }
+
+  actuation::FlowRegulatorParameters& f = o.flow;
+  f.kp = p.number("flow_regulator/kp", f.kp);
+  f.ki = p.number("flow_regulator/ki", f.ki);
+  f.feedforward = p.number("flow_regulator/feedforward", f.feedforward);
+  f.output_min = p.number("flow_regulator/output_min", f.output_min);
+  f.output_max = p.number("flow_regulator/output_max", f.output_max);
+  const std::string ferr = actuation::validate(f);
+  if (!ferr.empty()) {
+    const size_t sp = ferr.find(' ');
+    throw ParamError("flow_regulator/" + ferr.substr(0, sp) + ":" + ferr.substr(sp));
+  }
+  p.reject_unknown();
+  return o;
+}
+
+ControllerOptions load_controller_options(const std::string& path) {
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    throw ParamError("controller options: cannot read file '" + path + "'");
+  } catch (const YAML::Exception& e) {
+    throw ParamError(std::string("controller options: malformed YAML: ") + e.what());
+  }
+  return parse_controller_options(root);
+}
+
+}  // namespace config
+}  // namespace hydrojet
