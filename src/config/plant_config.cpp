@@ -92,12 +92,15 @@ plant::PlantParameters make_plant(const Scene& nominal, const std::string& text)
     if (n["mismatch"]) {
       const YAML::Node m = n["mismatch"];
       check_keys(m, "plant.mismatch", {"precurvature_offset", "bending_stiffness_scale", "torsional_stiffness_scale",
-                                       "misalignment_offset", "tip_mass_scale"});
+                                       "misalignment_offset", "tip_mass_scale", "base_tilt_offset"});
       opt_vec3(m, "precurvature_offset", "plant.mismatch", &du);
       opt_vec3(m, "misalignment_offset", "plant.mismatch", &dmis);
       opt(m, "bending_stiffness_scale", "plant.mismatch", &ei_scale);
       opt(m, "torsional_stiffness_scale", "plant.mismatch", &gj_scale);
       opt(m, "tip_mass_scale", "plant.mismatch", &mass_scale);
+      double tilt_offset = 0.0;
+      opt(m, "base_tilt_offset", "plant.mismatch", &tilt_offset);
+      p.base_tilt += tilt_offset;
       if (!(ei_scale > 0)) throw SceneError("plant.mismatch.bending_stiffness_scale", "must be positive");
       if (!(gj_scale > 0)) throw SceneError("plant.mismatch.torsional_stiffness_scale", "must be positive");
       if (!(mass_scale >= 0)) throw SceneError("plant.mismatch.tip_mass_scale", "must not be negative");

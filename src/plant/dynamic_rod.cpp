@@ -389,9 +389,10 @@ bool DynamicRod::reset_to_static(const rod::TipWrench& w) {
   nodes_.swap(nodes_solve_);
   x_ = x;
   x_prev_ = x;
-  have_prev_ = false;
+  x_prev2_ = x;
   at_rest_history_ = true;
   dt_prev_ = 0.0;
+  dt_prev2_ = 0.0;
   time_ = 0.0;
   initialised_ = true;
   return true;
@@ -442,9 +443,16 @@ bool DynamicRod::step(const rod::TipWrench& w, double dt) {
   dist_weight_ = rho_a_ * params_.model.gravity;
   drag_active_ = params_.linear_drag > 0.0 || params_.quadratic_drag > 0.0;
 
-  // Warm start: linear extrapolation of the base unknowns from the last two steps.
+  // Warm start: extrapolate the base unknowns from the last steps (quadratic when the last two
+  // steps had this dt, linear otherwise). After a reset the history is "at rest" (x_prev_ =
+  // x_prev2_ = x_, dt_prev_ = dt_prev2_ = 0 stands for any dt), which extrapolates to x_.
+  auto same_dt = [dt](double d) { return d == 0.0 || std::abs(dt - d) <= 1e-12 * dt; };
   Vec6 x = x_;
-  if (have_prev_ && dt_prev_ > 0.0) x += (x_ - x_prev_) * (dt / dt_prev_);
+  if (same_dt(dt_prev_) && same_dt(dt_prev2_)) {
+    x = 3.0 * x_ - 3.0 * x_prev_ + x_prev2_;
+  } else if (dt_prev_ > 0.0) {
+    x += (x_ - x_prev_) * (dt / dt_prev_);
+  }
   bool ok = newton(&x, w, false);
   if (!ok) {
     // Retry from the previous step's values with a fresh Jacobian.
@@ -466,10 +474,11 @@ bool DynamicRod::step(const rod::TipWrench& w, double dt) {
   zt1_.noalias() = c.c0 * rec_;
   zt1_ += zh_;
   nodes_.swap(nodes_solve_);
+  x_prev2_ = x_prev_;
   x_prev_ = x_;
   x_ = x;
-  have_prev_ = true;
   at_rest_history_ = false;
+  dt_prev2_ = dt_prev_;
   dt_prev_ = dt;
   time_ += dt;
   return true;

@@ -68,8 +68,14 @@ Eigen::Vector3d Plant::jet_forces() const {
 }
 
 bool Plant::advance_to(double t) {
-  while (t_ < t - 1e-12) {
-    const double dt = std::min(p_.internal_dt, t - t_);
+  if (!(t > t_ + 1e-12)) return true;
+  // Equal internal steps no longer than internal_dt that land exactly on t (no sliver steps: the
+  // implicit rod step conditions badly as dt -> 0).
+  const double span = t - t_;
+  const int n = std::max(1, static_cast<int>(std::ceil(span / p_.internal_dt - 1e-9)));
+  const double dt = span / n;
+  const double t0 = t_;
+  for (int i = 1; i <= n; ++i) {
     // Command timeout: the valves close when the controller goes silent.
     timed_out_ = t_ - t_command_ > p_.command_timeout;
     const Eigen::Vector3d duty = timed_out_ ? Eigen::Vector3d::Zero() : duty_;
@@ -82,7 +88,7 @@ bool Plant::advance_to(double t) {
       error_ = "rod: " + rod_->last_error();
       return false;
     }
-    t_ += dt;
+    t_ = i == n ? t : t0 + i * dt;
   }
   return true;
 }

@@ -36,7 +36,7 @@
 // Shooting (Till §3.2): unknowns n(0), m(0) (6); residual: the tip boundary condition above (6).
 // Newton with a finite-difference Jacobian that is kept across time steps and refined by Broyden
 // rank-one updates (refreshed when the contraction is poor), warm-started by extrapolating the
-// previous steps' base values. No heap allocation per step (all arrays are sized in the constructor).
+// previous steps' base values (quadratically at constant Δt). No heap allocation per step (all arrays are sized in the constructor).
 //
 // Static limit: with all time derivatives zero this is the static Cosserat rod; as EA, GA → ∞ it is
 // the Kirchhoff rod of rod_model.h (ShootingSolver). The tip-position difference is about
@@ -168,10 +168,10 @@ class DynamicRod {
   Mat12X rec_, rec_trial_;  // z of the accepted / trial pass in the current solve
   std::vector<Vec24> nodes_, nodes_solve_, nodes_trial_;
   bool at_rest_history_ = true;  // z1 == z2, zt1 == 0: valid for any dt
-  double dt_prev_ = 0.0;
+  double dt_prev_ = 0.0, dt_prev2_ = 0.0;  // the last two step sizes [s] (0: at rest, any)
 
-  Vec6 x_ = Vec6::Zero(), x_prev_ = Vec6::Zero();  // base unknowns now and one step back
-  bool have_prev_ = false;
+  // Base unknowns [n(0); m(0)/L] now, one and two steps back (warm start).
+  Vec6 x_ = Vec6::Zero(), x_prev_ = Vec6::Zero(), x_prev2_ = Vec6::Zero();
   bool initialised_ = false;
 
   // Shooting Jacobian (scaled), kept across steps while c0 is unchanged.

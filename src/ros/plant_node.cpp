@@ -1,0 +1,240 @@
+// Wires the simulated HydroJet (hydrojet::plant::Plant) to the same topics as the rig driver:
+// tracker poses and jet states out, valve commands in. In lockstep mode it owns /clock and advances
+// one sample period per controller command, so runs are deterministic for a seed and faster than
+// real time; otherwise it runs paced to the wall clock.
+#include <geometry_msgs/PoseStamped.h>
+#include <geometry_msgs/TransformStamped.h>
+#include <ros/ros.h>
+#include <rosgraph_msgs/Clock.h>
+#include <tf2_ros/transform_broadcaster.h>
+
+#include <iostream>
+
+#include "hydrojet_control/JetCommand.h"
+#include "hydrojet_control/JetState.h"
+#include "hydrojet_control/RodState.h"
+#include "hydrojet_control/actuation/thrust.h"
+#include "hydrojet_control/config/plant_config.h"
+#include "hydrojet_control/ros/params.h"
+
+namespace hydrojet {
+namespace {
+
+struct PlantNodeOptions {
+  std::string scene, plant_file;
+  int seed = 1;
+  double rate = 100.0;                  ///< sensor sample rate [Hz]
+  bool lockstep = true;                 ///< own /clock, wait for each command
+  double command_wait = 0.2;            ///< lockstep: wall time to wait for a command [s]
+  double duration = 0.0;                ///< stop after this much simulated time [s] (0 = forever)
+  std::string tracker_frame = "tracker";
+  // Fault injection (simulated time [s]; < 0 = off)
+  double tracker_dropout_at = -1.0, tracker_dropout_duration = 1.0;
+  double flow_fault_at = -1.0;          ///< from then on jet 1 reads NaN and jet 2 negative
+  double stuck_open_at = -1.0;
+  int stuck_open_jet = 2;               ///< 1-based
+};
+
+PlantNodeOptions read_options(const ros::NodeHandle& pnh) {
+  const YAML::Node y = ros_bridge::private_params_as_yaml(pnh);
+  PlantNodeOptions o;
+  static const std::set<std::string> known = {
+      "scene", "plant", "seed", "rate", "lockstep", "command_wait", "duration", "tracker_frame",
+      "tracker_dropout_at", "tracker_dropout_duration", "flow_fault_at", "stuck_open_at", "stuck_open_jet"};
+  for (const auto& kv : y)
+    if (!known.count(kv.first.as<std::string>())) throw config::ParamError("~" + kv.first.as<std::string>() + ": unknown parameter");
+  auto num = [&](const char* k, double* v) {
+    if (!y[k]) return;
+    try {
+      *v = y[k].as<double>();
+    } catch (const YAML::Exception&) {
+      throw config::ParamError(std::string("~") + k + ": must be a number");
+    }
+  };
+  if (!y["scene"]) throw config::ParamError("~scene: missing (path of the scene YAML)");
+  o.scene = y["scene"].as<std::string>();
+  if (y["plant"]) o.plant_file = y["plant"].as<std::string>();
+  double seed = o.seed, jet = o.stuck_open_jet;
+  num("seed", &seed);
+  num("rate", &o.rate);
+  num("command_wait", &o.command_wait);
+  num("duration", &o.duration);
+  num("tracker_dropout_at", &o.tracker_dropout_at);
+  num("tracker_dropout_duration", &o.tracker_dropout_duration);
+  num("flow_fault_at", &o.flow_fault_at);
+  num("stuck_open_at", &o.stuck_open_at);
+  num("stuck_open_jet", &jet);
+  o.seed = static_cast<int>(seed);
+  o.stuck_open_jet = static_cast<int>(jet);
+  if (y["lockstep"]) o.lockstep = y["lockstep"].as<bool>();
+  if (y["tracker_frame"]) o.tracker_frame = y["tracker_frame"].as<std::string>();
+  if (!(o.rate >= 1.0 && o.rate <= 1000.0)) throw config::ParamError("~rate: must lie in [1, 1000] Hz");
+  if (o.stuck_open_jet < 1 || o.stuck_open_jet > 3) throw config::ParamError("~stuck_open_jet: must be 1, 2 or 3");
+  return o;
+}
+
+geometry_msgs::Pose to_pose(const plant::SensorPose& s) {
+  geometry_msgs::Pose p;
+  p.position.x = s.position.x(), p.position.y = s.position.y(), p.position.z = s.position.z();
+  p.orientation.w = s.orientation.w(), p.orientation.x = s.orientation.x();
+  p.orientation.y = s.orientation.y(), p.orientation.z = s.orientation.z();
+  return p;
+}
+
+class PlantNode {
+ public:
+  PlantNode(ros::NodeHandle& nh, ros::NodeHandle& pnh) : o_(read_options(pnh)) {
+    const config::Scene scene = config::load_scene(o_.scene);
+    params_ = config::load_plant(scene, o_.plant_file);
+    plant_.reset(new plant::Plant(params_, static_cast<unsigned>(o_.seed)));
+    if (!plant_->error().empty()) throw std::runtime_error(plant_->error());
+    if (o_.tracker_dropout_at >= 0) plant_->tracker().force_dropout(o_.tracker_dropout_at, o_.tracker_dropout_duration);
+    if (o_.lockstep) clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", 10);
+    tip_pub_ = nh.advertise<geometry_msgs::PoseStamped>("tracker/tip_pose", 10);
+    base_pub_ = nh.advertise<geometry_msgs::PoseStamped>("tracker/base_pose", 10);
+    jet_pub_ = nh.advertise<hydrojet_control::JetState>("jets/state", 10);
+    truth_pub_ = nh.advertise<hydrojet_control::RodState>("plant/rod_state", 10);
+    cmd_sub_ = nh.subscribe("jets/command", 10, &PlantNode::command, this, ros::TransportHints().tcpNoDelay());
+    ROS_INFO("plant: scene %s, base tilt %.1f deg, seed %d, %s", o_.scene.c_str(), params_.base_tilt * 180 / M_PI,
+             o_.seed, o_.lockstep ? "lockstep (owns /clock)" : "real time");
+  }
+
+  void run() {
+    const double dt = 1.0 / o_.rate;
+    if (o_.lockstep) {
+      // Wait (wall time) for a controller to subscribe, so the first steps are not lost.
+      const ros::WallTime until = ros::WallTime::now() + ros::WallDuration(30.0);
+      while (ros::ok() && jet_pub_.getNumSubscribers() == 0 && ros::WallTime::now() < until) {
+        publish_clock(0.0);
+        ros::WallDuration(0.05).sleep();
+        ros::spinOnce();
+      }
+    }
+    ros::WallRate pace(o_.rate);
+    for (long k = 0; ros::ok(); ++k) {
+      const double t = k * dt;
+      if (o_.duration > 0 && t > o_.duration) break;
+      if (!plant_->advance_to(t)) {
+        ROS_ERROR_THROTTLE(1.0, "plant: %s", plant_->error().c_str());
+      }
+      publish_sensors(t);
+      if (o_.lockstep) {
+        // Let the sensor messages go out before the clock that triggers the controller.
+        ros::WallDuration(0.0005).sleep();
+        publish_clock(t);
+        const ros::WallTime until = ros::WallTime::now() + ros::WallDuration(k == 0 ? 0.0 : o_.command_wait);
+        while (ros::ok() && last_command_stamp_ < t - 1e-9 && ros::WallTime::now() < until) {
+          ros::spinOnce();
+          ros::WallDuration(0.0001).sleep();
+        }
+      } else {
+        ros::spinOnce();
+        pace.sleep();
+      }
+      ros::spinOnce();
+    }
+  }
+
+ private:
+  double now(double t) const { return o_.lockstep ? t : ros::Time::now().toSec(); }
+
+  void publish_clock(double t) {
+    rosgraph_msgs::Clock c;
+    c.clock = ros::Time(t);
+    clock_pub_.publish(c);
+  }
+
+  void command(const hydrojet_control::JetCommand::ConstPtr& m) {
+    Eigen::Vector3d duty(m->valve_command[0], m->valve_command[1], m->valve_command[2]);
+    const double t = o_.lockstep ? m->header.stamp.toSec() : plant_->time();
+    if (!duty.allFinite()) duty.setZero();  // a broken command closes the valves
+    plant_->command(duty, plant_->time());
+    last_command_stamp_ = std::max(last_command_stamp_, t);
+  }
+
+  void publish_sensors(double t) {
+    const ros::Time stamp(now(t));
+    if (o_.stuck_open_at >= 0 && t >= o_.stuck_open_at) plant_->hydraulics()[o_.stuck_open_jet - 1].set_stuck_open(true);
+    const plant::TrackerSample ts = plant_->tracker_sample();
+    if (ts.valid) {  // a missing sensor publishes nothing: stale data is never republished
+      geometry_msgs::PoseStamped tip, base;
+      tip.header.stamp = base.header.stamp = ros::Time(now(ts.stamp));
+      tip.header.frame_id = base.header.frame_id = o_.tracker_frame;
+      tip.pose = to_pose(ts.tip);
+      base.pose = to_pose(ts.base);
+      tip_pub_.publish(tip);
+      base_pub_.publish(base);
+      broadcast(tip, "tip_sensor");
+      broadcast(base, "base_sensor");
+    }
+    Eigen::Vector3d q = plant_->flow_sample();
+    if (o_.flow_fault_at >= 0 && t >= o_.flow_fault_at) {
+      q[0] = std::nan("");
+      q[1] = -1e-6;
+    }
+    hydrojet_control::JetState js;
+    js.header.stamp = stamp;
+    const Eigen::Vector3d duty = plant_->valves_closed_by_timeout() ? Eigen::Vector3d::Zero() : plant_->valve_command();
+    for (int i = 0; i < 3; ++i) {
+      js.flow[i] = q[i];
+      js.flow_valid[i] = true;  // the plant reports what its sensors read; checks are the reader's job
+      js.force[i] = actuation::force_from_flow(q[i], params_.nozzle);
+      js.valve_command[i] = duty[i];
+    }
+    jet_pub_.publish(js);
+
+    if (truth_pub_.getNumSubscribers() > 0) {
+      hydrojet_control::RodState rs;
+      rs.header.stamp = stamp;
+      rs.header.frame_id = "base";
+      for (const Eigen::Vector3d& p : plant_->backbone()) {
+        geometry_msgs::Point pt;
+        pt.x = p.x(), pt.y = p.y(), pt.z = p.z();
+        rs.backbone.push_back(pt);
+      }
+      const Eigen::Quaterniond qt(plant_->tip_rotation());
+      const Eigen::Vector3d pt = plant_->tip_position();
+      rs.tip_pose.position.x = pt.x(), rs.tip_pose.position.y = pt.y(), rs.tip_pose.position.z = pt.z();
+      rs.tip_pose.orientation.w = qt.w(), rs.tip_pose.orientation.x = qt.x();
+      rs.tip_pose.orientation.y = qt.y(), rs.tip_pose.orientation.z = qt.z();
+      rs.converged = plant_->error().empty();
+      truth_pub_.publish(rs);
+    }
+  }
+
+  void broadcast(const geometry_msgs::PoseStamped& p, const std::string& child) {
+    geometry_msgs::TransformStamped t;
+    t.header = p.header;
+    t.child_frame_id = child;
+    t.transform.translation.x = p.pose.position.x;
+    t.transform.translation.y = p.pose.position.y;
+    t.transform.translation.z = p.pose.position.z;
+    t.transform.rotation = p.pose.orientation;
+    tf_.sendTransform(t);
+  }
+
+  PlantNodeOptions o_;
+  plant::PlantParameters params_;
+  std::unique_ptr<plant::Plant> plant_;
+  ros::Publisher clock_pub_, tip_pub_, base_pub_, jet_pub_, truth_pub_;
+  ros::Subscriber cmd_sub_;
+  tf2_ros::TransformBroadcaster tf_;
+  double last_command_stamp_ = -1.0;
+};
+
+}  // namespace
+}  // namespace hydrojet
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "plant");
+  ros::NodeHandle nh, pnh("~");
+  try {
+    hydrojet::PlantNode node(nh, pnh);
+    node.run();
+  } catch (const std::exception& e) {
+    ROS_FATAL("plant: refusing to start: %s", e.what());
+    std::cerr << "plant: refusing to start: " << e.what() << std::endl;
+    return 1;
+  }
+  return 0;
+}
