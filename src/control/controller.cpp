@@ -68,7 +68,7 @@ void Controller::start(double t) {
   prev_force_cmd_.setZero();
   solver_failures_ = 0;
   oscillation_armed_ = false;
-  flow_fault_since_.setConstant(-1.0);
+  flow_fault_integral_.setZero();
   last_flow_command_.setZero();
   regulators_.reset();
 }
@@ -126,17 +126,16 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
       return abort(out, "flow: jet " + std::to_string(i + 1) + " reading invalid (" + std::to_string(in.flows[i]) + " m^3/s)");
 
   // Actuator fault: a jet whose measured flow stays far from the flow it was commanded (a valve stuck
-  // open or closed, a blocked line) cannot be controlled; the flow loop would only wind up.
+  // open or closed, a blocked line) cannot be controlled; the flow loop would only wind up. The
+  // excess deviation beyond the tolerance is integrated, so that a gross fault trips sooner than a
+  // marginal one: trip when ∫(|ΔQ| − tol)⁺ dt ≥ tol · flow_fault_time.
   for (int i = 0; i < 3; ++i) {
-    if (std::abs(in.flows[i] - last_flow_command_[i]) > params_.flow_fault_tolerance) {
-      if (flow_fault_since_[i] < 0.0) flow_fault_since_[i] = in.t;
-      if (in.t - flow_fault_since_[i] >= params_.flow_fault_time)
-        return abort(out, "flow: jet " + std::to_string(i + 1) + " does not follow its command (measured " +
-                              std::to_string(in.flows[i]) + " m^3/s, commanded " + std::to_string(last_flow_command_[i]) +
-                              " m^3/s): valve stuck or line blocked");
-    } else {
-      flow_fault_since_[i] = -1.0;
-    }
+    const double excess = std::abs(in.flows[i] - last_flow_command_[i]) - params_.flow_fault_tolerance;
+    flow_fault_integral_[i] = excess > 0.0 ? flow_fault_integral_[i] + excess * dt : 0.0;
+    if (flow_fault_integral_[i] >= params_.flow_fault_tolerance * params_.flow_fault_time)
+      return abort(out, "flow: jet " + std::to_string(i + 1) + " does not follow its command (measured " +
+                            std::to_string(in.flows[i]) + " m^3/s, commanded " + std::to_string(last_flow_command_[i]) +
+                            " m^3/s): valve stuck or line blocked");
   }
 
   // Algorithm 1, line 4: w_a = A q_obs, with q_obs from measured flow by the thrust equation (26).

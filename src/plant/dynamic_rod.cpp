@@ -274,17 +274,23 @@ bool DynamicRod::newton(Vec6* x, const rod::TipWrench& w, bool full_newton) {
       return false;
     }
     const Vec6 dx = -lu_.solve(r);
-    if (!dx.allFinite()) {
+    const double dx_norm = dx.norm();
+    if (!std::isfinite(dx_norm)) {
       last_error_ = "non-finite Newton step";
       return false;
     }
+    // Damped step. A trial is accepted when the residual decreases or when Deuflhard's
+    // affine-invariant natural monotonicity test holds, |J⁻¹ r(x + λΔx)| ≤ (1 − λ/4)|Δx| (the
+    // residual's components have very different sensitivities, so |r| alone is a poor merit).
     bool accepted = false;
     double lambda = 1.0;
     Vec6 xt, rt;
-    for (int k = 0; k < 10; ++k, lambda *= 0.5) {
+    for (int k = 0; k < 12; ++k, lambda *= 0.5) {
       xt = *x + lambda * dx;
       rt = pass(xt, w, &rec_trial_, &nodes_trial_);
-      if (rt.allFinite() && rt.norm() < (1.0 - 1e-4 * lambda) * rn) {
+      if (rt.allFinite() &&
+          (rt.norm() < (1.0 - 1e-4 * lambda) * rn ||
+           lu_.solve(rt).norm() <= (1.0 - 0.25 * lambda) * dx_norm)) {
         accepted = true;
         break;
       }
@@ -317,7 +323,7 @@ bool DynamicRod::newton(Vec6* x, const rod::TipWrench& w, bool full_newton) {
     rn = rt.norm();
     std::swap(rec_, rec_trial_);
     std::swap(nodes_solve_, nodes_trial_);
-    if (rn > tol && (full_newton || ratio > 0.3)) {
+    if (rn > tol && (full_newton || ratio > 0.3 || lambda < 1.0)) {
       if (!refresh_jacobian(*x, r, w)) {
         last_error_ = "singular or non-finite shooting Jacobian";
         return false;

@@ -25,7 +25,7 @@ double Valve::steady_flow(double duty) const {
 
 double Valve::step(double duty, double dt) {
   double d = std::isfinite(duty) ? std::min(1.0, std::max(0.0, duty)) : 0.0;
-  if (stuck_open_) d = 1.0;
+  if (stuck_duty_ >= 0.0) d = std::min(1.0, stuck_duty_);
   // Play (backlash) of width h: the effective duty moves only when the command leaves the band.
   const double h = 0.5 * p_.hysteresis;
   if (d > effective_ + h) effective_ = d - h;

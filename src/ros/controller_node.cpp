@@ -63,7 +63,7 @@ class ControllerNode {
 
     // Gains through dynamic_reconfigure. Callbacks run on the single spinner thread, so a new
     // configuration never lands in the middle of a control cycle.
-    reconfigure_.reset(new dynamic_reconfigure::Server<hydrojet_control::ControllerConfig>(pnh_));
+    reconfigure_.reset(new dynamic_reconfigure::Server<hydrojet_control::ControllerConfig>(reconfigure_mutex_, pnh_));
     hydrojet_control::ControllerConfig initial;
     const control::ControllerParams& c = opts_.controller;
     initial.kp = c.kp, initial.kd = c.kd, initial.feedforward = c.feedforward, initial.damping = c.damping;
@@ -241,6 +241,7 @@ class ControllerNode {
   ros::Publisher cmd_pub_, status_pub_, rod_pub_, target_pub_;
   ros::ServiceServer start_srv_, stop_srv_, mode_srv_;
   ros::Timer timer_;
+  boost::recursive_mutex reconfigure_mutex_;
   std::unique_ptr<dynamic_reconfigure::Server<hydrojet_control::ControllerConfig>> reconfigure_;
   diagnostic_updater::Updater diagnostics_;
   geometry_msgs::PoseStamped tip_, base_;

@@ -33,6 +33,7 @@ struct PlantNodeOptions {
   double flow_fault_at = -1.0;          ///< from then on jet 1 reads NaN and jet 2 negative
   double stuck_open_at = -1.0;
   int stuck_open_jet = 2;               ///< 1-based
+  double stuck_duty = 1.0;              ///< the stuck valve's opening [0, 1]
 };
 
 PlantNodeOptions read_options(const ros::NodeHandle& pnh) {
@@ -40,7 +41,7 @@ PlantNodeOptions read_options(const ros::NodeHandle& pnh) {
   PlantNodeOptions o;
   static const std::set<std::string> known = {
       "scene", "plant", "seed", "rate", "lockstep", "command_wait", "duration", "tracker_frame",
-      "tracker_dropout_at", "tracker_dropout_duration", "flow_fault_at", "stuck_open_at", "stuck_open_jet"};
+      "tracker_dropout_at", "tracker_dropout_duration", "flow_fault_at", "stuck_open_at", "stuck_open_jet", "stuck_duty"};
   for (const auto& kv : y)
     if (!known.count(kv.first.as<std::string>())) throw config::ParamError("~" + kv.first.as<std::string>() + ": unknown parameter");
   auto num = [&](const char* k, double* v) {
@@ -64,6 +65,7 @@ PlantNodeOptions read_options(const ros::NodeHandle& pnh) {
   num("flow_fault_at", &o.flow_fault_at);
   num("stuck_open_at", &o.stuck_open_at);
   num("stuck_open_jet", &jet);
+  num("stuck_duty", &o.stuck_duty);
   o.seed = static_cast<int>(seed);
   o.stuck_open_jet = static_cast<int>(jet);
   if (y["lockstep"]) o.lockstep = y["lockstep"].as<bool>();
@@ -154,7 +156,7 @@ class PlantNode {
 
   void publish_sensors(double t) {
     const ros::Time stamp(now(t));
-    if (o_.stuck_open_at >= 0 && t >= o_.stuck_open_at) plant_->hydraulics()[o_.stuck_open_jet - 1].set_stuck_open(true);
+    if (o_.stuck_open_at >= 0 && t >= o_.stuck_open_at) plant_->hydraulics()[o_.stuck_open_jet - 1].set_stuck(o_.stuck_duty);
     const plant::TrackerSample ts = plant_->tracker_sample();
     if (ts.valid) {  // a missing sensor publishes nothing: stale data is never republished
       geometry_msgs::PoseStamped tip, base;

@@ -63,9 +63,13 @@ TEST(ControllerStale, TrackerSilenceZeroesJets) {
       p.pose.orientation.x = 0.0;
       base.publish(p);
     }
+    // The fake plant's valves: flow follows the last command (full duty = 1.6e-5 m^3/s).
     hydrojet_control::JetState js;
     js.header.stamp = now;
-    for (int i = 0; i < 3; ++i) js.flow_valid[i] = true;
+    for (int i = 0; i < 3; ++i) {
+      js.flow_valid[i] = true;
+      js.flow[i] = 1.6e-5 * r.cmd.valve_command[i];
+    }
     jets.publish(js);
     ros::spinOnce();
     const double valves = r.cmd.valve_command[0] + r.cmd.valve_command[1] + r.cmd.valve_command[2];

@@ -43,7 +43,8 @@ struct ControllerParams {
   double min_stability_margin = 0.5;  ///< abort when σ_c (eq. 23) falls below this [N/m]
   double unreachable_tolerance = 1e-3; ///< allocation residual [N] above which the force is out of reach
   double flow_fault_tolerance = 3e-6;  ///< |measured − commanded flow| that counts as a jet fault [m^3/s]
-  double flow_fault_time = 0.5;        ///< ... when it lasts this long (stuck valve, blocked line) [s]
+  double flow_fault_time = 0.5;        ///< a deviation twice the tolerance trips after this long [s]
+                                       ///< (the excess over the tolerance is integrated)
   SpiralPath path;
 
   /// Empty when valid, else "<field>: <what is wrong>".
@@ -137,7 +138,7 @@ class Controller {
   Eigen::Vector2d prev_force_cmd_ = Eigen::Vector2d::Zero();
   int solver_failures_ = 0;
   bool oscillation_armed_ = false;
-  Vec3 flow_fault_since_ = Vec3::Constant(-1.0);  ///< when each jet started to deviate [s], < 0: not
+  Vec3 flow_fault_integral_ = Vec3::Zero();  ///< ∫(|ΔQ| − tol)⁺ dt per jet [m^3]
   Vec3 last_flow_command_ = Vec3::Zero();
 };
 

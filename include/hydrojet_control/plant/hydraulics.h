@@ -31,14 +31,14 @@ class Valve {
   double steady_flow(double duty) const;
   double flow() const { return flow_; }
   void reset() { flow_ = 0.0, effective_ = 0.0; }
-  /// Fault injection: the valve is stuck fully open whatever the command.
-  void set_stuck_open(bool s) { stuck_open_ = s; }
+  /// Fault injection: the valve is stuck at `duty` [0, 1] whatever the command; < 0 frees it.
+  void set_stuck(double duty) { stuck_duty_ = duty; }
 
  private:
   ValveParameters p_;
   double flow_ = 0.0;
   double effective_ = 0.0;  ///< duty after the hysteresis play
-  bool stuck_open_ = false;
+  double stuck_duty_ = -1.0;
 };
 
 /// The three jets' hydraulics.
