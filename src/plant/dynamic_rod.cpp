@@ -71,6 +71,8 @@ std::string DynamicRodParameters::validate() const {
     return bad("alpha", "must be in [-0.5, 0]", alpha);
   if (!finite_pos(tolerance)) return bad("tolerance", "must be positive and finite", tolerance);
   if (max_iterations < 1) return bad("max_iterations", "must be at least 1", max_iterations);
+  if (max_substep_halvings < 0 || max_substep_halvings > 10)
+    return bad("max_substep_halvings", "must be in [0, 10]", max_substep_halvings);
   return std::string();
 }
 
@@ -102,6 +104,10 @@ DynamicRod::DynamicRod(const DynamicRodParameters& params) : params_(params) {
   nodes_.assign(params_.nodes, Vec24::Zero());
   nodes_solve_.assign(params_.nodes, Vec24::Zero());
   nodes_trial_.assign(params_.nodes, Vec24::Zero());
+  snap_z1_.setZero(12, slots_);
+  snap_z2_.setZero(12, slots_);
+  snap_zt1_.setZero(12, slots_);
+  snap_nodes_.assign(params_.nodes, Vec24::Zero());
 
   reset_to_static(rod::TipWrench());
 }
@@ -426,7 +432,50 @@ bool DynamicRod::step(const rod::TipWrench& w, double dt) {
     return false;
   }
   last_error_.clear();
+  last_substeps_ = 1;
+  if (advance(w, dt)) return true;
 
+  // Fallback: the same interval in 2, 4, ... equal substeps (the wrench held over all of them).
+  // The snapshot copies are into preallocated storage of the same size (no allocation).
+  const std::string first = last_error_;
+  snap_z1_ = z1_;
+  snap_z2_ = z2_;
+  snap_zt1_ = zt1_;
+  snap_nodes_ = nodes_;
+  const Vec6 sx = x_, sx1 = x_prev_, sx2 = x_prev2_;
+  const double sdt1 = dt_prev_, sdt2 = dt_prev2_, st = time_;
+  const bool srest = at_rest_history_;
+  auto restore = [&]() {
+    z1_ = snap_z1_;
+    z2_ = snap_z2_;
+    zt1_ = snap_zt1_;
+    nodes_ = snap_nodes_;
+    x_ = sx, x_prev_ = sx1, x_prev2_ = sx2;
+    dt_prev_ = sdt1, dt_prev2_ = sdt2, time_ = st;
+    at_rest_history_ = srest;
+  };
+  for (int level = 1; level <= params_.max_substep_halvings; ++level) {
+    const int n = 1 << level;
+    bool ok = true;
+    for (int i = 0; i < n && ok; ++i) ok = advance(w, dt / n);
+    if (ok) {
+      time_ = st + dt;
+      last_substeps_ = n;
+      last_error_.clear();
+      return true;
+    }
+    restore();
+  }
+  std::ostringstream os;
+  os << "step: the boundary-value problem did not converge (" << first;
+  if (params_.max_substep_halvings > 0)
+    os << "; also failed with " << (1 << params_.max_substep_halvings) << " substeps: " << last_error_;
+  os << ")";
+  last_error_ = os.str();
+  return false;
+}
+
+bool DynamicRod::advance(const rod::TipWrench& w, double dt) {
   // BDF-α coefficients (Till §3.1); the θ-method for a step whose Δt differs from the last one.
   const double a = params_.alpha;
   Coefficients c;
@@ -459,19 +508,14 @@ bool DynamicRod::step(const rod::TipWrench& w, double dt) {
   } else if (dt_prev_ > 0.0) {
     x += (x_ - x_prev_) * (dt / dt_prev_);
   }
-  bool ok = newton(&x, w, false);
-  if (!ok) {
+  if (!newton(&x, w, false)) {
     // Retry from the previous step's values with a fresh Jacobian.
-    const std::string first = last_error_;
     x = x_;
     jac_valid_ = false;
-    ok = newton(&x, w, false);
-    if (!ok) {
-      last_error_ = "step: " + last_error_ + " (first attempt: " + first + ")";
+    if (!newton(&x, w, false)) {
       jac_valid_ = false;
       return false;
     }
-    last_error_.clear();
   }
 
   // Commit: shift the history, z_t(i) = c0 z(i) + z_h.

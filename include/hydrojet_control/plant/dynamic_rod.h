@@ -86,7 +86,10 @@ struct DynamicRodParameters {
   /// Newton stops when |residual| ≤ tolerance·F0, F0 = max(EI, GJ)/L² [N] (the residual is the tip
   /// force error [N] and the tip moment error / L).
   double tolerance = 1e-9;
-  int max_iterations = 25;               ///< Newton iterations per time step (and per attempt)
+  int max_iterations = 15;               ///< Newton iterations per attempt
+  /// When a step's boundary-value problem does not converge, step() retries the interval as 2, 4,
+  /// ..., 2^max_substep_halvings equal substeps (same wrench) before reporting failure. 0..10.
+  int max_substep_halvings = 4;
 
   /// Empty if valid, otherwise a message naming the first bad field (e.g. "shear_stiffness ...").
   std::string validate() const;
@@ -124,7 +127,8 @@ class DynamicRod {
   void set_gravity(const Vec3& g);
   Vec3 gravity() const { return params_.model.gravity; }
 
-  int last_iterations() const { return last_iterations_; }  ///< Newton iterations, last solve
+  int last_iterations() const { return last_iterations_; }  ///< Newton iterations, last call
+  int last_substeps() const { return last_substeps_; }      ///< substeps the last step() used
   int last_evaluations() const { return last_evaluations_; } ///< shooting passes, last solve
   std::string last_error() const { return last_error_; }    ///< empty after a success
   double time() const { return time_; }                      ///< [s] since the last reset
@@ -149,6 +153,8 @@ class DynamicRod {
   Vec6 pass(const Vec6& x, const rod::TipWrench& w, Mat12X* rec, std::vector<Vec24>* nodes);
   bool refresh_jacobian(const Vec6& x, const Vec6& r, const rod::TipWrench& w);
   bool newton(Vec6* x, const rod::TipWrench& w, bool full_newton);
+  /// One implicit time step of size dt; commits the state only on success.
+  bool advance(const rod::TipWrench& w, double dt);
   void set_coefficients(const Coefficients& c);
   Vec6 kirchhoff_guess(const rod::TipWrench& w, bool* ok);
 
@@ -167,6 +173,8 @@ class DynamicRod {
   Mat12X z1_, z2_, zt1_, zh_;
   Mat12X rec_, rec_trial_;  // z of the accepted / trial pass in the current solve
   std::vector<Vec24> nodes_, nodes_solve_, nodes_trial_;
+  Mat12X snap_z1_, snap_z2_, snap_zt1_;  // state snapshot for the substepping fallback
+  std::vector<Vec24> snap_nodes_;
   bool at_rest_history_ = true;  // z1 == z2, zt1 == 0: valid for any dt
   double dt_prev_ = 0.0, dt_prev2_ = 0.0;  // the last two step sizes [s] (0: at rest, any)
 
@@ -184,6 +192,7 @@ class DynamicRod {
   double time_ = 0.0;
   int last_iterations_ = 0;
   int last_evaluations_ = 0;
+  int last_substeps_ = 1;
   std::string last_error_;
 };
 

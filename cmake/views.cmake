@@ -1,0 +1,11 @@
+# rviz views: MarkerArray of the rod, capsule, jets, directions and stability; frames on tf2.
+hydrojet_node(view_node src/ros/view_node.cpp)
+if(CATKIN_ENABLE_TESTING)
+  add_executable(rostest_view_markers EXCLUDE_FROM_ALL test/rostest/view_markers.cpp)
+  target_include_directories(rostest_view_markers PRIVATE ${catkin_INCLUDE_DIRS})
+  target_link_libraries(rostest_view_markers ${catkin_LIBRARIES} GTest::gtest)
+  add_dependencies(rostest_view_markers view_node ${PROJECT_NAME}_generate_messages_cpp)
+  set_target_properties(rostest_view_markers PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CATKIN_DEVEL_PREFIX}/${CATKIN_PACKAGE_BIN_DESTINATION})
+  add_dependencies(tests rostest_view_markers)
+  add_rostest(test/rostest/view_markers.test)
+endif()
