@@ -317,6 +317,48 @@ TEST(DynamicRodHydroJet, JetForceStepOvershootsAndSettles) {
   EXPECT_LT(rotation_error(rod.tip_rotation(), ref.tip_rotation), kRotationTolerance);
 }
 
+// Body mass (ρA > 0, body weight in the statics too) and all drag terms: the step response still
+// settles to the static solution, with less overshoot than without drag.
+TEST(DynamicRodHydroJet, DragAndBodyMassReduceOvershootAndSettle) {
+  rod::TipWrench w;
+  w.force = jet_force(0.1, 0.05, 0.0);  // ≈0.09 N: well below the flutter threshold (header)
+  double overshoot[2];
+  for (int with_drag = 0; with_drag < 2; ++with_drag) {
+    DynamicRodParameters p = hydrojet_parameters();
+    p.model.rod.linear_density = 5e-3;
+    p.rotational_inertia_per_length = 1e-8;
+    if (with_drag) {
+      p.linear_drag = 0.2;
+      p.quadratic_drag = 0.5;
+      p.tip_drag = 0.02;
+      p.tip_quadratic_drag = 0.05;
+      p.tip_angular_drag = 1e-5;
+    }
+    DynamicRod rod(p);
+    ASSERT_TRUE(rod.last_error().empty()) << rod.last_error();
+    const Vec3 p0 = rod.tip_position();
+    DynamicRod target(p);
+    ASSERT_TRUE(target.reset_to_static(w));
+    const Vec3 pf = target.tip_position();
+    const Vec3 e = (pf - p0).normalized();
+    double max_progress = 0.0;
+    while (rod.time() < 5.0) {
+      ASSERT_TRUE(rod.step(w, 0.005)) << rod.last_error();
+      max_progress = std::max(max_progress, (rod.tip_position() - p0).dot(e) / (pf - p0).norm());
+    }
+    overshoot[with_drag] = max_progress - 1.0;
+    EXPECT_LT((rod.tip_position() - pf).norm(), 1e-6);
+    const rod::RodSolution ref = kirchhoff(p.model, w);
+    ASSERT_TRUE(ref.converged);
+    EXPECT_LT((rod.tip_position() - ref.tip_position).norm(),
+              position_tolerance(p, rod.base_force().norm()));
+  }
+  std::printf("[  drag  ] overshoot without drag %.1f %%, with drag %.1f %%\n", 100 * overshoot[0],
+              100 * overshoot[1]);
+  EXPECT_GT(overshoot[0], 0.1);
+  EXPECT_LT(overshoot[1], 0.7 * overshoot[0]);
+}
+
 TEST(DynamicRodInput, RejectsNonFiniteWrenchAndBadStep) {
   DynamicRod rod(hydrojet_parameters());
   rod::TipWrench w;
@@ -364,6 +406,8 @@ TEST(DynamicRodInput, RejectsInvalidParametersNamingThem) {
       {"rotational_inertia_per_length",
        [](DynamicRodParameters* p) { p->rotational_inertia_per_length = -1.0; }},
       {"nodes", [](DynamicRodParameters* p) { p->nodes = 1; }},
+      {"max_substep_halvings", [](DynamicRodParameters* p) { p->max_substep_halvings = -1; }},
+      {"tolerance", [](DynamicRodParameters* p) { p->tolerance = 0.0; }},
       {"alpha", [](DynamicRodParameters* p) { p->alpha = 0.3; }},
       {"model.rod.length", [](DynamicRodParameters* p) { p->model.rod.length = 0.0; }},
       {"model.rod.stiffness", [](DynamicRodParameters* p) { p->model.rod.stiffness.z() = 0.0; }},

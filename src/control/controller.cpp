@@ -108,7 +108,8 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   if (state_ == ControllerState::kIdle || state_ == ControllerState::kAborted) return out;  // jets at zero
 
   const double dt = first_cycle_ ? params_.sample_period : in.t - t_last_;
-  if (!(dt > 0.0) || !std::isfinite(in.t)) return abort(out, "time did not advance (dt = " + std::to_string(dt) + " s)");
+  if (!std::isfinite(in.t) || dt < 0.0) return abort(out, "time went backwards (dt = " + std::to_string(dt) + " s)");
+  if (dt == 0.0) return last_output_;  // a repeated tick at the same time: nothing new to do
   t_last_ = in.t;
   out.path_time = in.t - t_start_;
 
@@ -156,6 +157,7 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
     const Vec3 q_hold = out.jet_force_observed;
     for (int i = 0; i < 3; ++i) out.flow_command[i] = actuation::flow_from_force(q_hold[i], model_.nozzle);
     out.valve_command = regulators_.update(out.flow_command, in.flows, dt);
+    last_output_ = out;
     return out;
   }
   solver_failures_ = 0;
@@ -234,6 +236,7 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
 
   if (params_.path.finished(out.path_time)) state_ = ControllerState::kFinished;
   out.state = state_ == ControllerState::kFinished ? ControllerState::kFinished : ControllerState::kRunning;
+  last_output_ = out;
   return out;
 }
 

@@ -114,7 +114,7 @@ DynamicRod::DynamicRod(const DynamicRodParameters& params) : params_(params) {
 
 void DynamicRod::set_coefficients(const Coefficients& c) {
   coef_ = c;
-  // Semi-discretised constitutive law (Till §3.1): (K + c0 B) is diagonal.
+  // Till's semi-discretised constitutive law: (K + c0 B) is diagonal.
   inv_se_ = (k_se_ + c.c0 * b_se_).cwiseInverse();
   inv_bt_ = (k_bt_ + c.c0 * b_bt_).cwiseInverse();
 }
@@ -221,6 +221,10 @@ Vec6 DynamicRod::pass(const Vec6& x, const rod::TipWrench& wr, Mat12X* rec,
   Vec6 r;
   r.head<3>() = n - R * f_body - mt * params_.model.gravity;
   r.tail<3>() = (m - R * l_body) / length_;
+  // Size of the largest terms that cancel in r (sets the round-off floor of the residual).
+  residual_scale_ = n.norm() + mt * (qt.norm() + w.norm() * q.norm()) + wr.force.norm() +
+                    (m.norm() + Jt.norm() * (wt.norm() + w.squaredNorm()) + wr.moment.norm()) /
+                        length_;
   if (rec) {
     auto col = rec->col(tip);
     col.segment<3>(0) = inv_se_.cwiseProduct(R.transpose() * n + kse_vstar_ -
@@ -252,10 +256,30 @@ bool DynamicRod::refresh_jacobian(const Vec6& x, const Vec6& r, const rod::TipWr
   return jac_valid_;
 }
 
-bool DynamicRod::newton(Vec6* x, const rod::TipWrench& w, bool full_newton) {
-  const double tol = params_.tolerance * force_scale_;
+bool DynamicRod::newton(Vec6* x, const rod::TipWrench& w, bool full_newton,
+                        const Vec6* alternatives, int n_alternatives) {
   Vec6 r = pass(*x, w, &rec_, &nodes_solve_);
   double rn = r.norm();
+  double scale = residual_scale_;
+  // A poor predictor (violent motion: the base forces vary faster than the extrapolation can
+  // follow) is replaced by the best of the alternative starting points.
+  if (std::isfinite(rn) && rn > 10.0 * force_scale_) {
+    for (int k = 0; k < n_alternatives; ++k) {
+      const Vec6 ra = pass(alternatives[k], w, &rec_trial_, &nodes_trial_);
+      if (ra.allFinite() && ra.norm() < rn) {
+        *x = alternatives[k];
+        r = ra;
+        rn = ra.norm();
+        scale = residual_scale_;
+        std::swap(rec_, rec_trial_);
+        std::swap(nodes_solve_, nodes_trial_);
+      }
+    }
+  }
+  // Tolerance [N]: relative to F0, but never below the round-off floor of the residual, whose
+  // terms (e.g. m_t q_t at large c0 = O(1/Δt)) can be much larger than F0 in violent motion.
+  auto tolerance = [&]() { return params_.tolerance * force_scale_ + 1e-13 * scale; };
+  double tol = tolerance();
   if (!std::isfinite(rn)) {
     last_error_ = "shooting pass produced a non-finite state at the initial guess";
     return false;
@@ -318,15 +342,20 @@ bool DynamicRod::newton(Vec6* x, const rod::TipWrench& w, bool full_newton) {
       last_error_ = os.str();
       return false;
     }
-    // Broyden rank-one update of the Jacobian with the accepted step.
+    // Broyden rank-one update of the Jacobian with the accepted step, unless the step is so small
+    // that the secant would mostly carry round-off.
     const Vec6 s = xt - *x;
-    jac_ += ((rt - r) - jac_ * s) * s.transpose() / s.squaredNorm();
-    lu_.compute(jac_);
-    jac_fresh_ = false;
+    if (s.norm() > 1e-8 * (force_scale_ + x->norm())) {
+      jac_ += ((rt - r) - jac_ * s) * s.transpose() / s.squaredNorm();
+      lu_.compute(jac_);
+      jac_fresh_ = false;
+    }
     const double ratio = rt.norm() / rn;
     *x = xt;
     r = rt;
     rn = rt.norm();
+    scale = residual_scale_;  // the accepted trial was the last pass
+    tol = tolerance();
     std::swap(rec_, rec_trial_);
     std::swap(nodes_solve_, nodes_trial_);
     if (rn > tol && (full_newton || ratio > 0.3 || lambda < 1.0)) {
@@ -476,7 +505,7 @@ bool DynamicRod::step(const rod::TipWrench& w, double dt) {
 }
 
 bool DynamicRod::advance(const rod::TipWrench& w, double dt) {
-  // BDF-α coefficients (Till §3.1); the θ-method for a step whose Δt differs from the last one.
+  // Till's BDF-α coefficients; the θ-method for a step whose Δt differs from the last one.
   const double a = params_.alpha;
   Coefficients c;
   c.d1 = a / (1.0 + a);
@@ -503,12 +532,14 @@ bool DynamicRod::advance(const rod::TipWrench& w, double dt) {
   // x_prev2_ = x_, dt_prev_ = dt_prev2_ = 0 stands for any dt), which extrapolates to x_.
   auto same_dt = [dt](double d) { return d == 0.0 || std::abs(dt - d) <= 1e-12 * dt; };
   Vec6 x = x_;
+  Vec6 alternatives[2] = {x_, x_};  // linear extrapolation, previous values
+  if (dt_prev_ > 0.0) alternatives[0] += (x_ - x_prev_) * (dt / dt_prev_);
   if (same_dt(dt_prev_) && same_dt(dt_prev2_)) {
     x = 3.0 * x_ - 3.0 * x_prev_ + x_prev2_;
-  } else if (dt_prev_ > 0.0) {
-    x += (x_ - x_prev_) * (dt / dt_prev_);
+  } else {
+    x = alternatives[0];
   }
-  if (!newton(&x, w, false)) {
+  if (!newton(&x, w, false, alternatives, 2)) {
     // Retry from the previous step's values with a fresh Jacobian.
     x = x_;
     jac_valid_ = false;

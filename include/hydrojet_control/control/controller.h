@@ -138,6 +138,7 @@ class Controller {
   Eigen::Vector2d prev_force_cmd_ = Eigen::Vector2d::Zero();
   int solver_failures_ = 0;
   bool oscillation_armed_ = false;
+  ControllerOutput last_output_;  ///< returned again for a repeated tick at the same time
   Vec3 flow_fault_integral_ = Vec3::Zero();  ///< ∫(|ΔQ| − tol)⁺ dt per jet [m^3]
   Vec3 last_flow_command_ = Vec3::Zero();
 };

@@ -2,13 +2,13 @@
 // dynamics of soft and continuum robots based on Cosserat rod models", IJRR 38(6), 2019
 // (referred to below as "Till"). ROS-free (Eigen only).
 //
-// Model (Till §2, eqs. for the Cosserat rod PDEs), s ∈ [0, L], t = time. Global (base-frame)
-// internal force n and moment m; body-frame strains v, u, velocity q and angular velocity ω:
+// Model (Till's Cosserat rod PDEs), s ∈ [0, L], t = time. Global (base-frame) internal force n and
+// moment m; body-frame strains v, u, velocity q and angular velocity ω:
 //   p_s = R v                        R_s = R û
 //   n_s = R(ρA(ω̂ q + q_t) + c_d(q) q) − ρA g            (linear + quadratic drag, body frame)
 //   m_s = R(ω̂ ρJ ω + ρJ ω_t) − p_s × n
 //   q_s = v_t − û q + ω̂ v           ω_s = u_t − û ω       (kinematic compatibility)
-// with the Kelvin–Voigt constitutive law (Till's viscoelastic law, B = τ_kv K)
+// with Till's Kelvin–Voigt viscoelastic constitutive law (here B = τ_kv K)
 //   n = R(K_se(v − e_z) + B_se v_t),  m = R(K_bt(u − ũ) + B_bt u_t),
 //   K_se = diag(GA, GA, EA), K_bt = diag(EI_x, EI_y, GJ), B_se = τ_kv K_se, B_bt = τ_kv K_bt.
 // Base (s = 0) clamped and at rest: p = 0, R = I, q = ω = 0.
@@ -17,30 +17,42 @@
 //   n(L) = R f_b + m_t g − m_t R(ω̂ q + q_t) − R c_t(q) q
 //   m(L) = R l_b − R(ω̂ J_t ω + J_t ω_t) − R c_ω ω
 //
-// Time discretisation: BDF-α (Till §3.1). For every variable y with a time derivative
-// (here z = [v, u, q, ω], 12 numbers) at every spatial evaluation point,
+// Time discretisation: Till's BDF-α formula. For every variable y with a time derivative (here
+// z = [v, u, q, ω], 12 numbers) at every spatial evaluation point,
 //   y_t(i) ≈ c0 y(i) + y_h,   y_h = c1 y(i−1) + c2 y(i−2) + d1 y_t(i−1),
 //   c0 = (1.5 + α)/(Δt(1 + α)), c1 = −2/Δt, c2 = (0.5 + α)/(Δt(1 + α)), d1 = α/(1 + α).
 // α = 0 is BDF2 (L-stable), α = −0.5 the trapezoidal rule (no numerical dissipation); Till uses
 // α = −0.2, which damps the highest frequencies by |d1| = 0.25 per step while second-order accurate.
-// Substituting y_t into the PDEs gives an ODE in s per time step (Till's "semi-discretised"
-// system); the strains follow from the internal forces by the diagonal linear solve
+// Substituting y_t into the PDEs gives Till's semi-discretised system, an ODE in s per time step;
+// the strains follow from the internal forces by the diagonal linear solve
 //   v = (K_se + c0 B_se)⁻¹(Rᵀn + K_se e_z − B_se v_h),  u = (K_bt + c0 B_bt)⁻¹(Rᵀm + K_bt ũ − B_bt u_h).
-// When Δt changes between steps the BDF-α history (which assumes equal steps) is not valid, and that
-// one step uses the one-step θ-method with the same high-frequency damping, θ = 1/(1 − d1).
+// BDF-α assumes equal steps; a step whose Δt differs from the previous one uses the one-step
+// θ-method with the same high-frequency damping, θ = 1/(1 − d1) (first order for that one step).
 //
 // Space: a fixed grid of N nodes (N − 1 classic RK4 steps). The history is stored at every RK4
-// stage point (4 per step, plus the tip), so each stage sees its own consistent time history; RK4
-// (rather than Till's explicit Euler) keeps the static limit accurate to ~1e-10 m with N ≈ 20.
+// stage point (4 per step, plus the tip), so each stage sees its own consistent time history. RK4
+// (rather than Till's explicit Euler) is 4th order: with N = 21 the static HydroJet tip agrees with
+// a fine solution to ≈1e-7 m and ≈1e-6 rad even when strongly bent (≈2e-5 rad with N = 11).
 //
-// Shooting (Till §3.2): unknowns n(0), m(0) (6); residual: the tip boundary condition above (6).
+// Shooting (as in Till): unknowns n(0), m(0) (6); residual: the tip boundary condition above (6).
 // Newton with a finite-difference Jacobian that is kept across time steps and refined by Broyden
-// rank-one updates (refreshed when the contraction is poor), warm-started by extrapolating the
-// previous steps' base values (quadratically at constant Δt). No heap allocation per step (all arrays are sized in the constructor).
+// rank-one updates (refreshed when the contraction is poor), damped by a residual/natural-
+// monotonicity line search, warm-started by extrapolating the previous steps' base values
+// (quadratically at constant Δt; the linear extrapolation and the previous values are tried when
+// that start is poor). If a step still fails, the interval is retried as 2, 4, ..., 16 substeps.
+// No heap allocation per step: all arrays are sized in the constructor.
 //
 // Static limit: with all time derivatives zero this is the static Cosserat rod; as EA, GA → ∞ it is
 // the Kirchhoff rod of rod_model.h (ShootingSolver). The tip-position difference is about
-// L·|n|/min(GA, EA) (shear + extension), ≈ 2e-7 m for the HydroJet at 0.2 N with the defaults.
+// L·|n|/min(GA, EA) (shear + extension), ≈ 1.5e-7 m for the HydroJet at 0.16 N with the defaults.
+//
+// Dynamic stability (a property of the model, converged in N and Δt): the follower jet force can
+// make the loaded equilibrium flutter. For the HydroJet (paper's Table 1, hanging, ρA = 0) with
+// τ_kv = 0.01 s a tip-frame force above ≈0.2 N (any direction in the x–y plane) gives a growing
+// oscillation that saturates in a whirling limit cycle (tip speeds 3–5 m/s); the threshold rises
+// with damping (≈0.25 N at τ_kv = 0.02 s, ≈0.35 N at 0.03 s). Such steps then never settle to the
+// ShootingSolver equilibrium. With τ_kv = 0 and violent forcing, the per-step problem can fail to
+// converge (step() returns false); τ_kv ≥ 1e-3 s is recommended.
 #pragma once
 
 #include <Eigen/Core>
@@ -69,8 +81,9 @@ struct DynamicRodParameters {
   rod::RodModel model;                   ///< statics: geometry, stiffness, ũ, ρA, m_t, gravity
   double shear_stiffness = 1e5;          ///< GA [N]; stiff by default (≈1e6·EI/L² for HydroJet)
   double axial_stiffness = 1e5;          ///< EA [N]; stiff by default (nearly inextensible)
-  double kelvin_voigt_time = 0.01;       ///< τ_kv [s]: B_se = τ_kv K_se, B_bt = τ_kv K_bt. With
-                                         ///< 0.01 s the HydroJet's first mode (≈5 Hz) has ζ ≈ 0.15
+  /// τ_kv [s]: B_se = τ_kv K_se, B_bt = τ_kv K_bt. Mode damping ratio ζ ≈ τ_kv ω/2: with 0.01 s
+  /// the HydroJet's first mode (≈5 Hz) has ζ ≈ 0.15 (see the flutter note above for large forces).
+  double kelvin_voigt_time = 0.01;
   double linear_drag = 0.0;              ///< c_lin, body drag [N s/m per m of rod] (body frame)
   double quadratic_drag = 0.0;           ///< c_quad, body drag [N s²/m² per m]: force −c_quad|q|q
   double tip_drag = 0.0;                 ///< c_t, capsule linear drag [N s/m]
@@ -84,7 +97,8 @@ struct DynamicRodParameters {
   int nodes = 21;                        ///< N spatial nodes (N − 1 RK4 steps), 2 ≤ N ≤ 2000
   double alpha = -0.2;                   ///< BDF-α parameter in [−0.5, 0] (Till: −0.2)
   /// Newton stops when |residual| ≤ tolerance·F0, F0 = max(EI, GJ)/L² [N] (the residual is the tip
-  /// force error [N] and the tip moment error / L).
+  /// force error [N] and the tip moment error / L), or at its round-off floor (1e-13 of the size of
+  /// its terms) if that is larger.
   double tolerance = 1e-9;
   int max_iterations = 15;               ///< Newton iterations per attempt
   /// When a step's boundary-value problem does not converge, step() retries the interval as 2, 4,
@@ -152,7 +166,8 @@ class DynamicRod {
   /// residual. Records z at every slot into `rec` and node states into `nodes` when non-null.
   Vec6 pass(const Vec6& x, const rod::TipWrench& w, Mat12X* rec, std::vector<Vec24>* nodes);
   bool refresh_jacobian(const Vec6& x, const Vec6& r, const rod::TipWrench& w);
-  bool newton(Vec6* x, const rod::TipWrench& w, bool full_newton);
+  bool newton(Vec6* x, const rod::TipWrench& w, bool full_newton,
+              const Vec6* alternatives = nullptr, int n_alternatives = 0);
   /// One implicit time step of size dt; commits the state only on success.
   bool advance(const rod::TipWrench& w, double dt);
   void set_coefficients(const Coefficients& c);
@@ -165,6 +180,7 @@ class DynamicRod {
   Vec3 k_se_, k_bt_, kse_vstar_, kbt_ustar_, b_se_, b_bt_, inv_se_, inv_bt_, rho_j_;
   double rho_a_ = 0.0;
   Vec3 dist_weight_ = Vec3::Zero();  // ρA g [N/m], base frame, for the current solve
+  double residual_scale_ = 0.0;       // magnitude of the terms in the last residual [N]
   bool drag_active_ = false;
   Coefficients coef_;
 

@@ -1,0 +1,134 @@
+// The simulated plant's parts against their own definitions: valve statics and lag, sensor noise
+// statistics, plant configuration errors, the static limit against the quasi-static model, and
+// determinism of a closed-loop run for a seed.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "hydrojet_control/config/controller_config.h"
+#include "hydrojet_control/config/plant_config.h"
+#include "hydrojet_control/sim/closed_loop_run.h"
+#include "test_helpers.h"
+
+using namespace hydrojet;
+
+TEST(Valve, DeadZoneLagHysteresisAndSaturation) {
+  plant::ValveParameters p;
+  p.max_flow = 1.6e-5, p.dead_zone = 0.1, p.exponent = 0.8, p.hysteresis = 0.0, p.time_constant = 0.05;
+  p.saturation = 1.0;
+  plant::Valve v(p);
+  EXPECT_EQ(v.steady_flow(0.05), 0.0);  // inside the dead zone
+  const double u = (0.6 - 0.1) / 0.9;
+  EXPECT_NEAR(v.steady_flow(0.6), 1.6e-5 * std::pow(u, 0.8), 1e-18);
+  // First-order lag: after one time constant 1 − e⁻¹ of the step.
+  double q = 0.0;
+  for (int i = 0; i < 50; ++i) q = v.step(0.6, 0.001);
+  EXPECT_NEAR(q / v.steady_flow(0.6), 1.0 - std::exp(-1.0), 1e-12);
+  // Saturation.
+  p.saturation = 1e-5;
+  plant::Valve s(p);
+  for (int i = 0; i < 2000; ++i) s.step(1.0, 0.001);
+  EXPECT_NEAR(s.flow(), 1e-5, 1e-12);
+  // Hysteresis (play of width h): coming down, the effective duty lags by h.
+  p.saturation = 1.0, p.hysteresis = 0.1, p.time_constant = 1e-4;
+  plant::Valve h(p);
+  for (int i = 0; i < 100; ++i) h.step(0.8, 0.001);
+  for (int i = 0; i < 100; ++i) h.step(0.7, 0.001);
+  EXPECT_NEAR(h.flow(), 1.6e-5 * std::pow((0.75 - 0.1) / 0.9, 0.8), 1e-12);  // 0.7 + h/2
+  // Stuck: ignores the command.
+  h.set_stuck(1.0);
+  for (int i = 0; i < 100; ++i) h.step(0.0, 0.001);
+  EXPECT_GT(h.flow(), 1.5e-5);
+  EXPECT_EQ(p.validate(), "");
+  p.dead_zone = 1.0;
+  EXPECT_EQ(p.validate().rfind("dead_zone", 0), 0u);
+}
+
+TEST(Sensors, NoiseHasTheConfiguredSpreadAndLatencyDelays) {
+  plant::TrackerNoise n;
+  n.position_quantum = 0.0;
+  plant::TrackerModel tracker(n, 42);
+  plant::SensorPose tip, base;
+  double s2 = 0.0, a2 = 0.0;
+  const int N = 4000;
+  for (int i = 0; i < N; ++i) {
+    const plant::TrackerSample s = tracker.sample(i * 0.01, tip, base);
+    ASSERT_TRUE(s.valid);
+    s2 += s.tip.position.squaredNorm();
+    a2 += Eigen::AngleAxisd(s.tip.orientation).angle() * Eigen::AngleAxisd(s.tip.orientation).angle();
+  }
+  // 3 axes: E|x|² = 3σ²; the standard error of the estimate at N = 4000 is ~2 %.
+  EXPECT_NEAR(std::sqrt(s2 / (3 * N)), n.position_sigma, 0.05 * n.position_sigma);
+  EXPECT_NEAR(std::sqrt(a2 / (3 * N)), n.angle_sigma, 0.05 * n.angle_sigma);
+
+  plant::TrackerNoise exact{0, 0, 0, 0.03, 0, 0.05};
+  plant::TrackerModel delayed(exact, 1);
+  for (int i = 0; i <= 10; ++i) {
+    plant::SensorPose p;
+    p.position.x() = i;  // the true pose moves by 1 per sample
+    const plant::TrackerSample s = delayed.sample(i * 0.01, p, base);
+    ASSERT_TRUE(s.valid);
+    EXPECT_NEAR(s.tip.position.x(), std::max(0, i - 3), 1e-12);  // 30 ms = 3 samples late
+    EXPECT_NEAR(s.stamp, std::max(0, i - 3) * 0.01, 1e-12);
+  }
+  delayed.force_dropout(0.2, 0.05);
+  EXPECT_FALSE(delayed.sample(0.21, base, base).valid);
+  EXPECT_TRUE(delayed.sample(0.26, base, base).valid);
+}
+
+TEST(PlantConfig, ErrorsNameTheKey) {
+  const config::Scene sc = test::scene("hydrojet_30deg");
+  auto key = [&](const std::string& yaml) -> std::string {
+    try {
+      config::make_plant(sc, yaml);
+    } catch (const config::SceneError& e) {
+      return e.key();
+    }
+    return "(none)";
+  };
+  EXPECT_EQ(key("plant: {mismatch: {tip_mass_scale: -1}}"), "plant.mismatch.tip_mass_scale");
+  EXPECT_EQ(key("plant: {mismatch: {colour: 1}}"), "plant.mismatch.colour");
+  EXPECT_EQ(key("plant: {valves: [{dead_zone: 2}, {}, {}]}"), "plant.valves[0].dead_zone");
+  EXPECT_EQ(key("plant: {valves: [{}, {}]}"), "plant.valves");
+  EXPECT_EQ(key("plant: {dynamics: {nodes: 2.5}}"), "plant.dynamics.nodes");
+  EXPECT_EQ(key("plant: {sensor_noise: maybe}"), "plant.sensor_noise");
+  EXPECT_EQ(key("plant: {dynamics: {internal_dt: 0.5}}"), "plant.internal_dt");
+  EXPECT_EQ(key("plant: [1"), "plant");
+  // The base tilt is read off the scene's gravity: 30°.
+  EXPECT_NEAR(config::make_plant(sc, "").base_tilt, M_PI / 6, 1e-9);
+}
+
+// With constant valve duties the plant settles to the quasi-static model at its true parameters.
+TEST(Plant, SettlesToTheQuasiStaticModel) {
+  const config::Scene sc = test::scene("hydrojet_30deg");
+  plant::PlantParameters p = config::make_plant(sc, "plant: {sensor_noise: false, dynamics: {kelvin_voigt_time: 0.03}}");
+  plant::Plant pl(p, 1);
+  const Eigen::Vector3d duty(0.4, 0.2, 0.3);
+  for (int k = 1; k <= 600; ++k) {
+    pl.command(duty, (k - 1) * 0.01);
+    ASSERT_TRUE(pl.advance_to(k * 0.01)) << pl.error();
+  }
+  rod::ShootingSolver qs(p.rod.model, sc.solver);
+  rod::TipWrench w;
+  w.force = actuation::JetMap(p.jets).wrench(pl.jet_forces()).head<3>();
+  const rod::RodSolution s = qs.solve(w);
+  ASSERT_TRUE(s.converged);
+  // Shear/extension compliance of the dynamic rod (GA = EA = 1e5 N) and its grid: ~1e-6.
+  EXPECT_LT((pl.tip_position() - s.tip_position).norm(), 2e-6);
+  EXPECT_LT(so3::log(pl.tip_rotation().transpose() * s.tip_rotation).norm(), 2e-5);
+}
+
+TEST(ClosedLoopRun, DeterministicForASeed) {
+  const config::Scene sc = test::scene("hydrojet_0deg");
+  const config::ControllerOptions o =
+      config::load_controller_options(std::string(HYDROJET_SOURCE_DIR) + "/config/controller.yaml");
+  const control::ControllerModel m = config::make_controller_model(sc, o.flow);
+  const plant::PlantParameters p = config::load_plant(sc, std::string(HYDROJET_SOURCE_DIR) + "/config/plant.yaml");
+  control::ControllerParams c = o.controller;
+  c.path.duration = 5.0;
+  const sim::RunResult a = sim::run_path(m, c, p, 7), b = sim::run_path(m, c, p, 7), d = sim::run_path(m, c, p, 8);
+  ASSERT_TRUE(a.completed) << a.reason;
+  EXPECT_EQ(a.rms, b.rms);
+  EXPECT_EQ(a.samples.size(), b.samples.size());
+  EXPECT_NE(a.rms, d.rms);  // another seed, other sensor noise
+}
