@@ -36,17 +36,28 @@ centre (0, 0, -150) mm), yawing with the motion; 0x0B "base" is fixed at (0, 0, 
 identity orientation. Both are reported only once PINIT/PENA-ed (BX option 0x0800 also reports
 initialized-but-disabled handles as disabled). Frame numbers count at --frame-rate from TSTART.
 
+--tip-tilt R tilts the tip sensor by R rad about its x-axis (so that a controller sees a bent tip).
+
 Fault injection (counts are over BX replies, times over seconds since the emulator started):
   --crc-error-every N     every N-th BX reply has one body byte flipped after its CRC was computed
   --garbage-every N       every N-th BX reply is preceded by 1..32 random bytes
-  --out-of-volume-after S from S on, the tip is reported missing (or, with
-                          --oov-keep-transform, valid) with port-status bit --oov-bit (default 0x40)
+  --truncate-every N      every N-th BX reply is cut short at a random length (the rest never comes)
+  --chunk-bytes N         replies are written in pieces of N bytes, --chunk-delay seconds apart, so
+                          the driver reads partial frames
+  --out-of-volume-after S from S on (for --out-of-volume-for D seconds, default forever), the tip is
+                          reported missing (or, with --oov-keep-transform, valid) with port-status
+                          bit --oov-bit (default 0x40)
+  --silence-after S       from S on (for --silence-for D seconds, default forever) read and ignore
+                          everything: the port stays open but the device no longer answers
   --die-after S           exit (status 0) after S seconds, closing the pty: the driver sees EOF/EIO
+  --error-on NAME=XX      answer command NAME with ERRORXX (repeatable), e.g. PINIT=13
 
 Usage:
-  python3 aurora_emulator.py --link-file /tmp/aurora.path [options]
-The slave path is written atomically to --link-file (removed again on exit), or printed on
-stdout when no --link-file is given. Stops on SIGINT/SIGTERM.
+  python3 aurora_emulator.py --symlink /tmp/rig/aurora [options]
+The slave path is published as a symbolic link (--symlink, like a udev name), written atomically to
+--link-file, or printed on stdout when neither is given; link and file are removed again on exit.
+--events-file F appends one line per command other than BX (and per reset), e.g. "TSTOP: OKAY", so
+that a test can check the session. Stops on SIGINT/SIGTERM.
 """
 
 import argparse
@@ -54,12 +65,13 @@ import math
 import os
 import random
 import select
-import signal
 import struct
 import sys
 import termios
 import time
-import tty
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from pty_common import PtyDevice, exit_on_signals, exit_with_parent, write_all  # noqa: E402
 
 # ---------------------------------------------------------------------------------------------
 # Protocol helpers
@@ -124,7 +136,12 @@ class Aurora:
         self.rng = random.Random(args.seed)
         self.t0 = time.monotonic()
         self.bx_count = 0
+        self.events = open(args.events_file, "a", buffering=1) if args.events_file else None
         self.reset()
+
+    def event(self, text):
+        if self.events:
+            self.events.write("%.3f %s\n" % (self.now(), text))
 
     def reset(self):
         self.baud = 9600
@@ -151,6 +168,7 @@ class Aurora:
             return ascii_reply("ERROR01"), None
         if s in ("RESET", "RESET:") or s == "RESET:" + "%04X" % crc16_arc(b"RESET:"):
             self.reset()
+            self.event("RESET (command)")
             return ascii_reply("RESET"), None
         if ":" in s:
             name, rest = s.split(":", 1)
@@ -167,10 +185,18 @@ class Aurora:
             name, params = s.split(" ", 1)
         else:
             name, params = s, ""
+        if name in self.args.error_on:
+            code = self.args.error_on[name]
+            self.event("%s:%s ERROR%s (injected)" % (name, params, code))
+            return ascii_reply("ERROR" + code), None
         fn = getattr(self, "cmd_" + name, None)
         if fn is None:
+            self.event("%s:%s ERROR01" % (name, params))
             return ascii_reply("ERROR01"), None
-        return fn(params.strip())
+        reply, baud = fn(params.strip())
+        if name != "BX" or reply.startswith(b"ERROR"):
+            self.event("%s:%s %s" % (name, params, reply[:-5].decode("ascii", "replace")))
+        return reply, baud
 
     def need_init(self):
         return None if self.initialized else (ascii_reply("ERROR10"), None)
@@ -310,6 +336,9 @@ class Aurora:
             b[6 + self.rng.randrange(len(b) - 8)] ^= 1 << self.rng.randrange(8)
             reply = bytes(b)
             self.log("fault: corrupted BX reply #%d" % self.bx_count)
+        if a.truncate_every and self.bx_count % a.truncate_every == 0:
+            reply = reply[:self.rng.randrange(1, len(reply))]
+            self.log("fault: BX reply #%d truncated to %d bytes" % (self.bx_count, len(reply)))
         if a.garbage_every and self.bx_count % a.garbage_every == 0:
             junk = bytes(self.rng.randrange(256) for _ in range(self.rng.randint(1, 32)))
             reply = junk + reply
@@ -324,7 +353,8 @@ class Aurora:
         tt = t - (self.track_t0 or 0.0)
         frame = int(tt * a.frame_rate) & 0xFFFFFFFF
         phi = 2.0 * math.pi * t / a.circle_period
-        oov = a.out_of_volume_after is not None and t >= a.out_of_volume_after
+        oov = a.out_of_volume_after is not None and t >= a.out_of_volume_after and (
+            a.out_of_volume_for is None or t < a.out_of_volume_after + a.out_of_volume_for)
         out = []
         for hid in sorted(self.handles):
             h = self.handles[hid]
@@ -334,7 +364,10 @@ class Aurora:
                 continue
             port = self.port_status(hid)
             if h["name"] == "tip":
-                q = [math.cos(phi / 2), 0.0, 0.0, math.sin(phi / 2)]
+                # Rz(phi) * Rx(tilt): yaw with the motion, tilted by --tip-tilt.
+                c, s_ = math.cos(phi / 2), math.sin(phi / 2)
+                ct, st = math.cos(a.tip_tilt / 2), math.sin(a.tip_tilt / 2)
+                q = [c * ct, c * st, s_ * st, s_ * ct]
                 tr = [a.radius_mm * math.cos(phi), a.radius_mm * math.sin(phi), -150.0]
                 rms = 0.30
                 if oov:
@@ -354,36 +387,49 @@ class Aurora:
 # ---------------------------------------------------------------------------------------------
 
 
-def write_all(fd, data):
-    view = memoryview(data)
-    while view:
-        n = os.write(fd, view)
-        view = view[n:]
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--link-file", help="write the slave pty path to this file (atomically)")
+    ap.add_argument("--symlink", help="make this path a symbolic link to the slave pty")
+    ap.add_argument("--events-file", help="append the non-BX commands and resets to this file")
+    ap.add_argument("--tip-tilt", type=float, default=0.0, help="tip sensor tilt about its x-axis [rad]")
     ap.add_argument("--circle-period", type=float, default=10.0, help="tip circle period [s]")
     ap.add_argument("--radius-mm", type=float, default=20.0, help="tip circle radius [mm]")
     ap.add_argument("--frame-rate", type=float, default=40.0, help="frame counter rate [Hz]")
     ap.add_argument("--crc-error-every", type=int, default=0, metavar="N")
     ap.add_argument("--garbage-every", type=int, default=0, metavar="N")
+    ap.add_argument("--truncate-every", type=int, default=0, metavar="N")
+    ap.add_argument("--chunk-bytes", type=int, default=0, metavar="N")
+    ap.add_argument("--chunk-delay", type=float, default=0.001, metavar="S")
     ap.add_argument("--out-of-volume-after", type=float, default=None, metavar="S")
+    ap.add_argument("--out-of-volume-for", type=float, default=None, metavar="D")
+    ap.add_argument("--silence-after", type=float, default=None, metavar="S")
+    ap.add_argument("--silence-for", type=float, default=None, metavar="D")
     ap.add_argument("--oov-bit", type=lambda s: int(s, 0), default=0x40,
                     help="port-status bit set when out of volume (default 0x40)")
     ap.add_argument("--oov-keep-transform", action="store_true",
                     help="when out of volume, keep sending the transform (status valid)")
     ap.add_argument("--die-after", type=float, default=None, metavar="S")
+    ap.add_argument("--error-on", action="append", default=[], metavar="NAME=XX",
+                    help="answer command NAME with ERRORXX (2 hex digits)")
     ap.add_argument("--strict-baud", action="store_true",
                     help="ignore lines received while the pty speed differs from the device's")
     ap.add_argument("--reply-delay", type=float, default=0.0, help="delay before each reply [s]")
     ap.add_argument("--seed", type=int, default=1, help="seed for injected garbage / corruption")
     ap.add_argument("-v", "--verbose", action="store_true", help="log traffic on stderr")
+    ap.add_argument("--exit-with-parent", action="store_true",
+                    help="exit when the process that started the emulator dies (tests)")
     args = ap.parse_args(argv)
-    for n in ("crc_error_every", "garbage_every"):
+    for n in ("crc_error_every", "garbage_every", "truncate_every", "chunk_bytes"):
         if getattr(args, n) < 0:
             ap.error("--%s must be >= 0" % n.replace("_", "-"))
+    errors = {}
+    for e in args.error_on:
+        name, _, code = e.partition("=")
+        if not name or len(code) != 2 or any(c not in "0123456789ABCDEFabcdef" for c in code):
+            ap.error("--error-on expects NAME=XX with 2 hex digits, got %r" % e)
+        errors[name] = code.upper()
+    args.error_on = errors
     if args.circle_period <= 0 or args.frame_rate <= 0:
         ap.error("--circle-period and --frame-rate must be > 0")
 
@@ -392,33 +438,21 @@ def main(argv=None):
             sys.stderr.write("[aurora_emulator %.3f] %s\n" % (time.monotonic(), msg))
             sys.stderr.flush()
 
-    master, slave = os.openpty()
-    tty.setraw(slave)  # no echo, no CR/NL translation until the driver configures the port
-    path = os.ttyname(slave)
-
-    def cleanup():
-        if args.link_file:
-            try:
-                with open(args.link_file) as f:
-                    if f.read().strip() == path:
-                        os.unlink(args.link_file)
-            except OSError:
-                pass
-
-    def on_signal(signum, frame):
-        raise SystemExit(0)
-
-    signal.signal(signal.SIGTERM, on_signal)
-    signal.signal(signal.SIGINT, on_signal)
-
-    if args.link_file:
-        tmp = args.link_file + ".tmp.%d" % os.getpid()
-        with open(tmp, "w") as f:
-            f.write(path + "\n")
-        os.replace(tmp, args.link_file)
-    else:
+    exit_on_signals()
+    if args.exit_with_parent:
+        exit_with_parent()
+    pty = PtyDevice(symlink=args.symlink, link_file=args.link_file)
+    master, slave, path = pty.master, pty.slave, pty.path
+    if not args.symlink and not args.link_file:
         print(path, flush=True)
     log("slave %s" % path)
+
+    def silent(t):
+        return args.silence_after is not None and t >= args.silence_after and (
+            args.silence_for is None or t < args.silence_after + args.silence_for)
+
+    def send(data):
+        write_all(master, data, args.chunk_bytes, args.chunk_delay)
 
     dev = Aurora(args, log)
     buf = b""
@@ -435,6 +469,9 @@ def main(argv=None):
             except OSError:  # EIO: no slave open (cannot happen while we hold it); keep going
                 time.sleep(0.02)
                 continue
+            if silent(dev.now()):
+                buf = b""
+                continue
             buf += chunk
             while True:
                 nul = buf.find(b"\x00")
@@ -443,7 +480,8 @@ def main(argv=None):
                     buf = buf[nul + 1:]
                     log("BREAK (NUL byte): reset")
                     dev.reset()
-                    write_all(master, ascii_reply("RESET"))
+                    dev.event("RESET (NUL byte)")
+                    send(ascii_reply("RESET"))
                     continue
                 if cr < 0:
                     if len(buf) > 4096:
@@ -462,15 +500,13 @@ def main(argv=None):
                 if args.reply_delay > 0:
                     time.sleep(args.reply_delay)
                 if reply is not None:
-                    write_all(master, reply)
+                    send(reply)
                     log("%r -> %r" % (line, reply if len(reply) < 80 else reply[:80] + b"..."))
                 if new_baud is not None:
                     dev.baud = new_baud
                     log("device now at %d baud" % new_baud)
     finally:
-        cleanup()
-        os.close(master)
-        os.close(slave)
+        pty.close()
 
 
 if __name__ == "__main__":

@@ -1,0 +1,492 @@
+// Rig driver core without devices: line splitter, serial port on a pty pair, command gate, flow
+// aggregation, the valve loop with an in-memory backend (what a DAQ backend would implement), and
+// the validation of config/rig.yaml. ROS-free.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <stdlib.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+#include "hydrojet_control/devices/rig_config.h"
+
+using namespace hydrojet::devices;
+
+namespace {
+
+/// A pty pair: master fd and slave path.
+struct Pty {
+  int master = -1;
+  std::string slave;
+  Pty() {
+    master = posix_openpt(O_RDWR | O_NOCTTY);
+    if (master < 0 || grantpt(master) != 0 || unlockpt(master) != 0) return;
+    slave = ptsname(master);
+  }
+  ~Pty() {
+    if (master >= 0) close(master);
+  }
+  void close_master() {
+    if (master >= 0) close(master);
+    master = -1;
+  }
+};
+
+template <class F>
+bool eventually(F cond, double timeout_s) {
+  const auto until = SteadyClock::now() + seconds(timeout_s);
+  while (SteadyClock::now() < until) {
+    if (cond()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return cond();
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// LineSplitter
+// ---------------------------------------------------------------------------------------------
+
+TEST(LineSplitter, SplitsOnCrLfAnyChunking) {
+  LineSplitter s(16);
+  const std::string in = "12.5,1\r\n13.0,2\n\r14,3\r";
+  for (char c : in) s.feed(reinterpret_cast<const uint8_t*>(&c), 1);
+  std::string l;
+  ASSERT_TRUE(s.next(&l));
+  EXPECT_EQ(l, "12.5,1");
+  ASSERT_TRUE(s.next(&l));
+  EXPECT_EQ(l, "13.0,2");
+  ASSERT_TRUE(s.next(&l));
+  EXPECT_EQ(l, "14,3");
+  EXPECT_FALSE(s.next(&l));
+  s.feed(reinterpret_cast<const uint8_t*>("15"), 2);
+  EXPECT_FALSE(s.next(&l));  // incomplete
+  s.feed(reinterpret_cast<const uint8_t*>("\n"), 1);
+  ASSERT_TRUE(s.next(&l));
+  EXPECT_EQ(l, "15");
+}
+
+TEST(LineSplitter, DiscardsOverlongAndNulLinesAndSkipsFirst) {
+  LineSplitter s(8);
+  const std::string in = std::string("123456789012\n") + "ok1\n" + std::string("a\0b\n", 4) + "ok2\n";
+  s.feed(reinterpret_cast<const uint8_t*>(in.data()), in.size());
+  std::string l;
+  ASSERT_TRUE(s.next(&l));
+  EXPECT_EQ(l, "ok1");
+  ASSERT_TRUE(s.next(&l));
+  EXPECT_EQ(l, "ok2");
+  EXPECT_FALSE(s.next(&l));
+  EXPECT_EQ(s.discarded(), 2u);
+
+  // Opened mid-stream: the tail "3.4" of "123.4" must not become a reading.
+  LineSplitter t(32);
+  t.skip_first_line();
+  const std::string mid = "3.4\n125.0\n";
+  t.feed(reinterpret_cast<const uint8_t*>(mid.data()), mid.size());
+  ASSERT_TRUE(t.next(&l));
+  EXPECT_EQ(l, "125.0");
+  EXPECT_EQ(t.skipped_partial(), 1u);
+}
+
+// ---------------------------------------------------------------------------------------------
+// SerialPort on a pseudo-terminal
+// ---------------------------------------------------------------------------------------------
+
+TEST(SerialPort, OpenErrorsNameThePath) {
+  SerialPort p;
+  std::string err;
+  EXPECT_FALSE(p.open("/nonexistent/ttyX", 115200, &err));
+  EXPECT_NE(err.find("/nonexistent/ttyX"), std::string::npos) << err;
+  EXPECT_FALSE(p.open("/dev/null", 115200, &err));
+  EXPECT_NE(err.find("not a terminal"), std::string::npos) << err;
+  EXPECT_FALSE(p.is_open());
+  EXPECT_FALSE(is_supported_baud(14400));
+  EXPECT_TRUE(is_supported_baud(115200));
+}
+
+TEST(SerialPort, ReadWriteTimeoutAndHangup) {
+  Pty pty;
+  ASSERT_FALSE(pty.slave.empty());
+  SerialPort p;
+  std::string err;
+  ASSERT_TRUE(p.open(pty.slave, 9600, &err)) << err;
+  EXPECT_TRUE(p.is_pseudo_terminal());
+  ASSERT_TRUE(p.set_baud(115200, &err)) << err;
+  EXPECT_EQ(p.baud(), 115200);
+  EXPECT_TRUE(p.send_break(&err)) << err;  // succeeds, nothing arrives on a pty
+
+  ASSERT_TRUE(p.write_all("INIT:E3A5\r", 0.1, &err)) << err;
+  char buf[64] = {0};
+  ASSERT_EQ(read(pty.master, buf, sizeof buf), 10);
+  EXPECT_EQ(std::string(buf, 10), "INIT:E3A5\r");  // raw: no CR/NL translation
+
+  uint8_t rb[64];
+  size_t n = 0;
+  const auto t0 = SteadyClock::now();
+  EXPECT_EQ(p.read_some(rb, sizeof rb, 0.05, &n, &err), SerialPort::ReadStatus::kTimeout);
+  EXPECT_GE(seconds_between(t0, SteadyClock::now()), 0.045);
+  ASSERT_EQ(write(pty.master, "OKAYA896\r", 9), 9);
+  ASSERT_EQ(p.read_some(rb, sizeof rb, 0.5, &n, &err), SerialPort::ReadStatus::kData);
+  EXPECT_EQ(std::string(reinterpret_cast<char*>(rb), n), "OKAYA896\r");
+
+  pty.close_master();  // the device goes away
+  EXPECT_EQ(p.read_some(rb, sizeof rb, 0.5, &n, &err), SerialPort::ReadStatus::kHangup);
+  EXPECT_NE(err.find("hung up"), std::string::npos) << err;
+}
+
+// ---------------------------------------------------------------------------------------------
+// CommandGate
+// ---------------------------------------------------------------------------------------------
+
+TEST(CommandGate, ZeroUnlessFreshCommandAndHealthyDevices) {
+  CommandGate g(0.1);
+  const SteadyTime t0 = SteadyClock::now();
+  std::string why;
+  Duty d = g.duty(t0, true, "", &why);
+  EXPECT_EQ(d, Duty({0, 0, 0}));
+  EXPECT_EQ(why, "no command received yet");
+
+  EXPECT_TRUE(g.set_command({0.2, 1.5, -0.1}, t0));
+  d = g.duty(t0 + seconds(0.05), true, "", &why);
+  EXPECT_EQ(d, Duty({0.2, 1.0, 0.0}));  // clamped
+  EXPECT_TRUE(why.empty());
+
+  d = g.duty(t0 + seconds(0.05), false, "tracker (NDI Aurora, /dev/x): silent", &why);
+  EXPECT_EQ(d, Duty({0, 0, 0}));
+  EXPECT_EQ(why, "tracker (NDI Aurora, /dev/x): silent");
+
+  d = g.duty(t0 + seconds(0.15), true, "", &why);
+  EXPECT_EQ(d, Duty({0, 0, 0}));
+  EXPECT_NE(why.find("command timeout"), std::string::npos);
+
+  EXPECT_FALSE(g.set_command({0.5, std::nan(""), 0.5}, t0 + seconds(0.2)));  // broken: zero command
+  d = g.duty(t0 + seconds(0.21), true, "", &why);
+  EXPECT_EQ(d, Duty({0, 0, 0}));
+}
+
+// ---------------------------------------------------------------------------------------------
+// FlowAggregator
+// ---------------------------------------------------------------------------------------------
+
+namespace {
+FlowReading reading(SteadyTime t, double q) {
+  FlowReading r;
+  r.time = t;
+  r.accepted = std::isfinite(q) && q >= 0;
+  r.flow = r.accepted ? q : std::nan("");
+  if (!r.accepted) r.error = "bad";
+  return r;
+}
+}  // namespace
+
+TEST(FlowAggregator, ValidityStalenessAndNoRepublish) {
+  FlowAggregator agg(0.2, true);
+  const SteadyTime t0 = SteadyClock::now();
+  FlowAggregator::Sample s;
+  EXPECT_FALSE(agg.take(t0, &s));  // nothing yet
+
+  agg.add(0, reading(t0, 1e-6));
+  agg.add(1, reading(t0 + seconds(0.01), 2e-6));
+  agg.add(2, reading(t0 + seconds(0.02), 3e-6));
+  ASSERT_TRUE(agg.take(t0 + seconds(0.03), &s));
+  EXPECT_EQ(s.valid, (std::array<bool, 3>{true, true, true}));
+  EXPECT_DOUBLE_EQ(s.flow[2], 3e-6);
+  EXPECT_EQ(s.stamp, t0);  // the oldest reading used
+  EXPECT_FALSE(agg.take(t0 + seconds(0.04), &s));  // nothing new: not republished
+
+  // Jet 2's next line is rejected: invalid (NaN) until its next good line.
+  agg.add(1, reading(t0 + seconds(0.05), std::nan("")));
+  ASSERT_TRUE(agg.take(t0 + seconds(0.05), &s));
+  EXPECT_TRUE(s.valid[0]);
+  EXPECT_FALSE(s.valid[1]);
+  EXPECT_TRUE(std::isnan(s.flow[1]));
+  agg.add(1, reading(t0 + seconds(0.06), 2.5e-6));
+  ASSERT_TRUE(agg.take(t0 + seconds(0.06), &s));
+  EXPECT_TRUE(s.valid[1]);
+
+  // Jet 1 goes silent: stale after 0.2 s although the others keep streaming.
+  agg.add(1, reading(t0 + seconds(0.25), 2.5e-6));
+  agg.add(2, reading(t0 + seconds(0.25), 3e-6));
+  ASSERT_TRUE(agg.take(t0 + seconds(0.25), &s));
+  EXPECT_FALSE(s.valid[0]);
+  EXPECT_TRUE(std::isnan(s.flow[0]));
+  EXPECT_TRUE(s.valid[1] && s.valid[2]);
+
+  // Without invalidate_on_reject the last good reading holds until it is stale.
+  FlowAggregator hold(0.2, false);
+  hold.add(0, reading(t0, 1e-6));
+  hold.add(0, reading(t0 + seconds(0.01), -1.0));
+  ASSERT_TRUE(hold.take(t0 + seconds(0.02), &s));
+  EXPECT_TRUE(s.valid[0]);
+  EXPECT_DOUBLE_EQ(s.flow[0], 1e-6);
+}
+
+// ---------------------------------------------------------------------------------------------
+// ValveLoop with an in-memory backend
+// ---------------------------------------------------------------------------------------------
+
+namespace {
+
+/// A valve backend in memory, as a DAQ backend would be: records what it applied; can fail.
+class FakeValves : public ValveDriver {
+ public:
+  struct Shared {
+    std::mutex mu;
+    Duty applied{};
+    int applies = 0;
+    bool fail_open = false;
+    bool silent = false;  ///< apply() returns kNoReply
+    bool open = false;
+  };
+  explicit FakeValves(std::shared_ptr<Shared> s) : s_(std::move(s)) {}
+  std::string describe() const override { return "fake valves"; }
+  bool open(std::string* err) override {
+    std::lock_guard<std::mutex> l(s_->mu);
+    if (s_->fail_open) {
+      *err = "open failed";
+      return false;
+    }
+    s_->open = true;
+    return true;
+  }
+  void close() override {
+    std::lock_guard<std::mutex> l(s_->mu);
+    s_->open = false;
+  }
+  bool is_open() const override {
+    std::lock_guard<std::mutex> l(s_->mu);
+    return s_->open;
+  }
+  Result apply(const Duty& d, Duty* applied, std::string* err) override {
+    std::lock_guard<std::mutex> l(s_->mu);
+    if (s_->silent) {
+      *err = "no acknowledgement";
+      return Result::kNoReply;
+    }
+    s_->applied = d;
+    ++s_->applies;
+    *applied = d;
+    return Result::kApplied;
+  }
+
+ private:
+  std::shared_ptr<Shared> s_;
+};
+
+}  // namespace
+
+TEST(ValveLoop, GatesCommandsDetectsSilenceReconnectsAndClosesOnStop) {
+  auto hw = std::make_shared<FakeValves::Shared>();
+  std::atomic<bool> devices_ok{true};
+  ValveLoopConfig cfg;
+  cfg.rate = 100.0;
+  cfg.command_timeout = 0.1;
+  cfg.max_failures = 3;
+  cfg.reconnect_period = 0.1;
+  ValveLoop loop(std::unique_ptr<ValveDriver>(new FakeValves(hw)), cfg, [&](std::string* why) {
+    if (!devices_ok) *why = "tracker: silent";
+    return devices_ok.load();
+  });
+  auto applied = [&] {
+    std::lock_guard<std::mutex> l(hw->mu);
+    return hw->applied;
+  };
+  loop.start();
+  ASSERT_TRUE(eventually([&] { return loop.status().healthy; }, 2.0));
+  EXPECT_EQ(applied(), Duty({0, 0, 0}));
+
+  // Commands pass while fresh and every device is healthy.
+  ASSERT_TRUE(eventually([&] {
+    loop.command({0.3, 0.6, 0.9});
+    return applied() == Duty({0.3, 0.6, 0.9});
+  }, 1.0));
+  EXPECT_EQ(loop.status().acknowledged, Duty({0.3, 0.6, 0.9}));
+  EXPECT_TRUE(loop.status().gate_open);
+
+  // Commands stop: zero within command_timeout plus a keep-alive period.
+  ASSERT_TRUE(eventually([&] { return applied() == Duty({0, 0, 0}); }, 0.5));
+  EXPECT_NE(loop.status().gate_reason.find("command timeout"), std::string::npos);
+
+  // A device becomes unhealthy: zero although commands keep coming.
+  devices_ok = false;
+  ASSERT_TRUE(eventually([&] {
+    loop.command({0.3, 0.6, 0.9});
+    return applied() == Duty({0, 0, 0}) && loop.status().gate_reason == "tracker: silent";
+  }, 1.0));
+  devices_ok = true;
+  ASSERT_TRUE(eventually([&] {
+    loop.command({0.1, 0.1, 0.1});
+    return applied() == Duty({0.1, 0.1, 0.1});
+  }, 0.5));
+
+  // The backend stops acknowledging: unhealthy after max_failures, reconnect loop, healthy again
+  // only after it acknowledged zero duty.
+  {
+    std::lock_guard<std::mutex> l(hw->mu);
+    hw->silent = true;
+  }
+  ASSERT_TRUE(eventually([&] { return !loop.status().healthy; }, 1.0));
+  EXPECT_NE(loop.status().message.find("acknowledg"), std::string::npos) << loop.status().message;
+  {
+    std::lock_guard<std::mutex> l(hw->mu);
+    hw->silent = false;
+  }
+  ASSERT_TRUE(eventually([&] { return loop.status().healthy; }, 1.0));
+  EXPECT_GE(loop.status().connects, 2u);
+
+  // Non-finite commands count and close the valves.
+  loop.command({std::nan(""), 0.5, 0.5});
+  ASSERT_TRUE(eventually([&] { return applied() == Duty({0, 0, 0}); }, 0.5));
+  EXPECT_EQ(loop.status().bad_commands, 1u);
+
+  // Stop closes the valves.
+  loop.command({0.4, 0.4, 0.4});
+  ASSERT_TRUE(eventually([&] { return applied() == Duty({0.4, 0.4, 0.4}); }, 0.5));
+  loop.stop();
+  EXPECT_EQ(applied(), Duty({0, 0, 0}));
+  EXPECT_EQ(loop.status().state, LinkState::kStopped);
+}
+
+// ---------------------------------------------------------------------------------------------
+// config/rig.yaml
+// ---------------------------------------------------------------------------------------------
+
+namespace {
+
+YAML::Node shipped() {
+  YAML::Node n = YAML::LoadFile(std::string(HYDROJET_SOURCE_DIR) + "/config/rig.yaml");
+  n["scene"] = std::string(HYDROJET_SOURCE_DIR) + "/config/scenes/hydrojet_0deg.yaml";
+  return n;
+}
+
+std::string error_of(const YAML::Node& n) {
+  try {
+    parse_rig_config(n);
+  } catch (const RigConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(RigConfig, ShippedFileParses) {
+  const RigConfig c = parse_rig_config(shipped());
+  EXPECT_EQ(c.tracker.tip_handle, 0x0A);
+  EXPECT_EQ(c.tracker.base_handle, 0x0B);
+  EXPECT_EQ(c.tracker.baud, 115200);
+  EXPECT_DOUBLE_EQ(c.tracker.rate, 40.0);
+  EXPECT_EQ(c.tracker.out_of_volume_mask, kDefaultOutOfVolumeMask);
+  EXPECT_EQ(c.tracker.bx_options, "0001");
+  EXPECT_EQ(c.flow[2].port, "/dev/ttyUSB3");
+  EXPECT_EQ(c.flow[0].name, "flow sensor 1");
+  EXPECT_DOUBLE_EQ(c.flow[1].format.scale_to_m3_per_s, kMlPerMinToM3PerS);
+  EXPECT_EQ(c.flow[0].format.separator, ',');
+  EXPECT_DOUBLE_EQ(c.valve_loop.command_timeout, 0.1);
+  EXPECT_EQ(c.tracker_frame, "tracker");
+  // The shipped format reads the emulator's (and the documented) line.
+  double q = 0;
+  std::string err;
+  ASSERT_TRUE(parse_flow_line("480.00,1532.5\r\n", c.flow[0].format, &q, &err)) << err;
+  EXPECT_NEAR(q, 8e-6, 1e-15);
+}
+
+TEST(RigConfig, InvalidKeysAreNamed) {
+  struct Case {
+    std::function<void(YAML::Node&)> edit;
+    std::string prefix;
+  };
+  const std::vector<Case> cases = {
+      {[](YAML::Node& n) { n.remove("scene"); }, "scene: missing"},
+      {[](YAML::Node& n) { n["tracker"]["rate"] = 0.0; }, "tracker/rate: must lie in (0, 1000] Hz"},
+      {[](YAML::Node& n) { n["tracker"]["rate"] = "fast"; }, "tracker/rate: must be a number"},
+      {[](YAML::Node& n) { n["tracker"]["baud"] = 14400; }, "tracker/baud: 14400 is not one of"},
+      {[](YAML::Node& n) { n["tracker"]["tip_handle"] = "0B"; }, "tracker/base_handle: must differ"},
+      {[](YAML::Node& n) { n["tracker"]["tip_handle"] = "zz"; }, "tracker/tip_handle: must be an integer or hex"},
+      {[](YAML::Node& n) { n["tracker"]["tracking_priority"] = "X"; }, "tracker/tracking_priority: must be S, D or B"},
+      {[](YAML::Node& n) { n["tracker"]["timeout"] = 0.01; }, "tracker/timeout: must be >= reply_timeout"},
+      {[](YAML::Node& n) { n["tracker"]["bogus"] = 1; }, "tracker/bogus: unknown parameter"},
+      {[](YAML::Node& n) { n["tracker"].remove("port"); }, "tracker/port: missing"},
+      {[](YAML::Node& n) { n["flow"]["ports"].remove("jet2"); }, "flow/ports/jet2: missing"},
+      {[](YAML::Node& n) { n["flow"]["ports"]["jet3"] = "/dev/ttyUSB1"; }, "flow/ports/jet3: '/dev/ttyUSB1' is already flow/ports/jet1"},
+      {[](YAML::Node& n) { n["valves"]["port"] = "/dev/ttyUSB0"; }, "valves/port: '/dev/ttyUSB0' is already tracker/port"},
+      {[](YAML::Node& n) { n["flow"]["format"]["unit"] = "gal/min"; }, "flow/format/unit: 'gal/min' is not one of"},
+      {[](YAML::Node& n) { n["flow"]["format"].remove("unit"); }, "flow/format/unit: missing"},
+      {[](YAML::Node& n) { n["flow"]["format"]["regex"] = "(unclosed"; }, "flow/format/regex: invalid regex"},
+      {[](YAML::Node& n) { n["flow"]["format"]["regex"] = "\\d+"; }, "flow/format/regex: regex '\\d+' has no capture group"},
+      {[](YAML::Node& n) { n["flow"]["format"]["separator"] = ",;"; }, "flow/format/separator: must be one character"},
+      {[](YAML::Node& n) { n["flow"]["baud"] = 1234; }, "flow/baud: 1234 is not a supported rate"},
+      {[](YAML::Node& n) { n["flow"]["timeout"] = -1; }, "flow/timeout: must be finite and > 0"},
+      {[](YAML::Node& n) { n["valves"]["ack_timeout"] = 5; }, "valves/ack_timeout: must lie in (0, 1] s"},
+      {[](YAML::Node& n) { n["valves"]["max_failures"] = 0; }, "valves/max_failures: must be >= 1"},
+      {[](YAML::Node& n) { n["command_timeout"] = 0; }, "command_timeout: must be finite and > 0"},
+      {[](YAML::Node& n) { n["tip_frame"] = "/tip"; }, "tip_frame: must be a non-empty frame name"},
+      {[](YAML::Node& n) { n["reconnect_period"] = 0; }, "reconnect_period: must lie in [0.05, 60] s"},
+  };
+  for (const Case& c : cases) {
+    YAML::Node n = shipped();
+    c.edit(n);
+    const std::string err = error_of(n);
+    EXPECT_EQ(err.compare(0, c.prefix.size(), c.prefix), 0) << "got: " << err << "\nwant: " << c.prefix;
+  }
+  // Hex handles as text (a launch-file <param> gives a string) and the diagnostic_updater's key.
+  YAML::Node n = shipped();
+  n["tracker"]["tip_handle"] = "0x0C";
+  n["diagnostic_period"] = 0.5;
+  EXPECT_EQ(parse_rig_config(n).tracker.tip_handle, 0x0C);
+}
+
+TEST(RigConfig, DocumentedFlowFormatsReadTheirExampleLines) {
+  // The three examples of README "Rig driver" / Flow sensors.
+  const struct {
+    const char* yaml;
+    const char* line;
+    double want_m3s;
+  } cases[] = {
+      {"{regex: \"\", field_index: 0, separator: \",\", unit: mL/min}", "480.12,1532.5\r\n", 480.12e-6 / 60},
+      {"{regex: '^\\s*([0-9.]+)\\s*ml/min', unit: mL/min}", "  480.1 ml/min\r\n", 480.1e-6 / 60},
+      {"{regex: \"\", field_index: 1, separator: \" \", unit: L/min}", "F 0.480 L/min\r\n", 0.480e-3 / 60},
+  };
+  for (const auto& c : cases) {
+    YAML::Node n = shipped();
+    n["flow"]["format"] = YAML::Load(c.yaml);
+    const RigConfig cfg = parse_rig_config(n);
+    double q = 0;
+    std::string err;
+    ASSERT_TRUE(parse_flow_line(c.line, cfg.flow[0].format, &q, &err)) << c.yaml << ": " << err;
+    EXPECT_NEAR(q, c.want_m3s, 1e-15) << c.yaml;
+  }
+  // A regex that pins the whole line (leading tag, end anchor) rejects a line that lost bytes of
+  // its tag or gained garbage; lost digits cannot be detected (no checksum in such lines).
+  YAML::Node n = shipped();
+  n["flow"]["format"] = YAML::Load("{regex: '^Q=\\s*([0-9.]+) ml/min$', unit: mL/min}");
+  const FlowLineFormat f = parse_rig_config(n).flow[0].format;
+  double q = 0;
+  std::string err;
+  EXPECT_TRUE(parse_flow_line("Q= 480.1 ml/min\r\n", f, &q, &err)) << err;
+  EXPECT_FALSE(parse_flow_line("= 480.1 ml/min", f, &q, &err));
+  EXPECT_FALSE(parse_flow_line("Q= 480.1 ml/min\x13x", f, &q, &err));
+}
+
+TEST(AuroraConfig, CommParamsAndValidation) {
+  EXPECT_EQ(aurora_comm_params(115200), "50000");
+  EXPECT_EQ(aurora_comm_params(9600), "00000");
+  EXPECT_EQ(aurora_comm_params(921600), "60000");
+  EXPECT_EQ(aurora_comm_params(14400), "");
+  AuroraConfig a;
+  a.port = "/dev/x";
+  EXPECT_EQ(a.validate(), "");
+  a.bx_options = "0002";
+  EXPECT_EQ(a.validate(), "bx_options: must include 0001 (transformation data)");
+  a.bx_options = "0001";
+  a.out_of_volume_mask = 0;
+  EXPECT_NE(a.validate().find("out_of_volume_mask"), std::string::npos);
+  EXPECT_THROW(AuroraClient(a, nullptr), std::invalid_argument);
+}
