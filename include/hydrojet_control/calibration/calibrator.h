@@ -10,11 +10,14 @@
 //
 // Parameters are estimated in internal coordinates x = [u_x, u_y, ln(E/E₀), ln(G/G₀), δα, δβ, δγ]
 // (E₀, G₀ the starting moduli): the moduli stay positive and all seven are O(1). Derivatives are
-// central differences through the shooting solver; every sample keeps its own solver, warm-started
-// from its previous solution. The covariance is ceres::Covariance (JᵀJ)⁻¹ scaled by the residual
-// variance σ̂² = Σ|r_i|² / (3N − p), mapped back to E and G by the delta method.
+// central differences (absolute step 1e-6) through the shooting solver; every sample keeps its own
+// solver, warm-started while only the misalignments move (they change the wrench, not the rod);
+// a new u, E or G goes through ShootingSolver::set_model(), which resets the warm start. The
+// covariance is ceres::Covariance (JᵀJ)⁻¹ scaled by the residual variance σ̂² = Σ|r_i|²/(3N − p),
+// mapped back to E and G by the delta method.
 #pragma once
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -45,7 +48,6 @@ struct CalibrationOptions {
   Bounds bounds;
   int max_iterations = 100;         ///< Levenberg–Marquardt iterations
   int num_threads = 1;
-  bool warm_start = true;           ///< false: every model evaluation solves the rod cold
   /// A fitted parameter whose standard deviation exceeds its resolution is reported as not
   /// identifiable by the data: u_x, u_y 0.5 1/m (≈2.6° of unloaded tip tilt over 9 cm);
   /// E, G 20 % (relative); δα, δβ, δγ 0.05 rad (≈2.9°).

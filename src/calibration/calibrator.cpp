@@ -1,0 +1,393 @@
+#include "hydrojet_control/calibration/calibrator.h"
+
+#include <ceres/ceres.h>
+#include <ceres/covariance.h>
+
+#include <Eigen/SVD>
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <stdexcept>
+
+#include "hydrojet_control/actuation/jet_map.h"
+#include "hydrojet_control/rod/so3.h"
+
+namespace hydrojet {
+namespace calibration {
+namespace {
+
+std::string fmt(const char* f, double v) {
+  char b[64];
+  std::snprintf(b, sizeof(b), f, v);
+  return b;
+}
+
+/// Everything the per-sample residuals share.
+struct FitContext {
+  rod::RodModel model;             ///< the scene's model (stiffness, ũ replaced per evaluation)
+  rod::ShootingSettings settings;
+  actuation::JetGeometry jets;     ///< nozzle offset from the scene; misalignment per evaluation
+  double E0 = 1.0, G0 = 1.0;       ///< moduli at the start: internal coordinates are ln(E/E0), ln(G/G0)
+  double I = 0.0, J = 0.0;         ///< second and polar moments of the cross-section [m^4]
+  mutable std::atomic<int> solves{0}, failures{0};
+};
+
+/// Internal coordinates x → model and jet geometry.
+void build(const FitContext& c, const double* x, rod::RodModel* m, actuation::JetGeometry* g) {
+  *m = c.model;
+  const double E = c.E0 * std::exp(x[kE]), G = c.G0 * std::exp(x[kG]);
+  m->rod.stiffness = rod::Vec3(E * c.I, E * c.I, G * c.J);
+  m->rod.precurvature.x() = x[kUx];
+  m->rod.precurvature.y() = x[kUy];
+  *g = c.jets;
+  g->misalignment = Eigen::Vector3d(x[kDa], x[kDb], x[kDg]);
+}
+
+/// r_i(x) for one sample, with its own rod solver. Central differences with an
+/// absolute step in the (O(1)) internal coordinates; blocks Ceres holds constant are skipped.
+class SampleCost : public ceres::SizedCostFunction<3, 1, 1, 1, 1, 1, 1, 1> {
+ public:
+  static constexpr double kStep = 1e-6;
+
+  SampleCost(const FitContext* ctx, const Sample& s)
+      : ctx_(ctx), q_(s.jet_force), R_meas_(s.tip_orientation.normalized().toRotationMatrix()),
+        solver_(ctx->model, ctx->settings) {}
+
+  bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
+    double x[kNumParams];
+    for (int i = 0; i < kNumParams; ++i) x[i] = params[i][0];
+    Eigen::Vector3d r;
+    if (!residual(x, &r)) return false;
+    Eigen::Map<Eigen::Vector3d> res(residuals);
+    res = r;
+    if (!jacobians) return true;
+    // The misalignments change only the wrench, not the rod: their differences run first, on the
+    // model of the base evaluation, warm-started from it.
+    static constexpr int kOrder[kNumParams] = {kDa, kDb, kDg, kUx, kUy, kE, kG};
+    for (int i : kOrder) {
+      if (!jacobians[i]) continue;
+      Eigen::Vector3d rp, rm;
+      const double xi = x[i];
+      x[i] = xi + kStep;
+      const bool okp = residual(x, &rp);
+      x[i] = xi - kStep;
+      const bool okm = residual(x, &rm);
+      x[i] = xi;
+      if (!okp || !okm) return false;
+      Eigen::Map<Eigen::Vector3d> col(jacobians[i]);
+      col = (rp - rm) / (2.0 * kStep);
+    }
+    return true;
+  }
+
+  bool residual(const double* x, Eigen::Vector3d* r) const {
+    rod::RodModel m;
+    actuation::JetGeometry g;
+    build(*ctx_, x, &m, &g);
+    const actuation::Vec6 w = actuation::JetMap(g).wrench(q_);
+    rod::TipWrench tw;
+    tw.force = w.head<3>();
+    tw.moment = w.tail<3>();
+    // Same rod as the last solve (only the misalignments moved): keep the warm start. Otherwise
+    // set_model() resets it (ShootingSolver cannot keep a warm start across a model change), and
+    // the solve starts from the unloaded precurved shape with load continuation as fallback: the
+    // branch reached by loading the rod from rest, as the rig does.
+    const rod::RodModel& cur = solver_.model();
+    if (!solver_.has_solution() || cur.rod.stiffness != m.rod.stiffness || cur.rod.precurvature != m.rod.precurvature)
+      solver_.set_model(m);
+    ++ctx_->solves;
+    const rod::RodSolution sol = solver_.solve(tw);
+    if (!sol.converged) {
+      ++ctx_->failures;
+      return false;
+    }
+    *r = rotation_error(R_meas_, sol.tip_rotation);
+    return r->allFinite();
+  }
+
+ private:
+  const FitContext* ctx_;
+  Eigen::Vector3d q_;
+  Eigen::Matrix3d R_meas_;
+  mutable rod::ShootingSolver solver_;
+};
+
+ceres::LossFunction* make_loss(Loss l, double scale) {
+  switch (l) {
+    // ρ acts on s = |r_i|², the squared angle: quadratic up to |r_i| = scale [rad].
+    case Loss::kHuber: return new ceres::HuberLoss(scale);
+    case Loss::kCauchy: return new ceres::CauchyLoss(scale);
+    case Loss::kNone: break;
+  }
+  return nullptr;
+}
+
+/// Residuals (3N) and, if J is given, the dense Jacobian (3N × fitted) at the current parameters.
+bool evaluate(ceres::Problem* problem, const std::vector<double*>& fitted, bool apply_loss,
+              Eigen::VectorXd* r, Eigen::MatrixXd* J) {
+  ceres::Problem::EvaluateOptions eo;
+  eo.apply_loss_function = apply_loss;
+  eo.parameter_blocks = fitted;
+  double cost = 0.0;
+  std::vector<double> res;
+  ceres::CRSMatrix crs;
+  if (!problem->Evaluate(eo, &cost, &res, nullptr, J ? &crs : nullptr)) return false;
+  *r = Eigen::Map<Eigen::VectorXd>(res.data(), static_cast<Eigen::Index>(res.size()));
+  if (J) {
+    J->setZero(crs.num_rows, crs.num_cols);
+    for (int i = 0; i < crs.num_rows; ++i)
+      for (int k = crs.rows[i]; k < crs.rows[i + 1]; ++k) (*J)(i, crs.cols[k]) = crs.values[k];
+  }
+  return true;
+}
+
+double rms_angle(const Eigen::VectorXd& r, std::vector<double>* angles, std::vector<Eigen::Vector3d>* vecs) {
+  const Eigen::Index n = r.size() / 3;
+  double s = 0.0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const Eigen::Vector3d v = r.segment<3>(3 * i);
+    s += v.squaredNorm();
+    if (angles) angles->push_back(v.norm());
+    if (vecs) vecs->push_back(v);
+  }
+  return n > 0 ? std::sqrt(s / static_cast<double>(n)) : 0.0;
+}
+
+}  // namespace
+
+Bounds default_bounds(const ZetaVector& s) {
+  Bounds b;
+  b.lower = s, b.upper = s;
+  for (int i : {kUx, kUy}) b.lower[i] -= 20.0, b.upper[i] += 20.0;
+  for (int i : {kE, kG}) b.lower[i] = s[i] / 20.0, b.upper[i] = s[i] * 20.0;
+  for (int i : {kDa, kDb, kDg}) b.lower[i] -= 0.5, b.upper[i] += 0.5;
+  return b;
+}
+
+Eigen::Vector3d rotation_error(const Eigen::Matrix3d& R_meas, const Eigen::Matrix3d& R_model) {
+  return so3::log(R_meas.transpose() * R_model);
+}
+
+Eigen::Matrix3d predict_tip_rotation(const config::Scene& scene, const Eigen::Vector3d& q, bool* ok) {
+  rod::ShootingSolver solver(scene.model, scene.solver);
+  const actuation::Vec6 w = actuation::JetMap(scene.jets).wrench(q);
+  rod::TipWrench tw;
+  tw.force = w.head<3>();
+  tw.moment = w.tail<3>();
+  const rod::RodSolution sol = solver.solve(tw);
+  if (ok) *ok = sol.converged;
+  return sol.tip_rotation;
+}
+
+CalibrationResult calibrate(const config::Scene& scene, const CrossSection& cs, const std::vector<Sample>& samples,
+                            const CalibrationOptions& opt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (!scene.has_jets)
+    throw config::SceneError("jets", "missing (the calibration needs the jet geometry, eq. 24)");
+  const std::string cse = cs.validate();
+  if (!cse.empty()) throw std::invalid_argument("cross-section " + cse);
+  int p = 0;
+  for (bool f : opt.fit) p += f ? 1 : 0;
+  validate_samples(samples, p);
+
+  CalibrationResult res;
+  res.fitted = opt.fit;
+  res.start = zeta_from_scene(scene, cs);
+  res.bounds = opt.has_bounds ? opt.bounds : default_bounds(res.start);
+  for (int i = 0; i < kNumParams; ++i) {
+    const double lo = res.bounds.lower[i], hi = res.bounds.upper[i], s = res.start[i];
+    if (!(std::isfinite(lo) && std::isfinite(hi) && lo <= s && s <= hi))
+      throw std::invalid_argument(std::string("bounds of ") + param_name(i) + ": the start " + fmt("%g", s) +
+                                  " must lie in [" + fmt("%g", lo) + ", " + fmt("%g", hi) + "]");
+    if ((i == kE || i == kG) && !(lo > 0.0))
+      throw std::invalid_argument(std::string("bounds of ") + param_name(i) + ": must be positive");
+  }
+  if (!(opt.loss_scale > 0.0)) throw std::invalid_argument("loss scale must be positive");
+
+  FitContext ctx;
+  ctx.model = scene.model;
+  ctx.settings = scene.solver;
+  ctx.settings.residual_tolerance = std::min(ctx.settings.residual_tolerance, 1e-12);
+  ctx.jets = scene.jets;
+  ctx.E0 = res.start[kE];
+  ctx.G0 = res.start[kG];
+  ctx.I = cs.second_moment();
+  ctx.J = cs.polar_moment();
+
+  // Internal coordinates, one parameter block each (constant blocks cost no derivative solves).
+  double x[kNumParams];
+  for (int i = 0; i < kNumParams; ++i) x[i] = res.start[i];
+  x[kE] = 0.0, x[kG] = 0.0;
+  auto internal = [&](int i, double v) { return i == kE ? std::log(v / ctx.E0) : i == kG ? std::log(v / ctx.G0) : v; };
+
+  ceres::Problem problem;
+  for (const Sample& s : samples)
+    problem.AddResidualBlock(new SampleCost(&ctx, s), make_loss(opt.loss, opt.loss_scale), &x[0], &x[1], &x[2], &x[3],
+                             &x[4], &x[5], &x[6]);
+  std::vector<double*> fitted;
+  for (int i = 0; i < kNumParams; ++i) {
+    if (!opt.fit[i]) {
+      problem.SetParameterBlockConstant(&x[i]);
+      continue;
+    }
+    fitted.push_back(&x[i]);
+    problem.SetParameterLowerBound(&x[i], 0, internal(i, res.bounds.lower[i]));
+    problem.SetParameterUpperBound(&x[i], 0, internal(i, res.bounds.upper[i]));
+  }
+
+  Eigen::VectorXd r;
+  if (!evaluate(&problem, fitted, false, &r, nullptr)) {
+    std::string which;
+    for (const Sample& smp : samples) {
+      bool ok = false;
+      predict_tip_rotation(scene, smp.jet_force, &ok);
+      if (!ok) which += (which.empty() ? "" : ", ") + smp.origin;
+    }
+    res.message = "the rod model did not converge at the start" + (which.empty() ? std::string() : " for " + which);
+    res.warnings.push_back(res.message);
+    res.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    res.zeta = res.start;
+    return res;
+  }
+  res.start_rms_rad = rms_angle(r, nullptr, nullptr);
+
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.max_num_iterations = opt.max_iterations;
+  so.num_threads = std::max(1, opt.num_threads);
+  so.function_tolerance = 1e-12;
+  so.gradient_tolerance = 1e-14;
+  so.parameter_tolerance = 1e-10;
+  so.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  res.iterations = static_cast<int>(summary.iterations.size()) - 1;
+  res.message = summary.message;
+
+  // Estimate in physical units.
+  for (int i = 0; i < kNumParams; ++i) res.zeta[i] = x[i];
+  res.zeta[kE] = ctx.E0 * std::exp(x[kE]);
+  res.zeta[kG] = ctx.G0 * std::exp(x[kG]);
+
+  // Residuals and Jacobian at the estimate (no loss: the geometric errors).
+  Eigen::MatrixXd J;
+  const bool final_ok = evaluate(&problem, fitted, false, &r, &J);
+  res.converged = summary.termination_type == ceres::CONVERGENCE && final_ok;
+  if (!final_ok) {
+    res.warnings.push_back("the rod model did not converge for every sample at the estimate");
+  } else {
+    res.rms_rad = rms_angle(r, &res.sample_error_rad, &res.residuals);
+    const double dof = static_cast<double>(r.size()) - p;
+    res.sigma_rad = dof > 0 ? std::sqrt(r.squaredNorm() / dof) : std::nan("");
+  }
+  if (summary.termination_type != ceres::CONVERGENCE)
+    res.warnings.push_back("Ceres did not converge: " + summary.message);
+
+  for (int i = 0; i < kNumParams; ++i) {
+    if (!opt.fit[i]) continue;
+    const double lo = internal(i, res.bounds.lower[i]), hi = internal(i, res.bounds.upper[i]);
+    const double tol = 1e-6 * std::max(1.0, hi - lo);
+    if (x[i] <= lo + tol || x[i] >= hi - tol) {
+      res.at_bound[i] = true;
+      res.warnings.push_back(std::string(param_name(i)) + " ended at its bound (" + fmt("%.6g", res.zeta[i]) + " " +
+                             param_unit(i) + "): the data push it outside [" + fmt("%.6g", res.bounds.lower[i]) + ", " +
+                             fmt("%.6g", res.bounds.upper[i]) + "]; its estimate and std are not meaningful");
+    }
+  }
+
+  // Directions the data do not see at all: null space of the Jacobian (relative singular value
+  // below 1e-7, the threshold at which ceres::Covariance drops them below).
+  ParamMask in_null{};
+  if (final_ok && p > 0) {
+    Eigen::JacobiSVD<Eigen::MatrixXd> svd(J, Eigen::ComputeFullV);
+    const Eigen::VectorXd sv = svd.singularValues();
+    const double smax = sv.size() ? sv[0] : 0.0;
+    for (int k = 0; k < p; ++k) {
+      const double s = k < sv.size() ? sv[k] : 0.0;
+      if (smax > 0.0 && s > 1e-7 * smax) continue;
+      for (int j = 0; j < p; ++j)
+        if (std::abs(svd.matrixV()(j, k)) > 0.1) {
+          int pi = -1;
+          for (int i = 0; i < kNumParams; ++i)
+            if (fitted[j] == &x[i]) pi = i;
+          in_null[pi] = true;
+        }
+    }
+  }
+
+  // Covariance (ceres::Covariance, pseudo-inverse so that a rank-deficient problem still reports
+  // the identifiable part), scaled by σ̂².
+  if (final_ok && p > 0 && std::isfinite(res.sigma_rad)) {
+    ceres::Covariance::Options co;
+    co.algorithm_type = ceres::DENSE_SVD;
+    co.null_space_rank = -1;
+    co.min_reciprocal_condition_number = 1e-14;
+    co.apply_loss_function = true;
+    co.num_threads = so.num_threads;
+    ceres::Covariance cov(co);
+    std::vector<const double*> blocks(fitted.begin(), fitted.end());
+    if (cov.Compute(blocks, &problem)) {
+      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> C(p, p);
+      if (cov.GetCovarianceMatrix(blocks, C.data())) {
+        res.covariance_ok = true;
+        std::vector<int> idx(p);
+        for (int j = 0; j < p; ++j)
+          for (int i = 0; i < kNumParams; ++i)
+            if (fitted[j] == &x[i]) idx[j] = i;
+        const double s2 = res.sigma_rad * res.sigma_rad;
+        for (int a = 0; a < p; ++a) {
+          const int i = idx[a];
+          if (in_null[i]) continue;
+          const double sd = std::sqrt(s2 * C(a, a));
+          res.stddev[i] = (i == kE || i == kG) ? res.zeta[i] * sd : sd;  // delta method for the moduli
+          for (int b = 0; b < p; ++b) {
+            const int j = idx[b];
+            if (in_null[j]) continue;
+            res.correlation(i, j) = C(a, b) / std::sqrt(C(a, a) * C(b, b));
+          }
+        }
+      }
+    }
+    if (!res.covariance_ok) res.warnings.push_back("the covariance could not be computed");
+  }
+
+  // Identifiability.
+  for (int i = 0; i < kNumParams; ++i) {
+    if (!opt.fit[i]) continue;
+    if (in_null[i]) {
+      res.warnings.push_back(std::string(param_name(i)) +
+                             " is not identifiable: the tip orientations do not depend on it (or only in a "
+                             "combination with others) for these jet forces; fix it (leave it out of --fit) or "
+                             "add samples that excite it");
+      continue;
+    }
+    if (!res.covariance_ok) continue;
+    const double rel = (i == kE || i == kG) ? res.stddev[i] / res.zeta[i] : res.stddev[i];
+    if (rel <= opt.resolution[i]) {
+      res.identifiable[i] = true;
+      continue;
+    }
+    const std::string sd = (i == kE || i == kG) ? fmt("%.3g", 100.0 * rel) + " %" : fmt("%.3g", rel) + " " + param_unit(i);
+    const std::string lim = (i == kE || i == kG) ? fmt("%.3g", 100.0 * opt.resolution[i]) + " %"
+                                                 : fmt("%.3g", opt.resolution[i]) + " " + param_unit(i);
+    res.warnings.push_back(std::string(param_name(i)) + " is poorly identifiable from these data: std " + sd +
+                           " > " + lim + "; fix it (leave it out of --fit) or add samples that excite it");
+  }
+  for (int i = 0; i < kNumParams; ++i)
+    for (int j = i + 1; j < kNumParams; ++j)
+      if (std::abs(res.correlation(i, j)) > opt.max_correlation)
+        res.warnings.push_back(std::string(param_name(i)) + " and " + param_name(j) + " are strongly correlated (" +
+                               fmt("%.4f", res.correlation(i, j)) +
+                               "): the data determine mainly a combination of the two");
+
+  res.rod_solves = ctx.solves.load();
+  res.failed_solves = ctx.failures.load();
+  res.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return res;
+}
+
+}  // namespace calibration
+}  // namespace hydrojet

@@ -1,0 +1,328 @@
+// calibration_recorder_node: the data collection of paper §6.2. Drives the rig driver or the
+// simulated plant through N random jet-force combinations (the paper used 40), holding each with
+// the per-jet PI flow regulators (actuation/flow_regulator.h; desired flow from the thrust
+// equation, eq. 26) for ~hold_time while the rod settles, records the driver's topics to a bag, and
+// then runs the calibrator (the same code as the `calibrate` tool) on that bag.
+//
+// Topics: publishes jets/command (JetCommand); subscribes jets/state, tracker/tip_pose,
+// tracker/base_pose (all written to ~bag with their header stamps). Timer at ~rate on ROS time, so
+// a lockstep plant (which owns /clock and waits for a command per sample) advances with it.
+// When done: ~result_file gets calibrate's last JSON line, ~report_file its whole report, and the
+// JSON is also published (latched) on calibration/result. Parameters: see read_options() and
+// README "Calibration".
+#include <ros/ros.h>
+#include <rosbag/bag.h>
+#include <std_msgs/String.h>
+#include <geometry_msgs/PoseStamped.h>
+
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <random>
+#include <set>
+#include <sstream>
+
+#include "hydrojet_control/JetCommand.h"
+#include "hydrojet_control/JetState.h"
+#include "hydrojet_control/actuation/flow_regulator.h"
+#include "hydrojet_control/actuation/jet_map.h"
+#include "hydrojet_control/actuation/thrust.h"
+#include "hydrojet_control/calibration/app.h"
+#include "hydrojet_control/config/scene.h"
+#include "hydrojet_control/ros/params.h"
+#include "hydrojet_control/util/json_writer.h"
+
+namespace hydrojet {
+namespace {
+
+struct RecorderOptions {
+  std::string scene, bag, out, result_file, report_file;
+  std::string fit = "ux,uy,E,G,da,db,dg";
+  std::string calibrate_args;          ///< extra calibrate options, space separated
+  int samples = 40;
+  int seed = 1;
+  double rate = 100.0;                 ///< command rate [Hz]
+  double hold_time = 4.0;              ///< per combination [s]
+  double start_hold = 2.0;             ///< jets off at the start [s] (also a zero-force sample)
+  double max_jet_force_fraction = 0.9; ///< q_i ≤ fraction · max_force_i of the scene
+  double max_net_force = 0.12;         ///< |A q| ≤ this [N]: stays clear of follower-load flutter
+  double min_net_force = 0.0;          ///< |A q| ≥ this [N]
+  bool calibrate = true;
+  bool exit_when_done = true;
+  actuation::FlowRegulatorParameters flow;
+};
+
+RecorderOptions read_options(const ros::NodeHandle& pnh) {
+  const YAML::Node y = ros_bridge::private_params_as_yaml(pnh);
+  RecorderOptions o;
+  // Flow regulator defaults: config/controller.yaml's flow_regulator (duty per m^3/s).
+  o.flow.feedforward = 62500.0, o.flow.kp = 18750.0, o.flow.ki = 312500.0;
+  static const std::set<std::string> known = {
+      "scene", "bag", "out", "result_file", "report_file", "fit", "calibrate_args", "samples", "seed", "rate",
+      "hold_time", "start_hold", "max_jet_force_fraction", "max_net_force", "min_net_force", "calibrate",
+      "exit_when_done", "flow_regulator"};
+  for (const auto& kv : y)
+    if (!known.count(kv.first.as<std::string>()))
+      throw config::ParamError("~" + kv.first.as<std::string>() + ": unknown parameter");
+  auto str = [&](const char* k, std::string* v) {
+    if (y[k]) *v = y[k].as<std::string>();
+  };
+  auto num = [&](const YAML::Node& n, const std::string& k, double* v) {
+    if (!n[k]) return;
+    try {
+      *v = n[k].as<double>();
+    } catch (const YAML::Exception&) {
+      throw config::ParamError("~" + k + ": must be a number");
+    }
+    if (!std::isfinite(*v)) throw config::ParamError("~" + k + ": must be finite");
+  };
+  auto boolean = [&](const char* k, bool* v) {
+    if (!y[k]) return;
+    try {
+      *v = y[k].as<bool>();
+    } catch (const YAML::Exception&) {
+      throw config::ParamError(std::string("~") + k + ": must be true or false");
+    }
+  };
+  str("scene", &o.scene);
+  str("bag", &o.bag);
+  str("out", &o.out);
+  str("result_file", &o.result_file);
+  str("report_file", &o.report_file);
+  str("fit", &o.fit);
+  str("calibrate_args", &o.calibrate_args);
+  double samples = o.samples, seed = o.seed;
+  num(y, "samples", &samples);
+  num(y, "seed", &seed);
+  num(y, "rate", &o.rate);
+  num(y, "hold_time", &o.hold_time);
+  num(y, "start_hold", &o.start_hold);
+  num(y, "max_jet_force_fraction", &o.max_jet_force_fraction);
+  num(y, "max_net_force", &o.max_net_force);
+  num(y, "min_net_force", &o.min_net_force);
+  boolean("calibrate", &o.calibrate);
+  boolean("exit_when_done", &o.exit_when_done);
+  if (y["flow_regulator"]) {
+    const YAML::Node f = y["flow_regulator"];
+    if (!f.IsMap()) throw config::ParamError("~flow_regulator: must be a mapping");
+    for (const auto& kv : f) {
+      const std::string k = kv.first.as<std::string>();
+      if (k != "feedforward" && k != "kp" && k != "ki" && k != "output_min" && k != "output_max")
+        throw config::ParamError("~flow_regulator/" + k + ": unknown parameter");
+    }
+    num(f, "feedforward", &o.flow.feedforward);
+    num(f, "kp", &o.flow.kp);
+    num(f, "ki", &o.flow.ki);
+    num(f, "output_min", &o.flow.output_min);
+    num(f, "output_max", &o.flow.output_max);
+    const std::string e = actuation::validate(o.flow);
+    if (!e.empty()) throw config::ParamError("~flow_regulator/" + e);
+  }
+  if (o.scene.empty()) throw config::ParamError("~scene: missing (path of the nominal scene YAML)");
+  if (o.bag.empty()) throw config::ParamError("~bag: missing (path of the bag to record)");
+  if (o.calibrate && o.out.empty()) throw config::ParamError("~out: missing (path of the calibrated scene YAML)");
+  if (samples != std::floor(samples) || samples < 1 || samples > 100000)
+    throw config::ParamError("~samples: must be an integer in [1, 100000]");
+  o.samples = static_cast<int>(samples);
+  o.seed = static_cast<int>(seed);
+  if (!(o.rate >= 1.0 && o.rate <= 1000.0)) throw config::ParamError("~rate: must lie in [1, 1000] Hz");
+  if (!(o.hold_time > 0.0)) throw config::ParamError("~hold_time: must be positive");
+  if (!(o.start_hold >= 0.0)) throw config::ParamError("~start_hold: must not be negative");
+  if (!(o.max_jet_force_fraction > 0.0 && o.max_jet_force_fraction <= 1.0))
+    throw config::ParamError("~max_jet_force_fraction: must lie in (0, 1]");
+  if (!(o.max_net_force > o.min_net_force && o.min_net_force >= 0.0))
+    throw config::ParamError("~max_net_force: must exceed ~min_net_force >= 0");
+  return o;
+}
+
+class Recorder {
+ public:
+  Recorder(ros::NodeHandle& nh, ros::NodeHandle& pnh) : o_(read_options(pnh)), rng_(o_.seed), bank_(o_.flow) {
+    scene_ = config::load_scene(o_.scene);
+    if (!scene_.has_jets) throw config::SceneError("jets", "missing (the recorder needs the jet geometry and nozzles)");
+    make_targets();
+    bag_.open(o_.bag, rosbag::bagmode::Write);
+    cmd_pub_ = nh.advertise<hydrojet_control::JetCommand>("jets/command", 10);
+    result_pub_ = nh.advertise<std_msgs::String>("calibration/result", 1, true);
+    jet_sub_ = nh.subscribe("jets/state", 100, &Recorder::jets, this, ros::TransportHints().tcpNoDelay());
+    tip_sub_ = nh.subscribe<geometry_msgs::PoseStamped>(
+        "tracker/tip_pose", 100, [this](const geometry_msgs::PoseStamped::ConstPtr& m) { pose(m, "tracker/tip_pose", &have_tip_); },
+        ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
+    base_sub_ = nh.subscribe<geometry_msgs::PoseStamped>(
+        "tracker/base_pose", 100, [this](const geometry_msgs::PoseStamped::ConstPtr& m) { pose(m, "tracker/base_pose", &have_base_); },
+        ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
+    timer_ = nh.createTimer(ros::Duration(1.0 / o_.rate), &Recorder::tick, this);
+    ROS_INFO("calibration recorder: %d jet-force combinations, %.1f s each, |net force| <= %.3f N, bag %s", o_.samples,
+             o_.hold_time, o_.max_net_force, o_.bag.c_str());
+  }
+
+ private:
+  /// Random jet forces q_i ∈ [0, fraction·q_max,i], kept when min ≤ |A q| ≤ max (nominal jet map).
+  void make_targets() {
+    const actuation::JetMap map(scene_.jets);
+    std::uniform_real_distribution<double> u01(0.0, 1.0);
+    for (int k = 0; k < o_.samples; ++k) {
+      for (int tries = 0;; ++tries) {
+        if (tries > 100000) throw std::runtime_error("cannot draw jet forces within the net-force limits");
+        Eigen::Vector3d q;
+        for (int i = 0; i < 3; ++i) q[i] = o_.max_jet_force_fraction * scene_.max_jet_force[i] * u01(rng_);
+        const double net = (map.planar() * q).norm();
+        if (net >= o_.min_net_force && net <= o_.max_net_force) {
+          targets_.push_back(q);
+          break;
+        }
+      }
+    }
+  }
+
+  ros::Time bag_time(const ros::Time& stamp) const {
+    const ros::Time t = stamp.isZero() ? ros::Time::now() : stamp;
+    return t < ros::TIME_MIN ? ros::TIME_MIN : t;
+  }
+
+  void jets(const hydrojet_control::JetState::ConstPtr& m) {
+    if (!recording_) return;
+    bag_.write("jets/state", bag_time(m->header.stamp), *m);
+    flow_ = Eigen::Vector3d(m->flow[0], m->flow[1], m->flow[2]);
+    have_jets_ = true;
+  }
+
+  void pose(const geometry_msgs::PoseStamped::ConstPtr& m, const std::string& topic, bool* flag) {
+    if (!recording_) return;
+    bag_.write(topic, bag_time(m->header.stamp), *m);
+    *flag = true;
+  }
+
+  void tick(const ros::TimerEvent&) {
+    if (done_) return;
+    const ros::Time now = ros::Time::now();
+    const double t = now.toSec();
+    const double dt = have_last_t_ && t > last_t_ ? t - last_t_ : 1.0 / o_.rate;
+    last_t_ = t;
+    have_last_t_ = true;
+    Eigen::Vector3d duty = Eigen::Vector3d::Zero();
+    Eigen::Vector3d force = Eigen::Vector3d::Zero(), flow_des = Eigen::Vector3d::Zero();
+    if (!(have_jets_ && have_tip_ && have_base_)) {
+      // Jets off until the driver's data flow (a lockstep plant still advances on these commands).
+    } else {
+      if (phase_start_ < 0) {
+        phase_start_ = t;
+        ROS_INFO("calibration recorder: data arriving, starting (%.1f s jets off first)", o_.start_hold);
+      }
+      const double elapsed = t - phase_start_;
+      const int k = elapsed < o_.start_hold ? -1 : static_cast<int>((elapsed - o_.start_hold) / o_.hold_time);
+      if (k >= o_.samples) {
+        finish();
+        return;
+      }
+      if (k >= 0) {
+        if (k != current_) {
+          current_ = k;
+          ROS_INFO("calibration recorder: combination %d/%d: q = [%.3f, %.3f, %.3f] N", k + 1, o_.samples,
+                   targets_[k][0], targets_[k][1], targets_[k][2]);
+        }
+        force = targets_[k];
+        for (int i = 0; i < 3; ++i) flow_des[i] = actuation::flow_from_force(force[i], scene_.nozzle);
+        duty = bank_.update(flow_des, flow_, dt);
+      }
+    }
+    publish(now, duty, force, flow_des);
+  }
+
+  void publish(const ros::Time& now, const Eigen::Vector3d& duty, const Eigen::Vector3d& force,
+               const Eigen::Vector3d& flow) {
+    hydrojet_control::JetCommand c;
+    c.header.stamp = now;
+    for (int i = 0; i < 3; ++i) c.valve_command[i] = duty[i], c.jet_force[i] = force[i], c.flow[i] = flow[i];
+    cmd_pub_.publish(c);
+    if (recording_) bag_.write("jets/command", bag_time(now), c);
+  }
+
+  void finish() {
+    done_ = true;
+    publish(ros::Time::now(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+    recording_ = false;
+    bag_.close();
+    ROS_INFO("calibration recorder: recorded %s", o_.bag.c_str());
+    std::string json = "{}";
+    int& status = exit_status_;
+    if (o_.calibrate) {
+      std::vector<std::string> args = {"--scene", o_.scene, "--data", o_.bag, "--out", o_.out, "--fit", o_.fit};
+      std::istringstream extra(o_.calibrate_args);
+      for (std::string a; extra >> a;) args.push_back(a);
+      std::ostringstream out, err;
+      status = calibration::run_calibrate(args, out, err);
+      std::cout << out.str() << std::flush;
+      if (!err.str().empty()) std::cerr << err.str() << std::flush;
+      const std::string report = out.str();
+      std::istringstream lines(report);
+      for (std::string line; std::getline(lines, line);)
+        if (!line.empty()) json = line;  // the last line is calibrate's JSON object
+      if (status == 2) json = error_json(err.str());
+      if (!o_.report_file.empty()) write_atomically(o_.report_file, report + err.str());
+      ROS_INFO("calibration recorder: calibrate exited %d; %s", status, status == 0 ? o_.out.c_str() : "see the report");
+    }
+    if (!o_.result_file.empty()) write_atomically(o_.result_file, json + "\n");
+    std_msgs::String msg;
+    msg.data = json;
+    result_pub_.publish(msg);
+    if (o_.exit_when_done) {
+      ros::WallDuration(0.5).sleep();  // let the latched result go out
+      ros::shutdown();
+    }
+  }
+
+  /// A JSON object for a calibrate run that failed on its input (exit 2 prints no JSON).
+  static std::string error_json(std::string err) {
+    while (!err.empty() && err.back() == '\n') err.pop_back();
+    util::JsonObject j;
+    j.add("converged", false).add("error", err);
+    return j.str();
+  }
+
+  static void write_atomically(const std::string& path, const std::string& text) {
+    const std::string tmp = path + ".tmp";
+    {
+      std::ofstream f(tmp);
+      f << text;
+    }
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) ROS_ERROR("calibration recorder: cannot write %s", path.c_str());
+  }
+
+  RecorderOptions o_;
+  config::Scene scene_;
+  std::mt19937 rng_;
+  actuation::FlowRegulatorBank bank_;
+  std::vector<Eigen::Vector3d> targets_;
+  rosbag::Bag bag_;
+  ros::Publisher cmd_pub_, result_pub_;
+  ros::Subscriber jet_sub_, tip_sub_, base_sub_;
+  ros::Timer timer_;
+  Eigen::Vector3d flow_ = Eigen::Vector3d::Zero();
+  bool have_jets_ = false, have_tip_ = false, have_base_ = false;
+  bool recording_ = true, done_ = false;
+  double phase_start_ = -1.0, last_t_ = 0.0;
+  bool have_last_t_ = false;
+  int current_ = -1;
+
+ public:
+  int exit_status_ = 0;  ///< calibrate's exit status once done (0 converged, 1 not, 2 bad data)
+};
+
+}  // namespace
+}  // namespace hydrojet
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "calibration_recorder");
+  ros::NodeHandle nh, pnh("~");
+  try {
+    hydrojet::Recorder r(nh, pnh);
+    ros::spin();
+    return r.exit_status_;
+  } catch (const std::exception& e) {
+    ROS_FATAL("calibration recorder: refusing to start: %s", e.what());
+    std::cerr << "calibration recorder: refusing to start: " << e.what() << std::endl;
+    return 1;
+  }
+  return 0;
+}
