@@ -2,16 +2,25 @@
 //   BM_ColdSolve             solve with no warm start (reset before each solve)
 //   BM_WarmSolve             solve warm-started from the previous point of the path
 //   BM_WarmSolveCompliance   the same plus C^b
-// Each reports the counter tip_error_m: the largest tip-position error along the path against a
-// reference (RK8, 256 steps, residual 1e-13).
+//   BM_WarmSolveGeneral, BM_WarmSolveComplianceGeneral
+//                            the same with the general right-hand side (every term, Cosserat form)
+//                            instead of the one compiled for the scene's terms: the specialization gain
+//   BM_StabilityMap3000/0, /30
+//                            σ_c over 3000 jet-force combinations (paper Figs. 12–13), 0° and 30°
+//                            scenes, warm-started along a serpentine: solve + C^b + stability
+// The path benchmarks report the counter tip_error_m: the largest tip-position error along the
+// path against a reference (RK8, 256 steps, residual 1e-13).
 #include <benchmark/benchmark.h>
 
 #include <cmath>
 #include <string>
 #include <vector>
 
+#include "../bench/numerics_cases.h"
+#include "hydrojet_control/actuation/jet_map.h"
 #include "hydrojet_control/config/scene.h"
 #include "hydrojet_control/rod/shooting_solver.h"
+#include "hydrojet_control/rod/stability.h"
 
 namespace {
 
@@ -90,9 +99,67 @@ void BM_WarmSolveCompliance(benchmark::State& state) {
   state.counters["tip_error_m"] = path_tip_error(sc);
 }
 
+hydrojet::rod::ShootingSettings general(hydrojet::rod::ShootingSettings s) {
+  s.specialize_model = false;
+  return s;
+}
+
+void BM_WarmSolveGeneral(benchmark::State& state) {
+  const auto sc = scene();
+  hydrojet::rod::ShootingSolver s(sc.model, general(sc.solver));
+  size_t i = 0;
+  for (auto _ : state) benchmark::DoNotOptimize(s.solve(path()[i++ % path().size()]));
+  state.SetLabel(s.variant_name());
+}
+
+void BM_WarmSolveComplianceGeneral(benchmark::State& state) {
+  const auto sc = scene();
+  hydrojet::rod::ShootingSolver s(sc.model, general(sc.solver));
+  size_t i = 0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(s.solve(path()[i++ % path().size()]));
+    benchmark::DoNotOptimize(s.compliance());
+  }
+  state.SetLabel(s.variant_name());
+}
+
+void BM_StabilityMap3000(benchmark::State& state) {
+  const auto sc = hydrojet::config::load_scene(std::string(HYDROJET_SOURCE_DIR) + "/config/scenes/hydrojet_" +
+                                               std::to_string(state.range(0)) + "deg.yaml");
+  const hydrojet::actuation::JetMap jets(sc.jets);
+  const std::vector<Vec3> grid = hydrojet::numerics::stability_grid(sc.max_jet_force);
+  std::vector<TipWrench> w(grid.size());
+  for (size_t i = 0; i < grid.size(); ++i) {
+    const hydrojet::rod::Vec6 w6 = jets.wrench(grid[i]);
+    w[i].force = w6.head<3>();
+    w[i].moment = w6.tail<3>();
+  }
+  double min_eig = 0.0;
+  int failures = 0;
+  for (auto _ : state) {
+    hydrojet::rod::ShootingSolver s(sc.model, sc.solver);
+    min_eig = 1e300;
+    failures = 0;
+    for (const TipWrench& x : w) {
+      if (!s.solve(x).converged) {
+        ++failures;
+        continue;
+      }
+      const hydrojet::rod::StabilityReport st = hydrojet::rod::stability(s.compliance().body, sc.actuated);
+      min_eig = std::min(min_eig, st.eig_min);
+    }
+  }
+  state.counters["points"] = static_cast<double>(w.size());
+  state.counters["failures"] = failures;
+  state.counters["min_eig"] = min_eig;
+}
+
 }  // namespace
 
 BENCHMARK(BM_ColdSolve)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_WarmSolve)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_WarmSolveCompliance)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_WarmSolveGeneral)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_WarmSolveComplianceGeneral)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_StabilityMap3000)->Arg(0)->Arg(30)->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK_MAIN();

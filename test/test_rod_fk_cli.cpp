@@ -101,6 +101,20 @@ TEST(RodFkCli, JetsMatchEquivalentForce) {
   EXPECT_EQ(run("--scene " + scene("hydrojet_0deg") + " --jets 0.1 0.05 0 --force 0 0 0").status, 2);
 }
 
+// --integrator takes the SUNDIALS methods too and reports the name; they agree with rk8.
+TEST(RodFkCli, CvodeIntegratorsByName) {
+  const CliRun a = run("--scene " + scene("hydrojet_30deg") + " --force 0.1 0.05 0 --compliance");
+  ASSERT_EQ(a.status, 0) << a.err;
+  for (const char* name : {"cvode-adams", "cvode-bdf", "dopri5"}) {
+    const CliRun b = run("--scene " + scene("hydrojet_30deg") + " --force 0.1 0.05 0 --compliance --tol 1e-10 --integrator " + name);
+    ASSERT_EQ(b.status, 0) << name << ": " << b.err;
+    EXPECT_NE(b.out.find(std::string("\"integrator\": \"") + name + "\""), std::string::npos) << b.out;
+    const auto pa = array_field(a.out, "tip_position"), pb = array_field(b.out, "tip_position");
+    ASSERT_EQ(pb.size(), 3u);
+    for (int i = 0; i < 3; ++i) EXPECT_NEAR(pa[i], pb[i], 1e-7) << name;
+  }
+}
+
 // A straight weightless rod with a small lateral force: linear beam tip deflection FL³/(3EI).
 TEST(RodFkCli, BatchSolvesEachLineInOrder) {
   const std::string sc = write_scene(kGoodScene);

@@ -92,3 +92,42 @@ TEST(Scene, ErrorsNameTheKey) {
   // Unknown top-level sections are allowed (later tools add their own).
   EXPECT_EQ(error_key(std::string(kGood) + "plant: {anything: 1}\n"), "(no error)");
 }
+
+// rod.model: cosserat with K_se from the keys, or from moduli and the cross-section; the solver keys
+// of the numerics part; bad combinations name the key.
+TEST(Scene, CosseratModelAndSolverKeys) {
+  const auto s = parse_scene(std::string(kGood) + R"(solver:
+  integrator: cvode-bdf
+  tolerance: 1.0e-8
+  shooting_segments: 4
+  accuracy_tolerance: 0
+)");
+  EXPECT_EQ(s.model.rod.kind, hydrojet::rod::RodKind::kKirchhoff);
+  EXPECT_EQ(s.solver.integrator.type, hydrojet::rod::IntegratorType::kCvodeBdf);
+  EXPECT_EQ(s.solver.shooting_segments, 4);
+  EXPECT_EQ(s.solver.accuracy_tolerance, 0.0);
+  const auto c = parse_scene(replace(kGood, "  linear_density: 0.01\n",
+                                     "  linear_density: 0.01\n  model: cosserat\n  shear_stiffness: 0.4\n  axial_stiffness: 1.3\n"));
+  EXPECT_EQ(c.model.rod.kind, hydrojet::rod::RodKind::kCosserat);
+  EXPECT_DOUBLE_EQ(c.model.rod.shear_stiffness, 0.4);
+  EXPECT_DOUBLE_EQ(c.model.rod.axial_stiffness, 1.3);
+  const auto m = parse_scene(R"(
+rod: {length: 0.09, model: cosserat, youngs_modulus: 1.0e5, shear_modulus: 3.4e4, outer_diameter: 0.008, inner_diameter: 0.006}
+tip: {mass: 0.0}
+gravity: [0, 0, 0]
+)");
+  const double A = M_PI * (0.008 * 0.008 - 0.006 * 0.006) / 4.0;
+  EXPECT_NEAR(m.model.rod.axial_stiffness, 1.0e5 * A, 1e-12);
+  EXPECT_NEAR(m.model.rod.shear_stiffness, 3.4e4 * A, 1e-12);
+  EXPECT_EQ(error_key(replace(kGood, "  linear_density: 0.01\n", "  linear_density: 0.01\n  model: timoshenko\n")),
+            "rod.model");
+  EXPECT_EQ(error_key(replace(kGood, "  linear_density: 0.01\n", "  linear_density: 0.01\n  model: cosserat\n")),
+            "rod.shear_stiffness");
+  EXPECT_EQ(error_key(replace(kGood, "  linear_density: 0.01\n",
+                              "  linear_density: 0.01\n  model: cosserat\n  shear_stiffness: 0.4\n")),
+            "rod.axial_stiffness");
+  EXPECT_EQ(error_key(replace(kGood, "  linear_density: 0.01\n", "  linear_density: 0.01\n  axial_stiffness: 1.3\n")),
+            "rod.axial_stiffness");
+  EXPECT_EQ(error_key(std::string(kGood) + "solver: {shooting_segments: -1}\n"), "solver.shooting_segments");
+  EXPECT_EQ(error_key(std::string(kGood) + "solver: {accuracy_tolerance: -1}\n"), "solver.accuracy_tolerance");
+}

@@ -74,7 +74,7 @@ int get_int(const YAML::Node& node, const std::string& key, int lo, int hi) {
 void parse_rod(const YAML::Node& r, rod::RodParameters* p) {
   check_keys(r, "rod", {"length", "bending_stiffness", "torsional_stiffness", "youngs_modulus",
                         "shear_modulus", "outer_diameter", "inner_diameter", "precurvature",
-                        "linear_density"});
+                        "linear_density", "model", "shear_stiffness", "axial_stiffness"});
   p->length = get_positive(r["length"], "rod.length");
   const bool direct = r["bending_stiffness"] || r["torsional_stiffness"];
   const bool moduli = r["youngs_modulus"] || r["shear_modulus"] || r["outer_diameter"] || r["inner_diameter"];
@@ -88,12 +88,35 @@ void parse_rod(const YAML::Node& r, rod::RodParameters* p) {
     if (d >= D) throw SceneError("rod.inner_diameter", "must be smaller than rod.outer_diameter");
     const double I = M_PI * (std::pow(D, 4) - std::pow(d, 4)) / 64.0;  // hollow cylinder
     p->stiffness = rod::Vec3(E * I, E * I, G * 2.0 * I);                  // J = 2 I
+    const double A = M_PI * (D * D - d * d) / 4.0;                        // Cosserat: EA, GA
+    p->axial_stiffness = E * A;
+    p->shear_stiffness = G * A;
   } else {
     const auto ei = get_vector(r["bending_stiffness"], "rod.bending_stiffness", 2);
     for (int i = 0; i < 2; ++i)
       if (!(ei[i] > 0.0))
         throw SceneError("rod.bending_stiffness[" + std::to_string(i) + "]", "must be positive, got " + fmt(ei[i]));
     p->stiffness = rod::Vec3(ei[0], ei[1], get_positive(r["torsional_stiffness"], "rod.torsional_stiffness"));
+  }
+  // rod.model: kirchhoff (default) | cosserat. The Cosserat rod needs K_se = diag(GA, GA, EA): the
+  // keys shear_stiffness and axial_stiffness [N], or moduli and diameters (GA = G·A, EA = E·A).
+  std::string kind = "kirchhoff";
+  if (r["model"]) kind = r["model"].IsScalar() ? r["model"].Scalar() : "";
+  if (kind != "kirchhoff" && kind != "cosserat")
+    throw SceneError("rod.model", "must be kirchhoff or cosserat, got '" + kind + "'");
+  if (kind == "kirchhoff") {
+    for (const char* k : {"shear_stiffness", "axial_stiffness"})
+      if (r[k]) throw SceneError(std::string("rod.") + k, "only with rod.model: cosserat");
+    p->kind = rod::RodKind::kKirchhoff;
+    p->shear_stiffness = p->axial_stiffness = 0.0;
+  } else {
+    p->kind = rod::RodKind::kCosserat;
+    if (r["shear_stiffness"]) p->shear_stiffness = get_positive(r["shear_stiffness"], "rod.shear_stiffness");
+    if (r["axial_stiffness"]) p->axial_stiffness = get_positive(r["axial_stiffness"], "rod.axial_stiffness");
+    if (!(p->shear_stiffness > 0.0))
+      throw SceneError("rod.shear_stiffness", "missing (rod.model: cosserat needs it, or moduli and diameters)");
+    if (!(p->axial_stiffness > 0.0))
+      throw SceneError("rod.axial_stiffness", "missing (rod.model: cosserat needs it, or moduli and diameters)");
   }
   p->precurvature = r["precurvature"] ? get_vec3(r["precurvature"], "rod.precurvature") : rod::Vec3::Zero();
   p->linear_density = r["linear_density"] ? get_nonnegative(r["linear_density"], "rod.linear_density") : 0.0;
@@ -119,11 +142,11 @@ void parse_tip(const YAML::Node& t, Scene* s) {
 
 void parse_solver(const YAML::Node& n, rod::ShootingSettings* st) {
   check_keys(n, "solver", {"integrator", "steps", "tolerance", "residual_tolerance", "max_iterations",
-                           "max_continuation_steps"});
+                           "max_continuation_steps", "shooting_segments", "accuracy_tolerance"});
   if (n["integrator"]) {
     const std::string name = n["integrator"].IsScalar() ? n["integrator"].Scalar() : "";
     if (!rod::parse_integrator(name, &st->integrator.type))
-      throw SceneError("solver.integrator", "unknown integrator '" + name + "' (rk4, rk8, dopri5)");
+      throw SceneError("solver.integrator", "unknown integrator '" + name + "' (" + rod::integrator_names() + ")");
   }
   if (n["steps"]) st->integrator.steps = get_int(n["steps"], "solver.steps", 1, 100000);
   if (n["tolerance"]) st->integrator.tolerance = get_positive(n["tolerance"], "solver.tolerance");
@@ -131,6 +154,10 @@ void parse_solver(const YAML::Node& n, rod::ShootingSettings* st) {
   if (n["max_iterations"]) st->max_iterations = get_int(n["max_iterations"], "solver.max_iterations", 1, 1000);
   if (n["max_continuation_steps"])
     st->max_continuation_steps = get_int(n["max_continuation_steps"], "solver.max_continuation_steps", 0, 100000);
+  if (n["shooting_segments"])
+    st->shooting_segments = get_int(n["shooting_segments"], "solver.shooting_segments", 0, 256);
+  if (n["accuracy_tolerance"])
+    st->accuracy_tolerance = get_nonnegative(n["accuracy_tolerance"], "solver.accuracy_tolerance");
 }
 
 void parse_jets(const YAML::Node& n, Scene* s) {

@@ -5,8 +5,15 @@
 #include <cmath>
 #include <cstdio>
 
+#include "hydrojet_control/rod/cvode_integrator.h"
+#include "kinsol_workspace.h"
+#include "rod_integration.h"
+#include "solver_templates.h"
+
 namespace hydrojet {
 namespace rod {
+
+using internal::init_tip_state;
 
 const char* integrator_name(IntegratorType t) {
   switch (t) {
@@ -19,8 +26,11 @@ const char* integrator_name(IntegratorType t) {
   return "unknown";
 }
 
+const char* integrator_names() { return "rk4, rk8, dopri5, cvode-adams, cvode-bdf"; }
+
 bool parse_integrator(const std::string& name, IntegratorType* out) {
-  for (IntegratorType t : {IntegratorType::kRk4, IntegratorType::kRk8, IntegratorType::kDopri5}) {
+  for (IntegratorType t : {IntegratorType::kRk4, IntegratorType::kRk8, IntegratorType::kDopri5,
+                           IntegratorType::kCvodeAdams, IntegratorType::kCvodeBdf}) {
     if (name == integrator_name(t)) {
       *out = t;
       return true;
@@ -29,17 +39,64 @@ bool parse_integrator(const std::string& name, IntegratorType* out) {
   return false;
 }
 
+ShootingSolver::Scratch::Scratch() = default;
+ShootingSolver::Scratch::~Scratch() = default;
+CvodeWorkspace& ShootingSolver::Scratch::cvode() {
+  if (!cvode_) cvode_.reset(new CvodeWorkspace);
+  return *cvode_;
+}
+
 ShootingSolver::ShootingSolver(const RodModel& model, const ShootingSettings& settings)
-    : model_(model), settings_(settings) {}
+    : model_(model), settings_(settings) {
+  select_kernels();
+}
 
 void ShootingSolver::set_model(const RodModel& model) {
   model_ = model;
+  have_unloaded_det_ = false;
+  select_kernels();
   reset();
+}
+
+void ShootingSolver::set_settings(const ShootingSettings& settings) {
+  settings_ = settings;
+  have_unloaded_det_ = false;
+  select_kernels();
 }
 
 void ShootingSolver::reset() {
   have_solution_ = false;
+  multiple_ = false;
   R_tip_ = Mat3::Identity();
+  nodes_ = Nodes();
+}
+
+const char* ShootingSolver::variant_name() const { return kernels_->name; }
+
+// One compiled right-hand side per combination of terms; the scene's combination is chosen here,
+// once, so the integration loop runs without branches on the model's terms.
+void ShootingSolver::select_kernels() {
+#define HJ_KERNEL(C, W, P, NAME) \
+  Kernels{&ShootingSolver::evaluate_t<RodTerms<C, W, P>>, &ShootingSolver::compliance_t<RodTerms<C, W, P>>, \
+          &ShootingSolver::error_t<RodTerms<C, W, P>>, NAME}
+  static const Kernels table[8] = {
+      HJ_KERNEL(false, false, false, "kirchhoff"),
+      HJ_KERNEL(false, false, true, "kirchhoff+precurved"),
+      HJ_KERNEL(false, true, false, "kirchhoff+weight"),
+      HJ_KERNEL(false, true, true, "kirchhoff+weight+precurved"),
+      HJ_KERNEL(true, false, false, "cosserat"),
+      HJ_KERNEL(true, false, true, "cosserat+precurved"),
+      HJ_KERNEL(true, true, false, "cosserat+weight"),
+      HJ_KERNEL(true, true, true, "cosserat+weight+precurved"),
+  };
+  static const Kernels general = HJ_KERNEL(true, true, true, "general");
+#undef HJ_KERNEL
+  if (!settings_.specialize_model) {
+    kernels_ = &general;
+    return;
+  }
+  const RodTermSet t = needed_terms(model_);
+  kernels_ = &table[(t.cosserat ? 4 : 0) + (t.distributed_load ? 2 : 0) + (t.precurved ? 1 : 0)];
 }
 
 Mat3 ShootingSolver::unloaded_tip_rotation() const {
@@ -47,60 +104,29 @@ Mat3 ShootingSolver::unloaded_tip_rotation() const {
   return so3::exp(model_.rod.length * model_.rod.precurvature);
 }
 
-template <int D>
-void ShootingSolver::setup_ode(RodOde<D>* ode, const Mat3& R_tip, const Load& load) const {
+double ShootingSolver::unloaded_det() const {
+  // det ∂r/∂x at the unloaded shape under zero load: where every cold load path starts.
+  if (!have_unloaded_det_) {
+    Load zero;
+    zero.gravity_scale = 0.0;
+    int rhs = 0;
+    const Eval u = evaluate(unloaded_tip_rotation(), zero, &rhs);
+    unloaded_det_ = u.ok ? u.J.determinant() : std::nan("");
+    have_unloaded_det_ = true;
+  }
+  return unloaded_det_;
+}
+
+double ShootingSolver::growth_estimate(const TipWrench& w) const {
   const RodParameters& rod = model_.rod;
-  ode->k_diag = rod.stiffness;
-  ode->k_inv = rod.stiffness.cwiseInverse();
-  ode->u_tilde = rod.precurvature;
-  ode->length = rod.length;
-  // Tip boundary condition (eq. 16 with eq. 13): n(L) = R(L) f_b + m_t g.
-  ode->n_tip = R_tip * load.wrench.force + load.gravity_scale * model_.tip_mass * model_.gravity;
-  ode->w_dist = load.gravity_scale * rod.linear_density * model_.gravity;
-  ode->dn.setZero();
-}
-
-namespace {
-template <int D>
-void init_tip_state(const RodOde<D>& ode, const Mat3& R_tip, const Vec3& moment,
-                    typename RodOde<D>::State* y) {
-  y->setZero();
-  Eigen::Map<Mat3>(y->data() + 3) = R_tip;
-  // eq. (16): u(L) − ũ(L) = K⁻¹ l_b
-  y->template segment<3>(12) = ode.u_tilde + ode.k_inv.cwiseProduct(moment);
-}
-}  // namespace
-
-ShootingSolver::Eval ShootingSolver::evaluate(const Mat3& R_tip, const Load& load, int* rhs) const {
-  RodOde<3> ode;
-  setup_ode(&ode, R_tip, load);
-  RodOde<3>::State y;
-  init_tip_state(ode, R_tip, load.wrench.moment, &y);
-  for (int i = 0; i < 3; ++i) {
-    // Direction x_i: R(L) -> R(L) exp(ε e_i^): η(L) = e_i, and n(L) changes by R(L)(e_i × f_b).
-    y[RodOde<3>::kBase + RodOde<3>::kPerDir * i + i] = 1.0;
-    ode.dn.col(i) = R_tip * Vec3::Unit(i).cross(load.wrench.force);
-  }
-  const IntegrationStats st = integrate(settings_.integrator, ode, model_.rod.length, 0.0, y);
-  *rhs += st.rhs_evaluations;
-  Eval e;
-  e.ok = st.ok && y.allFinite();
-  if (!e.ok) return e;
-  e.R0 = Eigen::Map<const Mat3>(y.data() + 3);
-  e.p0 = y.segment<3>(0);
-  for (int i = 0; i < 3; ++i) {
-    const int o = RodOde<3>::kBase + RodOde<3>::kPerDir * i;
-    e.deta0.col(i) = y.segment<3>(o);
-    e.dp0.col(i) = y.segment<3>(o + 6);
-  }
-  // Shooting residual, eq. (15): R(0) = I  <=>  log R(0) = 0.
-  e.r = so3::log(so3::orthonormalize(e.R0));
-  e.J = so3::right_jacobian_inverse(e.r) * e.deta0;
-  e.ok = e.r.allFinite() && e.J.allFinite();
-  return e;
+  const double g = model_.gravity.norm();
+  const double n = w.force.norm() + model_.tip_mass * g + rod.linear_density * g * rod.length;
+  const double ei = std::min(rod.stiffness.x(), rod.stiffness.y());
+  return rod.length * std::sqrt(n / ei);
 }
 
 bool ShootingSolver::newton(Mat3* R_tip, const Load& load, RodSolution* sol, Eval* last) const {
+  if (settings_.newton == NewtonBackend::kKinsol) return newton_kinsol(R_tip, load, sol, last);
   Eval e = evaluate(*R_tip, load, &sol->rhs_evaluations);
   for (int it = 0;; ++it) {
     if (!e.ok) {
@@ -148,6 +174,27 @@ bool ShootingSolver::newton(Mat3* R_tip, const Load& load, RodSolution* sol, Eva
   }
 }
 
+namespace {
+/// Continuation steps (fractions of the load change) below which a persisting jump of the solution
+/// counts as a snap-through at a fold rather than a step that is too long.
+constexpr double kSnapStep = 1.0 / 256.0;
+
+/// Counts a sign change of det ∂r/∂x between consecutive equilibria of a load path.
+struct FoldTracker {
+  double det = std::nan("");
+  int crossings = 0;
+  void start(double d) {
+    det = d;
+    crossings = 0;
+  }
+  void note(double d) {
+    if (!std::isfinite(d) || d == 0.0) return;
+    if (std::isfinite(det) && det != 0.0 && (d > 0.0) != (det > 0.0)) ++crossings;
+    det = d;
+  }
+};
+}  // namespace
+
 RodSolution ShootingSolver::solve(const TipWrench& wrench) {
   RodSolution sol;
   Load target;
@@ -159,12 +206,62 @@ RodSolution ShootingSolver::solve(const TipWrench& wrench) {
     last_ = sol;
     return sol;
   }
+  FoldTracker folds;
+  auto finish = [&](bool ok, const Eval& e, const Mat3& R) {
+    if (e.ok) {
+      sol.tip_rotation = so3::orthonormalize(e.R0.transpose() * R);
+      sol.tip_position = -e.R0.transpose() * e.p0;
+      sol.jacobian_det = e.J.determinant();
+    }
+    sol.converged = ok && e.ok && std::isfinite(sol.residual) && sol.residual <= settings_.residual_tolerance &&
+                    sol.tip_position.allFinite();
+    if (sol.converged) {
+      folds.note(sol.jacobian_det);
+      sol.message.clear();
+      have_solution_ = true;
+      det_ = sol.jacobian_det;
+      multiple_ = false;
+      R_tip_ = R;
+      load_ = target;
+      eval_ = e;
+    } else if (sol.message.empty()) {
+      sol.message = "did not converge";
+    }
+  };
+  auto report_folds = [&]() {
+    sol.fold_crossings = folds.crossings;
+    if (folds.crossings > 0)
+      sol.warning = "the load path crossed a fold or bifurcation " + std::to_string(folds.crossings) +
+                    " time(s) (det of the shooting Jacobian changed sign, or the equilibrium snapped through); "
+                    "the result may lie on another branch than the start: check stability (stability_eig_min)";
+    last_ = sol;
+    return sol;
+  };
 
+  const int seg = settings_.shooting_segments;
+  // Single shooting loses about λL/ln 10 digits to the growth of its sensitivities; past λL ≈ 12 its
+  // Newton iteration and load continuation become unreliable (they drift onto other, better
+  // conditioned branches), so the automatic mode goes to multiple shooting directly.
+  const bool ill_conditioned = seg == 0 && growth_estimate(wrench) > kSingleShootingGrowthLimit;
+  if (seg >= 2 || (seg == 0 && ((multiple_ && have_solution_) || ill_conditioned))) {
+    // Multiple shooting: forced, warm from a multiple-shooting solution, or ill-conditioned.
+    int M = seg >= 2 ? seg : auto_segments(target);
+    if (seg == 0 && multiple_ && have_solution_ && nodes_.segments >= M) M = nodes_.segments;
+    const bool ok = ms_solve(target, M, &sol);
+    if (ok || seg >= 2) {
+      last_ = sol;
+      return sol;
+    }
+    sol = RodSolution();  // fall through to single shooting, then a fresh multiple-shooting attempt
+  }
+
+  folds.start(have_solution_ ? det_ : unloaded_det());
   Eval e;
   Mat3 R = have_solution_ ? R_tip_ : unloaded_tip_rotation();
-  bool ok = newton(&R, target, &sol, &e);
+  Load zero;
+  zero.gravity_scale = 0.0;
 
-  // Load continuation: from the warm solution if there is one, then from the unloaded shape.
+  // Load continuation from `from` (an equilibrium at R_from) to the target load.
   auto continuation = [&](const Load& from, const Mat3& R_from) {
     Mat3 Rc = R_from;
     double lambda = 0.0, dl = 0.25;
@@ -177,10 +274,24 @@ RodSolution ShootingSolver::solve(const TipWrench& wrench) {
       l.gravity_scale = from.gravity_scale + ln * (target.gravity_scale - from.gravity_scale);
       Mat3 Rt = Rc;
       ++sol.continuation_steps;
+      // A step is taken when Newton stays near the previous equilibrium (tip rotation change
+      // ≤ max_step); a larger change is a jump to another branch: the step is halved, and if the
+      // jump persists down to a tiny step the path has reached a fold and snaps through (taken and
+      // reported as a fold crossing).
       if (newton(&Rt, l, &sol, &e)) {
+        const bool jump = so3::log(Rc.transpose() * Rt).norm() > settings_.max_step;
+        if (jump && dl > kSnapStep) {
+          dl *= 0.5;
+          continue;
+        }
+        if (jump) {
+          ++folds.crossings;
+          folds.det = std::nan("");  // a new branch: its det starts a new comparison
+        }
         Rc = Rt;
         lambda = ln;
         dl = std::min(2.0 * dl, 0.5);
+        if (ln < 1.0) folds.note(e.J.determinant());
       } else {
         dl *= 0.5;
       }
@@ -188,82 +299,119 @@ RodSolution ShootingSolver::solve(const TipWrench& wrench) {
     R = Rc;
     return true;
   };
-  if (!ok && have_solution_) ok = continuation(load_, R_tip_);
+
+  const Mat3 R_start = R;
+  bool ok = newton(&R, target, &sol, &e);
+  if (ok && e.ok) {
+    // The direct Newton result is the equilibrium connected to the start along the load path unless
+    // Newton (a) went across a singular shooting Jacobian (det changed sign), or (b) moved far: a
+    // warm start whose tip turned by more than max_step (a snap, or another branch), or a cold start
+    // of a strongly loaded rod (λL > 4, where several equilibria exist) that did. Then follow the
+    // load path instead (it reports folds and snap-throughs on the way); keep the direct result
+    // only if the path fails.
+    const double start = folds.det, d = e.J.determinant();
+    const bool crossed = std::isfinite(start) && start != 0.0 && d != 0.0 && (d > 0.0) != (start > 0.0);
+    const bool far = so3::log(R_start.transpose() * R).norm() > settings_.max_step &&
+                     (have_solution_ || growth_estimate(wrench) > 4.0);
+    if (crossed || far) {
+      const Mat3 R_direct = R;
+      const Eval e_direct = e;
+      const bool path = have_solution_ ? continuation(load_, R_tip_) : continuation(zero, unloaded_tip_rotation());
+      if (!path) {
+        R = R_direct;
+        e = e_direct;
+        sol.residual = e.r.norm();
+        sol.message.clear();
+        folds.start(start);
+      }
+    }
+  }
+  if (!ok && have_solution_) {
+    folds.start(det_);
+    ok = continuation(load_, R_tip_);
+  }
   if (!ok) {
-    Load zero;
-    zero.gravity_scale = 0.0;
+    folds.start(unloaded_det());
     ok = continuation(zero, unloaded_tip_rotation());
   }
-
-  if (e.ok) {
-    sol.tip_rotation = so3::orthonormalize(e.R0.transpose() * R);
-    sol.tip_position = -e.R0.transpose() * e.p0;
-    sol.jacobian_det = e.J.determinant();
+  if (ok && e.ok && settings_.accuracy_tolerance > 0.0 && !is_adaptive(settings_.integrator.type)) {
+    // A fixed-step solve is only as good as its steps: estimate the tip error and refuse to call
+    // an under-resolved solve converged (no silent inaccuracy under extreme loads). No multiple-
+    // shooting fallback here: it would use the same steps.
+    sol.error_estimate = (this->*kernels_->error)(R, target, e);
+    const double allowed = settings_.accuracy_tolerance * model_.rod.length;
+    if (!(sol.error_estimate <= allowed)) {
+      char buf[240];
+      std::snprintf(buf, sizeof buf,
+                    "estimated tip error %.2g m of %s with %d steps exceeds accuracy_tolerance*L = %.2g m: "
+                    "use more steps or an adaptive integrator",
+                    sol.error_estimate, integrator_name(settings_.integrator.type), settings_.integrator.steps, allowed);
+      sol.message = buf;
+      sol.residual = e.r.norm();
+      sol.tip_rotation = so3::orthonormalize(e.R0.transpose() * R);
+      sol.tip_position = -e.R0.transpose() * e.p0;
+      sol.jacobian_det = e.J.determinant();
+      sol.converged = false;
+      return report_folds();
+    }
   }
-  sol.converged = ok && e.ok && std::isfinite(sol.residual) &&
-                  sol.residual <= settings_.residual_tolerance && sol.tip_position.allFinite();
-  if (sol.converged) {
-    sol.message.clear();
-    have_solution_ = true;
-    R_tip_ = R;
-    load_ = target;
-    eval_ = e;
-  } else if (sol.message.empty()) {
-    sol.message = "did not converge";
+  finish(ok, e, R);
+  if (!sol.converged && seg == 0) {
+    // Single shooting failed: multiple shooting, which also handles ill-conditioned (long, soft) rods.
+    RodSolution ms;
+    ms.iterations = sol.iterations;
+    ms.continuation_steps = sol.continuation_steps;
+    ms.rhs_evaluations = sol.rhs_evaluations;
+    if (ms_solve(target, auto_segments(target), &ms)) {
+      sol = ms;
+      last_ = sol;
+      return sol;
+    }
+    sol.message += "; multiple shooting (" + std::to_string(auto_segments(target)) + " segments): " + ms.message;
   }
-  last_ = sol;
-  return sol;
+  return report_folds();
 }
 
 Compliance ShootingSolver::compliance() {
   Compliance c;
   if (!have_solution_) return c;
-  RodOde<6> ode;
-  setup_ode(&ode, R_tip_, load_);
-  RodOde<6>::State y;
-  init_tip_state(ode, R_tip_, load_.wrench.moment, &y);
-  for (int i = 0; i < 3; ++i) {
-    // Direction f_b,i: n(L) changes by R(L) e_i.
-    ode.dn.col(i) = R_tip_.col(i);
-    // Direction l_b,i: u(L) changes by K⁻¹ e_i.
-    y[RodOde<6>::kBase + RodOde<6>::kPerDir * (3 + i) + 3 + i] = ode.k_inv[i];
-  }
-  const IntegrationStats st = integrate(settings_.integrator, ode, model_.rod.length, 0.0, y);
-  if (!st.ok || !y.allFinite()) return c;
-  Eigen::Matrix<double, 3, 6> eta_w, dp_w;
-  for (int d = 0; d < 6; ++d) {
-    const int o = RodOde<6>::kBase + RodOde<6>::kPerDir * d;
-    eta_w.col(d) = y.segment<3>(o);
-    dp_w.col(d) = y.segment<3>(o + 6);
-  }
-  // Implicit function theorem on r(x, w) = 0: dx/dw = −(∂r/∂x)⁻¹ ∂r/∂w.
-  const Eigen::Matrix<double, 3, 6> dr_dw = so3::right_jacobian_inverse(eval_.r) * eta_w;
-  const Eigen::Matrix<double, 3, 6> dx_dw = -eval_.J.partialPivLu().solve(dr_dw);
-  const Eigen::Matrix<double, 3, 6> dp0 = eval_.dp0 * dx_dw + dp_w;
-  // Tip pose in the base frame: R_T = R(0)ᵀ R(L), p_T = −R(0)ᵀ p(0). Along the solution R(0) stays
-  // I, so the body twist is ω = dx/dw and v = R_Tᵀ dp_T = −R(L)ᵀ dp(0).
-  c.body.topRows<3>() = -R_tip_.transpose() * dp0;
-  c.body.bottomRows<3>() = dx_dw;
-  c.ok = c.body.allFinite();
+  c.ok = multiple_ ? ms_compliance(&c.body) : (this->*kernels_->compliance)(&c.body);
   return c;
 }
 
 std::vector<Vec3> ShootingSolver::shape(int segments) const {
   std::vector<Vec3> pts;
   if (!have_solution_ || segments < 1) return pts;
-  RodOde<0> ode;
+  using Ode = RodOde<0, CosseratGeneral>;
+  Ode ode;
   setup_ode(&ode, R_tip_, load_);
-  RodOde<0>::State y;
+  Ode::State y;
   init_tip_state(ode, R_tip_, load_.wrench.moment, &y);
-  IntegratorSettings seg = settings_.integrator;
-  seg.steps = std::max(1, (settings_.integrator.steps + segments - 1) / segments);
   const double L = model_.rod.length;
+  // Break points: the output points and, for a multiple-shooting solution, the nodes, where the
+  // integration restarts from the node's (R, u) (p carries on).
+  std::vector<double> br;
+  for (int k = 0; k <= segments; ++k) br.push_back(L * (1.0 - double(k) / segments));
+  const int M = multiple_ ? nodes_.segments : 1;
+  for (int k = 1; k < M; ++k) br.push_back(L * k / M);
+  std::sort(br.begin(), br.end(), std::greater<double>());
+  br.erase(std::unique(br.begin(), br.end(), [L](double a, double b) { return std::abs(a - b) <= 1e-14 * L; }), br.end());
   std::vector<Vec3> from_tip{Vec3::Zero()};
-  for (int k = 0; k < segments; ++k) {
-    const double s0 = L * (1.0 - double(k) / segments);
-    const double s1 = L * (1.0 - double(k + 1) / segments);
-    integrate(seg, ode, s0, s1, y);
-    from_tip.push_back(y.segment<3>(0));
+  for (size_t i = 0; i + 1 < br.size(); ++i) {
+    const double s0 = br[i], s1 = br[i + 1];
+    if (multiple_) {
+      const int k = static_cast<int>(std::lround(s0 / L * M));
+      if (k < M && std::abs(s0 - L * k / M) <= 1e-12 * L) {
+        Eigen::Map<Mat3>(y.data() + 3) = nodes_.R[k];
+        y.segment<3>(12) = nodes_.u[k];
+      }
+    }
+    IntegratorSettings seg = settings_.integrator;
+    seg.steps = std::max(1, static_cast<int>(std::ceil(settings_.integrator.steps * (s0 - s1) / L - 1e-9)));
+    integrate_ode(ode, s0, s1, &y, seg);
+    // keep only the requested output points
+    const double f = (L - s1) / L * segments;
+    if (std::abs(f - std::round(f)) <= 1e-9) from_tip.push_back(y.segment<3>(0));
   }
   const Mat3 R0 = Eigen::Map<const Mat3>(y.data() + 3);
   const Vec3 p0 = y.segment<3>(0);

@@ -23,7 +23,8 @@ namespace {
 const char* kUsage =
     "usage: rod_fk --scene FILE [--force FX FY FZ] [--moment MX MY MZ] [--integrator NAME]\n"
     "              [--steps N] [--tol X] [--compliance] [--shape K] [--batch FILE|-]\n"
-    "              [--jets Q1 Q2 Q3]   (jet forces [N] through the scene's jet map, eq. 24)\n";
+    "              [--jets Q1 Q2 Q3]   (jet forces [N] through the scene's jet map, eq. 24)\n"
+    "  --integrator: rk4 | rk8 | dopri5 | cvode-adams | cvode-bdf (default: the scene's)\n";
 
 /// Bad input: one line on stderr naming the argument or key, nothing on stdout, exit 2.
 struct BadInput {
@@ -148,7 +149,7 @@ int main(int argc, char** argv) {
     opt = parse_args(argc, argv);
     scene = hydrojet::config::load_scene(opt.scene);
     if (!opt.integrator.empty() && !hydrojet::rod::parse_integrator(opt.integrator, &scene.solver.integrator.type))
-      throw BadInput{"--integrator: unknown integrator '" + opt.integrator + "' (rk4, rk8, dopri5)"};
+      throw BadInput{"--integrator: unknown integrator '" + opt.integrator + "' (" + hydrojet::rod::integrator_names() + ")"};
     if (opt.steps) scene.solver.integrator.steps = opt.steps;
     if (opt.tol > 0.0) scene.solver.integrator.tolerance = opt.tol;
     if (opt.have_jets) {

@@ -4,6 +4,8 @@
 //             "Solving ODEs I", §II.10), N equal steps. The paper (§7.2) integrates with an
 //             8th-order Runge–Kutta method.
 //   - dopri5: Dormand–Prince 5(4) embedded pair with adaptive step size (local extrapolation, FSAL).
+//   - cvode-adams, cvode-bdf: SUNDIALS CVODE(S), see cvode_integrator.h (the shooting solver owns
+//             their memory and dispatches them; integrate() below covers the Eigen methods).
 // The ODE is a functor `void f(double s, const Vec& y, Vec& dy)`; s may run backwards (s1 < s0).
 // ROS-free (Eigen only).
 #pragma once
@@ -18,16 +20,25 @@ namespace rod {
 
 enum class IntegratorType { kRk4, kRk8, kDopri5, kCvodeAdams, kCvodeBdf };
 
-/// Name used on the command line and in scene files ("rk4", "rk8", "dopri5", ...).
+/// Name used on the command line and in scene files ("rk4", "rk8", "dopri5", "cvode-adams",
+/// "cvode-bdf").
 const char* integrator_name(IntegratorType t);
 /// Parses a name; returns false for an unknown one.
 bool parse_integrator(const std::string& name, IntegratorType* out);
+/// The accepted names, for error messages: "rk4, rk8, dopri5, cvode-adams, cvode-bdf".
+const char* integrator_names();
+/// True for the adaptive methods (dopri5 and the CVODE ones), which use `tolerance`, not `steps`.
+inline bool is_adaptive(IntegratorType t) { return t != IntegratorType::kRk4 && t != IntegratorType::kRk8; }
 
 struct IntegratorSettings {
   IntegratorType type = IntegratorType::kRk8;
   int steps = 4;           ///< equal steps over the rod for rk4 / rk8
   double tolerance = 1e-9; ///< relative and absolute local error tolerance for adaptive methods
   int max_steps = 100000;  ///< adaptive methods give up (and report failure) past this many steps
+  /// CVODE methods only: carry the sensitivities with CVODES' forward sensitivity analysis instead
+  /// of integrating them as part of the state. Measured slower on every scene here (docs/
+  /// work_precision.md), so off by default.
+  bool cvodes_sensitivities = false;
 };
 
 /// Work counters of one integration.
@@ -36,6 +47,8 @@ struct IntegrationStats {
   int steps = 0;
   int rejected_steps = 0;
   bool ok = true;  ///< false when an adaptive method hit max_steps or the state became non-finite
+  int sensitivity_evaluations = 0;  ///< CVODES sensitivity right-hand sides (all directions at once)
+  int jacobian_evaluations = 0;     ///< CVODE BDF Jacobian evaluations
 };
 
 namespace detail {
@@ -138,9 +151,10 @@ IntegrationStats integrate_rk4(F& f, double s0, double s1, int n, Vec& y) {
   return st;
 }
 
-/// One step of the DOP853 8th-order solution (12 RHS evaluations).
+/// One step of the DOP853 8th-order solution (12 RHS evaluations). Kept out of line: inlined into
+/// its caller, GCC 12 produced code up to 15% slower for some right-hand-side variants.
 template <class F, class Vec>
-void rk8_step(F& f, double s, double h, Vec& y) {
+[[gnu::noinline]] void rk8_step(F& f, double s, double h, Vec& y) {
   using C = detail::Dop853;
   Vec k1, k4, k5, k6, k7, k8, k9, k10, k11, k12, t;
   // k2 and k3 only feed stages 3–4; reuse k11/k12 storage for them.

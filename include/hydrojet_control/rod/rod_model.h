@@ -17,6 +17,19 @@
 //   n(s) = n(L) + ρA g (L − s),   n(L) = R(L) f_b + m_t g.
 // So the state is y = [p, R, u] (15 numbers) and the only shooting unknown is the tip orientation
 // R(L) (3 numbers): integrate back to the base and require R(0) = I.
+//
+// Shearable and extensible (Cosserat) variant, rod.kind = kCosserat: the strains v (shear and
+// extension) follow from the same closed-form n(s) through K_se = diag(GA, GA, EA):
+//   v = e_z + K_se⁻¹ Rᵀ n,   p' = R v,   u' = −K⁻¹(u × K(u − ũ) + v × Q_b)
+// (the moment balance m' = −p' × n in the body frame). As EA, GA → ∞, v → e_z: the Kirchhoff rod.
+//
+// Scene specialization ("leave out what the scene does not need"): RodOde is a template over
+// RodTerms, compile-time switches for the Cosserat strains, the distributed load ρA·g and the
+// precurvature. The solver picks the smallest variant that holds the scene's terms once, at model
+// load (ShootingSolver::set_model); the hot loop has no branches on them. RodOde<D> without a
+// second argument is the general Kirchhoff variant (every Kirchhoff term). Isotropic bending
+// (EIx = EIy) is not a variant: K is a diagonal held as a vector, so isotropy saves nothing (a
+// rewritten u × K(u − ũ) for K = diag(k, k, GJ) measured slower).
 #pragma once
 
 #include <Eigen/Core>
@@ -31,6 +44,12 @@ using Mat3 = Eigen::Matrix3d;
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 using Mat6 = Eigen::Matrix<double, 6, 6>;
 
+/// Which constitutive model the rod follows.
+enum class RodKind {
+  kKirchhoff,  ///< inextensible and unshearable (paper §3): v = e_z
+  kCosserat,   ///< shearable and extensible: v = e_z + K_se⁻¹ Rᵀ n, K_se = diag(GA, GA, EA)
+};
+
 /// Material and geometry of the rod. Uniform along s; stiffness_at()/precurvature_at() are the
 /// seam for K(s) and ũ(s) (their s-derivatives enter eq. 14 as K' and ũ').
 struct RodParameters {
@@ -38,9 +57,17 @@ struct RodParameters {
   Vec3 stiffness = Vec3(6.01e-4, 6.01e-4, 2.23e-4);  ///< diag(E·Ix, E·Iy, G·J) [N m^2]
   Vec3 precurvature = Vec3::Zero();          ///< ũ in the body frame [1/m]
   double linear_density = 0.0;               ///< ρA [kg/m]; 0 = massless body
+  RodKind kind = RodKind::kKirchhoff;        ///< Kirchhoff (default) or Cosserat
+  double shear_stiffness = 0.0;              ///< GA [N] (kCosserat only; must then be > 0)
+  double axial_stiffness = 0.0;              ///< EA [N] (kCosserat only; must then be > 0)
 
   Vec3 stiffness_at(double /*s*/) const { return stiffness; }
   Vec3 precurvature_at(double /*s*/) const { return precurvature; }
+  /// diag(K_se⁻¹) [1/N]; zero for the Kirchhoff rod (the limit EA, GA → ∞).
+  Vec3 shear_extension_compliance() const {
+    if (kind != RodKind::kCosserat) return Vec3::Zero();
+    return Vec3(1.0 / shear_stiffness, 1.0 / shear_stiffness, 1.0 / axial_stiffness);
+  }
 };
 
 /// Everything the static model needs besides the actuation wrench.
@@ -61,21 +88,56 @@ struct TipWrench {
   }
 };
 
+/// Compile-time switches of the right-hand side: which terms of the model are computed.
+template <bool Cosserat, bool DistributedLoad, bool Precurved>
+struct RodTerms {
+  static constexpr bool kCosserat = Cosserat;              ///< shear/extension strains v
+  static constexpr bool kDistributedLoad = DistributedLoad;  ///< n(s) varies (ρA·g ≠ 0)
+  static constexpr bool kPrecurved = Precurved;            ///< ũ ≠ 0
+};
+using KirchhoffGeneral = RodTerms<false, true, true>;  ///< every Kirchhoff term
+using CosseratGeneral = RodTerms<true, true, true>;    ///< every term (Kirchhoff: K_se⁻¹ = 0)
+
+/// The same switches at run time: what a given model needs (see needed_terms()).
+struct RodTermSet {
+  bool cosserat = false;
+  bool distributed_load = true;
+  bool precurved = true;
+  bool operator==(const RodTermSet& o) const {
+    return cosserat == o.cosserat && distributed_load == o.distributed_load && precurved == o.precurved;
+  }
+};
+
+/// The terms a model needs: Cosserat only for kCosserat, the distributed load only when ρA·g ≠ 0,
+/// the precurvature only when ũ ≠ 0.
+inline RodTermSet needed_terms(const RodModel& m) {
+  RodTermSet t;
+  t.cosserat = m.rod.kind == RodKind::kCosserat;
+  t.distributed_load = m.rod.linear_density != 0.0 && m.gravity.squaredNorm() != 0.0;
+  t.precurved = m.rod.precurvature.squaredNorm() != 0.0;
+  return t;
+}
+
 /// Right-hand side of the rod ODE plus D forward-mode sensitivity directions.
 ///
 /// State layout: [p(3), R(9, column-major), u(3)] then, per direction d, [η(3), δu(3), δp(3)] where
 /// the perturbed orientation is R·exp(η̂), the perturbed curvature u + δu, the perturbed position
-/// p + δp. The linearised equations (derived from p' = R e_z, R' = R û and eq. 14):
+/// p + δp. The linearised equations (derived from p' = R v, R' = R û and eq. 14):
 ///   η'  = δu − u × η
-///   δp' = R (η × e_z)
-///   δu' = −K⁻¹( δu × K(u − ũ) + u × K δu + e_z × δQ_b ),  δQ_b = −η × Q_b + Rᵀ δn_d
+///   δp' = R (η × v + δv)                          (Kirchhoff: v = e_z, δv = 0)
+///   δu' = −K⁻¹( δu × K(u − ũ) + u × K δu + δv × Q_b + v × δQ_b ),  δQ_b = −η × Q_b + Rᵀ δn_d
+///   δv  = K_se⁻¹ δQ_b                              (Cosserat only)
 /// where δn_d is the (constant, base-frame) change of n(L) caused by direction d.
-template <int D>
+/// T (RodTerms) selects the compiled terms; the fields a variant does not use are ignored.
+template <int D, class T = KirchhoffGeneral>
 struct RodOde {
   static constexpr int kBase = 15;
   static constexpr int kPerDir = 9;
+  static constexpr int kDirections = D;
   static constexpr int kSize = kBase + kPerDir * D;
   using State = Eigen::Matrix<double, kSize, 1>;
+  using BaseState = Eigen::Matrix<double, kBase, 1>;
+  using Terms = T;
 
   // Fixed for one integration.
   Vec3 k_diag;       ///< diag(K)
@@ -84,36 +146,96 @@ struct RodOde {
   Vec3 n_tip;        ///< n(L), base frame [N]
   Vec3 w_dist;       ///< ρA g, base frame [N/m]
   double length = 0; ///< L [m]
+  Vec3 kse_inv = Vec3::Zero();  ///< diag(K_se⁻¹) [1/N] (Cosserat terms; 0 = Kirchhoff limit)
   Eigen::Matrix<double, 3, (D > 0 ? D : 1)> dn;  ///< δn_d per direction (base frame)
 
+  /// n(s) in the base frame.
+  Vec3 internal_force(double s) const {
+    if constexpr (T::kDistributedLoad) {
+      return n_tip + w_dist * (length - s);
+    } else {
+      return n_tip;
+    }
+  }
   void operator()(double s, const State& y, State& dy) const {
     const Eigen::Map<const Mat3> R(y.data() + 3);
     const Vec3 u = y.template segment<3>(12);
-    const Vec3 n = n_tip + w_dist * (length - s);
-    const Vec3 Qb = R.transpose() * n;             // internal force, body frame
-    const Vec3 Ku = k_diag.cwiseProduct(u - u_tilde);  // internal moment M_b, eq. (9)
-    // eq. (6): p' = R e_z
-    dy.template segment<3>(0) = R.col(2);
-    // eq. (8): R' = R û  (column-major: d/ds of the columns of R)
+    Vec3 Qb;  // internal force, body frame
+    if constexpr (T::kDistributedLoad) {
+      Qb.noalias() = R.transpose() * (n_tip + w_dist * (length - s));
+    } else {
+      Qb.noalias() = R.transpose() * n_tip;
+    }
+    Vec3 Ku;  // internal moment M_b, eq. (9)
+    if constexpr (T::kPrecurved) {
+      Ku = k_diag.cwiseProduct(u - u_tilde);
+    } else {
+      Ku = k_diag.cwiseProduct(u);
+    }
     Eigen::Map<Mat3> dR(dy.data() + 3);
     dR.col(0) = R.col(1) * u.z() - R.col(2) * u.y();
     dR.col(1) = R.col(2) * u.x() - R.col(0) * u.z();
     dR.col(2) = R.col(0) * u.y() - R.col(1) * u.x();
-    // eq. (14) with K' = 0, ũ' = 0, m_b = 0: u' = −K⁻¹(u × K(u−ũ) + e_z × Q_b)
-    const Vec3 ez_x_Qb(-Qb.y(), Qb.x(), 0.0);
-    dy.template segment<3>(12) = -k_inv.cwiseProduct(u.cross(Ku) + ez_x_Qb);
-
-    for (int d = 0; d < D; ++d) {
-      const int o = kBase + kPerDir * d;
-      const Vec3 eta = y.template segment<3>(o);
-      const Vec3 du = y.template segment<3>(o + 3);
-      const Vec3 dQb = -eta.cross(Qb) + R.transpose() * dn.col(d);
-      const Vec3 ez_x_dQb(-dQb.y(), dQb.x(), 0.0);
-      dy.template segment<3>(o) = du - u.cross(eta);
-      dy.template segment<3>(o + 3) =
-          -k_inv.cwiseProduct(du.cross(Ku) + u.cross(k_diag.cwiseProduct(du)) + ez_x_dQb);
-      dy.template segment<3>(o + 6) = R * Vec3(eta.y(), -eta.x(), 0.0);  // R (η × e_z)
+    if constexpr (T::kCosserat) {
+      const Vec3 v = Vec3::UnitZ() + kse_inv.cwiseProduct(Qb);
+      dy.template segment<3>(0) = R * v;           // p' = R v
+      dy.template segment<3>(12) = -k_inv.cwiseProduct(u.cross(Ku) + v.cross(Qb));
+      for (int d = 0; d < D; ++d) {
+        const int o = kBase + kPerDir * d;
+        const Vec3 eta = y.template segment<3>(o);
+        const Vec3 du = y.template segment<3>(o + 3);
+        const Vec3 dQb = -eta.cross(Qb) + R.transpose() * dn.col(d);
+        const Vec3 dv = kse_inv.cwiseProduct(dQb);
+        dy.template segment<3>(o) = du - u.cross(eta);
+        dy.template segment<3>(o + 3) =
+            -k_inv.cwiseProduct(du.cross(Ku) + u.cross(k_diag.cwiseProduct(du)) + dv.cross(Qb) + v.cross(dQb));
+        dy.template segment<3>(o + 6) = R * (eta.cross(v) + dv);  // R (η × v + δv)
+      }
+    } else {
+      dy.template segment<3>(0) = R.col(2);        // eq. (6): p' = R e_z
+      const Vec3 ez_x_Qb(-Qb.y(), Qb.x(), 0.0);
+      dy.template segment<3>(12) = -k_inv.cwiseProduct(u.cross(Ku) + ez_x_Qb);
+      for (int d = 0; d < D; ++d) {
+        const int o = kBase + kPerDir * d;
+        const Vec3 eta = y.template segment<3>(o);
+        const Vec3 du = y.template segment<3>(o + 3);
+        const Vec3 dQb = -eta.cross(Qb) + R.transpose() * dn.col(d);
+        const Vec3 ez_x_dQb(-dQb.y(), dQb.x(), 0.0);
+        dy.template segment<3>(o) = du - u.cross(eta);
+        dy.template segment<3>(o + 3) = -k_inv.cwiseProduct(du.cross(Ku) + u.cross(k_diag.cwiseProduct(du)) + ez_x_dQb);
+        dy.template segment<3>(o + 6) = R * Vec3(eta.y(), -eta.x(), 0.0);  // R (η × e_z)
+      }
     }
+  }
+
+  /// Directional derivative of the base right-hand side (the first 15 components) in the plain
+  /// state coordinates: given y and a change (δp, δR (9), δu) of it and a change δn of n(L),
+  /// returns δ(dy/ds). Exact (it is the Jacobian–vector product), used for CVODE's Jacobian and
+  /// CVODES' forward sensitivities.
+  template <class Y, class DY, class Out>
+  void jvp(double s, const Y& y, const DY& dyin, const Vec3& dn_in, Out&& out) const {
+    const Eigen::Map<const Mat3> R(y.data() + 3);
+    const Eigen::Map<const Mat3> dR(dyin.data() + 3);
+    const Vec3 u = y.template segment<3>(12);
+    const Vec3 du = dyin.template segment<3>(12);
+    const Vec3 n = internal_force(s);
+    const Vec3 Qb = R.transpose() * n;
+    const Vec3 dQb = dR.transpose() * n + R.transpose() * dn_in;
+    const Vec3 Ku = T::kPrecurved ? Vec3(k_diag.cwiseProduct(u - u_tilde)) : Vec3(k_diag.cwiseProduct(u));
+    const Vec3 Kdu = k_diag.cwiseProduct(du);
+    Vec3 v = Vec3::UnitZ(), dv = Vec3::Zero();
+    if constexpr (T::kCosserat) {
+      v += kse_inv.cwiseProduct(Qb);
+      dv = kse_inv.cwiseProduct(dQb);
+    }
+    out.template segment<3>(0) = dR * v + R * dv;
+    Mat3 dRp;
+    dRp.col(0) = dR.col(1) * u.z() - dR.col(2) * u.y() + R.col(1) * du.z() - R.col(2) * du.y();
+    dRp.col(1) = dR.col(2) * u.x() - dR.col(0) * u.z() + R.col(2) * du.x() - R.col(0) * du.z();
+    dRp.col(2) = dR.col(0) * u.y() - dR.col(1) * u.x() + R.col(0) * du.y() - R.col(1) * du.x();
+    for (int c = 0; c < 3; ++c) out.template segment<3>(3 + 3 * c) = dRp.col(c);
+    out.template segment<3>(12) =
+        -k_inv.cwiseProduct(du.cross(Ku) + u.cross(Kdu) + dv.cross(Qb) + v.cross(dQb));
   }
 };
 

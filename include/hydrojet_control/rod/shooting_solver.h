@@ -1,8 +1,19 @@
 // Solves the rod boundary-value problem of §3 by shooting from the tip to the base, and computes
 // the body compliance C^b of §4 from forward-mode sensitivities of the converged solve.
-// ROS-free (Eigen only). No heap allocation per solve (the shape output aside).
+// ROS-free (Eigen; SUNDIALS behind the cvode-* integrators and the KINSOL Newton option).
+// No heap allocation per single-shooting solve with the Eigen integrators (the shape output, the
+// multiple-shooting fallback and the first use of a CVODE/KINSOL memory aside).
+//
+// Robustness ladder of solve(): damped Newton from the warm start (or the unloaded shape) →
+// load continuation from the warm solution → load continuation from the unloaded shape →
+// multiple shooting (shooting_segments = 0, automatic) with its own load continuation. Multiple
+// shooting cuts the rod into M segments whose node states (R_k, u_k) become unknowns, so that the
+// exponential growth exp(λL), λ ≈ √(|n|/EI), of single shooting's sensitivities is split into
+// exp(λL/M) pieces; long (L × 10) and very soft (EI × 1e-3) rods need it.
 #pragma once
 
+#include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -12,12 +23,35 @@
 namespace hydrojet {
 namespace rod {
 
+class CvodeWorkspace;
+class KinsolWorkspace;
+
+/// Which Newton iteration solves the 3-unknown shooting problem.
+enum class NewtonBackend {
+  kEigen,   ///< damped Newton with backtracking (the default: measured faster, same robustness)
+  kKinsol,  ///< SUNDIALS KINSOL (line search, exact Jacobian from the sensitivities)
+};
+
 struct ShootingSettings {
   IntegratorSettings integrator;
   double residual_tolerance = 1e-10;  ///< |log R(0)| [rad] at which the solve counts as converged
   int max_iterations = 30;            ///< Newton iterations per attempt
   double max_step = 0.8;              ///< largest Newton step in the tip rotation [rad]
   int max_continuation_steps = 256;   ///< load-continuation steps allowed when a start fails
+  /// Right-hand side compiled for the scene's terms only (RodTerms chosen by needed_terms()).
+  /// false: the general variant (every term, Cosserat form) — for benchmarks and checks.
+  bool specialize_model = true;
+  /// 0: automatic (single shooting; multiple shooting when that fails); 1: single shooting only;
+  /// M ≥ 2: always multiple shooting with M equal segments.
+  int shooting_segments = 0;
+  NewtonBackend newton = NewtonBackend::kEigen;
+  /// Fixed-step methods (rk4, rk8) only: after convergence the tip-position error of the
+  /// discretisation is estimated (Richardson: one state-only integration with half the steps,
+  /// carried through the shooting Jacobian) and a solve whose estimate exceeds
+  /// accuracy_tolerance·L is reported as not converged ("more steps needed"). About 0.4 µs per
+  /// solve for rk8 with 4 steps. 0 disables the check. Adaptive methods control their local error
+  /// with `integrator.tolerance` instead.
+  double accuracy_tolerance = 1e-5;
 };
 
 /// Result of one static solve. `converged` is true only when the final residual is finite and
@@ -32,6 +66,15 @@ struct RodSolution {
   int rhs_evaluations = 0;
   int continuation_steps = 0;   ///< 0 when Newton converged without load continuation
   std::string message;          ///< why it did not converge (empty when it did)
+  int segments = 1;             ///< shooting segments of the returned solution (1 = single shooting)
+  /// Estimated tip-position error of a fixed-step integration [m] (NaN when not estimated: adaptive
+  /// integrators, multiple shooting, accuracy_tolerance = 0).
+  double error_estimate = std::numeric_limits<double>::quiet_NaN();
+  /// Sign changes of det ∂r/∂x between consecutive equilibria of this solve's load path (warm
+  /// start or unloaded shape → continuation steps → result). Non-zero: the path crossed a fold or
+  /// bifurcation; the result may lie on another branch than the start, or be unstable.
+  int fold_crossings = 0;
+  std::string warning;          ///< set with fold_crossings (empty otherwise)
 };
 
 /// Body compliance and its pieces. Rows: tip body twist (v, ω); columns: body wrench (f_b, l_b).
@@ -59,9 +102,16 @@ class ShootingSolver {
   const RodModel& model() const { return model_; }
   const ShootingSettings& settings() const { return settings_; }
   void set_model(const RodModel& model);
-  void set_settings(const ShootingSettings& settings) { settings_ = settings; }
+  void set_settings(const ShootingSettings& settings);
   bool has_solution() const { return have_solution_; }
   const RodSolution& last_solution() const { return last_; }
+  /// The compiled right-hand-side variant in use, e.g. "kirchhoff+precurved" or "general".
+  const char* variant_name() const;
+  /// Estimated growth rate λL = L·√(|n|max / EI_min) of the shooting sensitivities for a wrench
+  /// (single shooting loses ~λL/ln 10 digits).
+  double growth_estimate(const TipWrench& wrench) const;
+  /// Above this λL the automatic mode (shooting_segments = 0) starts with multiple shooting.
+  static constexpr double kSingleShootingGrowthLimit = 12.0;
 
  private:
   struct Load {
@@ -77,20 +127,77 @@ class ShootingSolver {
     Eigen::Matrix<double, 3, 3> dp0;    ///< δp(0) per x-direction
     bool ok = false;
   };
+  /// Multiple-shooting unknowns: node orientations and curvatures at s_k = k L / M (k = 1..M−1)
+  /// and the tip orientation R[M].
+  struct Nodes {
+    int segments = 0;
+    std::vector<Mat3> R;
+    std::vector<Vec3> u;
+  };
+  struct MsEval;
+  /// Function table of one compiled model variant (chosen at set_model / set_settings).
+  struct Kernels {
+    Eval (ShootingSolver::*evaluate)(const Mat3& R_tip, const Load& load, int* rhs) const;
+    bool (ShootingSolver::*compliance)(Mat6* C) const;
+    double (ShootingSolver::*error)(const Mat3& R_tip, const Load& load, const Eval& e) const;
+    const char* name;
+  };
+  /// CVODE and KINSOL memories, created on first use; a copied solver starts with none.
+  struct Scratch {
+    Scratch();
+    ~Scratch();
+    Scratch(const Scratch&) : Scratch() {}
+    Scratch& operator=(const Scratch&) { return *this; }
+    CvodeWorkspace& cvode();
+    std::unique_ptr<CvodeWorkspace> cvode_;
+    std::unique_ptr<KinsolWorkspace> kinsol_;
+    const char* last_error = nullptr;
+  };
 
-  Eval evaluate(const Mat3& R_tip, const Load& load, int* rhs) const;
+  Eval evaluate(const Mat3& R_tip, const Load& load, int* rhs) const { return (this->*kernels_->evaluate)(R_tip, load, rhs); }
+  template <class T>
+  Eval evaluate_t(const Mat3& R_tip, const Load& load, int* rhs) const;
+  template <class T>
+  bool compliance_t(Mat6* C) const;
+  template <class T>
+  double error_t(const Mat3& R_tip, const Load& load, const Eval& e) const;
   bool newton(Mat3* R_tip, const Load& load, RodSolution* sol, Eval* last) const;
-  template <int D>
-  void setup_ode(RodOde<D>* ode, const Mat3& R_tip, const Load& load) const;
+  bool newton_kinsol(Mat3* R_tip, const Load& load, RodSolution* sol, Eval* last) const;
+  template <class Ode>
+  void setup_ode(Ode* ode, const Mat3& R_tip, const Load& load) const;
+  template <class Ode>
+  IntegrationStats integrate_ode(const Ode& ode, double s0, double s1, typename Ode::State* y,
+                                 const IntegratorSettings& settings) const;
   Mat3 unloaded_tip_rotation() const;
+  double unloaded_det() const;
+  void select_kernels();
+
+  // Multiple shooting (src/rod/multiple_shooting.cpp).
+  int auto_segments(const Load& load) const;
+  bool ms_solve(const Load& target, int segments, RodSolution* sol);
+  bool ms_newton(Nodes* x, const Load& load, RodSolution* sol, double* det) const;
+  template <bool kWithWrench>
+  bool ms_assemble(const Nodes& x, const Load& load, MsEval* e, int* rhs, int steps_per_segment = 0) const;
+  double ms_error_estimate(const Nodes& x, const Load& load) const;
+  bool ms_compliance(Mat6* C) const;
+  Nodes ms_unloaded_nodes(int segments) const;
+  Nodes ms_nodes_from_tip(const Mat3& R_tip, const Load& load, int segments) const;
+  Nodes ms_resample(const Nodes& x, const Load& load, int segments) const;
 
   RodModel model_;
   ShootingSettings settings_;
+  const Kernels* kernels_ = nullptr;
   bool have_solution_ = false;
   Mat3 R_tip_ = Mat3::Identity();
   Load load_;
   Eval eval_;
   RodSolution last_;
+  double det_ = 0.0;       ///< det ∂r/∂x of the stored solution (fold tracking)
+  bool multiple_ = false;  ///< the stored solution came from multiple shooting (nodes_ holds it)
+  Nodes nodes_;
+  mutable double unloaded_det_ = 0.0;  ///< det ∂r/∂x at the unloaded shape (cached per model)
+  mutable bool have_unloaded_det_ = false;
+  mutable Scratch scratch_;
 };
 
 }  // namespace rod

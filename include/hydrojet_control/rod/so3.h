@@ -58,6 +58,22 @@ inline Mat3 right_jacobian_inverse(const Vec3& r) {
   return Mat3::Identity() + 0.5 * W + c * W * W;
 }
 
+/// Right Jacobian of SO(3): exp((r + δ)^) ≈ exp(r̂) exp((Jr(r) δ)^).
+inline Mat3 right_jacobian(const Vec3& r) {
+  const double t2 = r.squaredNorm();
+  const Mat3 W = hat(r);
+  double a, b;  // (1 − cos t)/t², (t − sin t)/t³
+  if (t2 < 1e-8) {
+    a = 0.5 - t2 / 24.0;
+    b = 1.0 / 6.0 - t2 / 120.0;
+  } else {
+    const double t = std::sqrt(t2);
+    a = (1.0 - std::cos(t)) / t2;
+    b = (t - std::sin(t)) / (t2 * t);
+  }
+  return Mat3::Identity() - a * W + b * W * W;
+}
+
 /// Nearest rotation matrix (polar decomposition through the SVD-free quaternion route).
 inline Mat3 orthonormalize(const Mat3& R) {
   Eigen::Quaterniond q(R);
