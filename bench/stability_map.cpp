@@ -3,7 +3,7 @@
 // CSV rows: q1,q2,q3,fx,fy,converged,sigma_c,eig_min,tip_x,tip_y,tip_z,fold_crossings
 // Last stdout line: one JSON object with the solver time (solve + C^b + stability, all points).
 //
-//   stability_map --scene FILE [--scale S] [--integrator NAME] [--out FILE.csv]
+//   stability_map --scene FILE [--scale S] [--integrator NAME] [--steps N] [--tol X] [--out FILE.csv]
 #include <chrono>
 #include <cstdio>
 #include <fstream>
@@ -18,7 +18,8 @@ using namespace hydrojet;
 
 int main(int argc, char** argv) {
   std::string scene_file, out, integrator;
-  double scale = 1.0;
+  double scale = 1.0, tol = 0.0;
+  int steps = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--scene" && i + 1 < argc) {
@@ -27,10 +28,15 @@ int main(int argc, char** argv) {
       scale = std::atof(argv[++i]);
     } else if (a == "--integrator" && i + 1 < argc) {
       integrator = argv[++i];
+    } else if (a == "--steps" && i + 1 < argc) {
+      steps = std::atoi(argv[++i]);
+    } else if (a == "--tol" && i + 1 < argc) {
+      tol = std::atof(argv[++i]);
     } else if (a == "--out" && i + 1 < argc) {
       out = argv[++i];
     } else {
-      std::cerr << "usage: stability_map --scene FILE [--scale S] [--integrator NAME] [--out FILE.csv]\n";
+      std::cerr << "usage: stability_map --scene FILE [--scale S] [--integrator NAME] [--steps N] [--tol X] "
+                   "[--out FILE.csv]\n";
       return 2;
     }
   }
@@ -53,6 +59,8 @@ int main(int argc, char** argv) {
     std::cerr << "stability_map: unknown integrator " << integrator << "\n";
     return 2;
   }
+  if (steps > 0) sc.solver.integrator.steps = steps;
+  if (tol > 0.0) sc.solver.integrator.tolerance = tol;
   const actuation::JetMap jets(sc.jets);
   const std::vector<rod::Vec3> grid = numerics::stability_grid(scale * sc.max_jet_force);
   struct Row {
@@ -91,9 +99,11 @@ int main(int argc, char** argv) {
     folds += s.fold_crossings;
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  int unstable = 0;
   for (const Row& r : rows) {
     if (std::isfinite(r.sigma)) min_sigma = std::min(min_sigma, r.sigma);
     if (std::isfinite(r.eig)) min_eig = std::min(min_eig, r.eig);
+    if (std::isfinite(r.eig) && r.eig <= 0.0) ++unstable;
   }
   if (!out.empty()) {
     std::ofstream f(out);
@@ -106,8 +116,9 @@ int main(int argc, char** argv) {
     }
   }
   std::printf("{\"scene\": \"%s\", \"scale\": %g, \"points\": %zu, \"solver_time_s\": %.6f, \"failures\": %d, "
-              "\"fold_crossings\": %d, \"min_sigma_c\": %.6g, \"min_eig\": %.6g, \"integrator\": \"%s\"}\n",
-              scene_file.c_str(), scale, grid.size(), seconds, failures, folds, min_sigma, min_eig,
-              rod::integrator_name(sc.solver.integrator.type));
+              "\"fold_crossings\": %d, \"min_sigma_c\": %.6g, \"min_eig\": %.6g, \"unstable_points\": %d, "
+              "\"integrator\": \"%s\", \"steps\": %d}\n",
+              scene_file.c_str(), scale, grid.size(), seconds, failures, folds, min_sigma, min_eig, unstable,
+              rod::integrator_name(sc.solver.integrator.type), sc.solver.integrator.steps);
   return failures == 0 ? 0 : 1;
 }

@@ -13,6 +13,7 @@ import sys
 from collections import defaultdict
 
 import matplotlib
+import matplotlib.colors
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -59,13 +60,18 @@ def main():
     ax[1].set_ylabel("f_y [N]")
     ax[1].set_aspect("equal")
     fig.colorbar(sc, ax=ax[1])
-    im = ax[2].imshow(E, origin="lower", extent=extent, aspect="auto", cmap="magma")
+    norm = None
+    if np.nanmin(E) <= 0.0:  # unstable points: a symmetric log scale keeps the sign visible
+        norm = matplotlib.colors.SymLogNorm(linthresh=1.0, vmin=np.nanmin(E), vmax=np.nanmax(E))
+    im = ax[2].imshow(E, origin="lower", extent=extent, aspect="auto", cmap="coolwarm_r" if norm else "magma",
+                      norm=norm)
     ax[2].set_title("min over q3 of min Re λ(S) [N/m] (> 0: stable)")
     ax[2].set_xlabel("q1 [N]")
     ax[2].set_ylabel("q2 [N]")
     fig.colorbar(im, ax=ax[2])
-    fig.suptitle(f"{title}: {len(rows)} jet-force combinations, {failures} not converged, "
-                 f"min σ_c = {np.nanmin(S):.4g} N/m, min eigenvalue = {np.nanmin(E):.4g} N/m")
+    unstable = sum(1 for r in rows if r["converged"] == "1" and float(r["eig_min"]) <= 0.0)
+    fig.suptitle(f"{title}: {len(rows)} jet-force combinations, {failures} not converged, {unstable} with "
+                 f"min eigenvalue ≤ 0; min σ_c = {np.nanmin(S):.4g} N/m, min eigenvalue = {np.nanmin(E):.4g} N/m")
     fig.tight_layout()
     fig.savefig(out, dpi=100)
     print(f"wrote {out}")

@@ -59,7 +59,7 @@ def plot(by_scene, key, xlabel, out):
             xy = [(x, max(y, 1e-16)) for x, y in xy if x is not None and y is not None]
             if not xy:
                 continue
-            xy.sort()
+            # in the order of the parameter (steps up, tolerance down), as the CSV lists them
             color, marker, ls = STYLE.get(method, ("gray", ".", "-"))
             ax.loglog([p[0] for p in xy], [p[1] for p in xy], ls, color=color, marker=marker, ms=4, lw=1.2,
                       label=method)

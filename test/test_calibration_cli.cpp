@@ -21,35 +21,17 @@
 #include "hydrojet_control/calibration/calibrator.h"
 #include "hydrojet_control/config/scene.h"
 #include "hydrojet_control/rod/so3.h"
+#include "cli_helpers.h"
 
 namespace {
 
 using namespace hydrojet;
 
-struct CliRun {
-  int status;
-  std::string out, err;
-  std::string last_line() const {
-    const size_t e = out.find_last_not_of('\n');
-    if (e == std::string::npos) return "";
-    const size_t b = out.rfind('\n', e);
-    return out.substr(b == std::string::npos ? 0 : b + 1, e - (b == std::string::npos ? 0 : b + 1) + 1);
-  }
-};
+using test::CliRun;
+using test::number_field;
+using test::object_field;
 
-CliRun run(const std::string& args) {
-  const std::string err = ::testing::TempDir() + "calibrate_" + std::to_string(getpid()) + "_err.txt";
-  const std::string cmd = std::string(HYDROJET_CALIBRATE) + " " + args + " 2> " + err;
-  FILE* p = popen(cmd.c_str(), "r");
-  std::string out;
-  std::array<char, 4096> buf;
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) out.append(buf.data(), n);
-  const int st = pclose(p);
-  std::ifstream e(err);
-  std::string errtext((std::istreambuf_iterator<char>(e)), std::istreambuf_iterator<char>());
-  return {WIFEXITED(st) ? WEXITSTATUS(st) : -1, out, errtext};
-}
+CliRun run(const std::string& args) { return test::run_cli(HYDROJET_CALIBRATE, args); }
 
 /// Per-process temp names (several builds may run this test at the same time), removed at exit.
 std::set<std::string>& temp_files() {
@@ -88,23 +70,6 @@ const char* kTruthScene =
 const double kI = M_PI * (std::pow(0.008, 4) - std::pow(0.006, 4)) / 64.0;
 const double kTruth[7] = {0.634, 0.48, 4.808e-4 / kI, 2.7875e-4 / (2 * kI), 0.18, 0.0, -0.03};
 const char* kNames[7] = {"ux", "uy", "E", "G", "da", "db", "dg"};
-
-/// The text of `"key": {...}` (flat object) in a JSON line, or "".
-std::string object_field(const std::string& json, const std::string& key) {
-  const size_t i = json.find("\"" + key + "\": {");
-  if (i == std::string::npos) return "";
-  const size_t a = json.find('{', i), b = json.find('}', a);
-  return json.substr(a, b - a + 1);
-}
-
-/// A number field `"key": x`; NaN when absent or null.
-double number_field(const std::string& json, const std::string& key) {
-  const size_t i = json.find("\"" + key + "\": ");
-  if (i == std::string::npos) return std::nan("");
-  const std::string rest = json.substr(i + key.size() + 4);
-  if (rest.compare(0, 4, "null") == 0) return std::nan("");
-  return std::stod(rest);
-}
 
 std::string synthesized_csv(int n, unsigned seed) {
   const std::string truth = write("truth.yaml", kTruthScene), csv = tmp("data_" + std::to_string(seed) + ".csv");

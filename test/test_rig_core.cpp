@@ -412,7 +412,7 @@ TEST(RigConfig, InvalidKeysAreNamed) {
       {[](YAML::Node& n) { n["tracker"]["tip_handle"] = "zz"; }, "tracker/tip_handle: must be an integer or hex"},
       {[](YAML::Node& n) { n["tracker"]["tracking_priority"] = "X"; }, "tracker/tracking_priority: must be S, D or B"},
       {[](YAML::Node& n) { n["tracker"]["timeout"] = 0.01; }, "tracker/timeout: must be >= reply_timeout"},
-      {[](YAML::Node& n) { n["tracker"]["bogus"] = 1; }, "tracker/bogus: unknown parameter"},
+      {[](YAML::Node& n) { n["tracker"]["bogus"] = 1; }, "tracker/bogus: unknown key"},
       {[](YAML::Node& n) { n["tracker"].remove("port"); }, "tracker/port: missing"},
       {[](YAML::Node& n) { n["flow"]["ports"].remove("jet2"); }, "flow/ports/jet2: missing"},
       {[](YAML::Node& n) { n["flow"]["ports"]["jet3"] = "/dev/ttyUSB1"; }, "flow/ports/jet3: '/dev/ttyUSB1' is already flow/ports/jet1"},

@@ -2,36 +2,20 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <vector>
 #include <cstdio>
 #include <fstream>
 #include <string>
-#include <sys/wait.h>
+#include "cli_helpers.h"
 
 namespace {
 
-struct CliRun {
-  int status;
-  std::string out;
-  std::string err;
-};
+using hydrojet::test::array_field;
+using hydrojet::test::CliRun;
 
 CliRun run(const std::string& args, const std::string& stdin_text = "") {
-  const std::string in = ::testing::TempDir() + "rod_fk_in.txt";
-  const std::string err = ::testing::TempDir() + "rod_fk_err.txt";
-  std::ofstream(in) << stdin_text;
-  const std::string cmd = std::string(HYDROJET_ROD_FK) + " " + args + " < " + in + " 2> " + err;
-  FILE* p = popen(cmd.c_str(), "r");
-  std::string out;
-  std::array<char, 4096> buf;
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) out.append(buf.data(), n);
-  const int st = pclose(p);
-  std::ifstream e(err);
-  std::string errtext((std::istreambuf_iterator<char>(e)), std::istreambuf_iterator<char>());
-  return {WIFEXITED(st) ? WEXITSTATUS(st) : -1, out, errtext};
+  return hydrojet::test::run_cli(HYDROJET_ROD_FK, args, stdin_text);
 }
 
 std::string scene(const std::string& name) {
@@ -42,24 +26,6 @@ std::string write_scene(const std::string& text) {
   const std::string path = ::testing::TempDir() + "rod_fk_scene.yaml";
   std::ofstream(path) << text;
   return path;
-}
-
-// Extracts the numbers of a JSON array field `"key": [a, b, c]` (flat arrays only).
-std::vector<double> array_field(const std::string& json, const std::string& key) {
-  std::vector<double> v;
-  size_t i = json.find("\"" + key + "\": [");
-  if (i == std::string::npos) return v;
-  i = json.find('[', i) + 1;
-  const size_t end = json.find(']', i);
-  std::string body = json.substr(i, end - i);
-  size_t pos = 0;
-  while (pos < body.size()) {
-    size_t used = 0;
-    v.push_back(std::stod(body.substr(pos), &used));
-    pos += used;
-    while (pos < body.size() && (body[pos] == ',' || body[pos] == ' ')) ++pos;
-  }
-  return v;
 }
 
 const char* kGoodScene = R"(

@@ -1,4 +1,4 @@
-// Scene YAML loading and validation: every bad key is named in the error.
+// Scene YAML loading and validation: every bad key is named in the error; the shared YAML reader.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -130,4 +130,54 @@ gravity: [0, 0, 0]
             "rod.axial_stiffness");
   EXPECT_EQ(error_key(std::string(kGood) + "solver: {shooting_segments: -1}\n"), "solver.shooting_segments");
   EXPECT_EQ(error_key(std::string(kGood) + "solver: {accuracy_tolerance: -1}\n"), "solver.accuracy_tolerance");
+}
+
+// The shared reader behind scene, plant, controller, rig and node options (config/yaml_tree.h).
+namespace {
+struct TreeError : hydrojet::config::KeyError {
+  using KeyError::KeyError;
+};
+using Tree = hydrojet::config::YamlTree<TreeError>;
+
+/// The key named by the error `f` throws, or "(no error)".
+template <class F>
+std::string tree_error(F f) {
+  try {
+    f();
+  } catch (const TreeError& e) {
+    return e.key() + " | " + e.detail();
+  }
+  return "(no error)";
+}
+}  // namespace
+
+TEST(YamlTree, TypedReadsFallbacksAndNamedErrors) {
+  const YAML::Node y = YAML::Load("gains: {kp: 3, kd: ~, name: x}\nsteps: 4\nlist: [1, 2, 3]\nflag: yes\n");
+  Tree t(y, '/', "~");
+  EXPECT_EQ(t.number("gains/kp", 0.0), 3.0);
+  EXPECT_EQ(t.number("gains/kd", 0.5), 0.5);    // null counts as absent
+  EXPECT_EQ(t.number("gains/ki", 0.25), 0.25);  // absent
+  EXPECT_EQ(t.integer("steps", 1, 1, 10), 4);
+  EXPECT_TRUE(t.boolean("flag", false));
+  EXPECT_EQ(t.vec3<hydrojet::rod::Vec3>("list"), hydrojet::rod::Vec3(1, 2, 3));
+  EXPECT_EQ(tree_error([&] { t.number("gains/name", 0.0); }), "~gains/name | must be a number, got 'x'");
+  EXPECT_EQ(tree_error([&] { t.number("gains/kf"); }), "~gains/kf | missing");
+  EXPECT_EQ(tree_error([&] { t.integer("steps", 1, 5, 10); }), "~steps | must be an integer in [5, 10], got 4");
+  EXPECT_EQ(tree_error([&] { t.positive("gains/kp", 1.0), t.nonnegative("gains/kp"), t.positive("gains/kd", -1.0); }),
+            "(no error)");  // a fallback is not validated
+  EXPECT_EQ(tree_error([&] { t.numbers("list", 2); }), "~list | must be a list of 2 numbers");
+  EXPECT_EQ(tree_error([&] { t.boolean("gains/name", false); }), "~gains/name | must be true or false, got 'x'");
+  // gains/name was read above (as a bad number): everything has been asked for.
+  EXPECT_EQ(tree_error([&] { t.reject_unknown(); }), "(no error)");
+
+  const YAML::Node z = YAML::Load("a: {b: 1, c: {d: 2}}\ne: .inf\n");
+  Tree u(z, '.');
+  EXPECT_EQ(u.number("a.b", 0.0), 1.0);
+  EXPECT_EQ(tree_error([&] { u.reject_unknown(); }), "a.c.d | unknown key");  // nested, named by full path
+  EXPECT_EQ(tree_error([&] { u.number("e", 0.0); }), "e | must be finite, got .inf");
+  EXPECT_EQ(tree_error([&] { u.keys("a", {"b"}); }), "a.c | unknown key");
+  EXPECT_EQ(tree_error([&] { u.keys("a.b", {"x"}); }), "a.b | must be a mapping");
+  EXPECT_EQ(tree_error([&] { u.section("q"); }), "q | missing");
+  u.allow("a.c");  // a sub-map handled as one value
+  EXPECT_EQ(tree_error([&] { u.reject_unknown(); }), "(no error)");
 }

@@ -1,101 +1,30 @@
 #include "hydrojet_control/config/controller_config.h"
 
 #include <cmath>
-#include <set>
+#include <algorithm>
 
 namespace hydrojet {
 namespace config {
 namespace {
 
-/// Typed access to a YAML tree by "a/b" paths, remembering which keys were read.
-class Tree {
- public:
-  explicit Tree(const YAML::Node& root) : root_(root) {}
-
-  YAML::Node find(const std::string& path) const {
-    YAML::Node n = YAML::Clone(root_);
-    size_t start = 0;
-    while (true) {
-      const size_t slash = path.find('/', start);
-      const std::string part = path.substr(start, slash - start);
-      if (!n.IsMap() || !n[part]) return YAML::Node(YAML::NodeType::Undefined);
-      n = n[part];
-      if (slash == std::string::npos) return n;
-      start = slash + 1;
-    }
-  }
-  double number(const std::string& path, double fallback) {
-    read_.insert(path);
-    const YAML::Node n = find(path);
-    if (!n.IsDefined()) return fallback;
-    double v;
-    try {
-      v = n.as<double>();
-    } catch (const YAML::Exception&) {
-      throw ParamError(path + ": must be a number");
-    }
-    if (!std::isfinite(v)) throw ParamError(path + ": must be finite");
-    return v;
-  }
-  int integer(const std::string& path, int fallback) {
-    read_.insert(path);
-    const YAML::Node n = find(path);
-    if (!n.IsDefined()) return fallback;
-    try {
-      return n.as<int>();
-    } catch (const YAML::Exception&) {
-      throw ParamError(path + ": must be an integer");
-    }
-  }
-  bool boolean(const std::string& path, bool fallback) {
-    read_.insert(path);
-    const YAML::Node n = find(path);
-    if (!n.IsDefined()) return fallback;
-    try {
-      return n.as<bool>();
-    } catch (const YAML::Exception&) {
-      throw ParamError(path + ": must be true or false");
-    }
-  }
-  std::string text(const std::string& path, const std::string& fallback) {
-    read_.insert(path);
-    const YAML::Node n = find(path);
-    if (!n.IsDefined()) return fallback;
-    if (!n.IsScalar()) throw ParamError(path + ": must be a string");
-    return n.Scalar();
-  }
-  void reject_unknown() const { visit(root_, ""); }
-
- private:
-  void visit(const YAML::Node& n, const std::string& prefix) const {
-    if (!n.IsMap()) {
-      if (!prefix.empty() && !read_.count(prefix)) throw ParamError(prefix + ": unknown parameter");
-      return;
-    }
-    for (const auto& kv : n) {
-      const std::string k = prefix.empty() ? kv.first.as<std::string>() : prefix + "/" + kv.first.as<std::string>();
-      visit(kv.second, k);
-    }
-  }
-  YAML::Node root_;
-  std::set<std::string> read_;
-};
+/// Controller options are "a/b" paths; errors are ParamError naming them.
+using Tree = YamlTree<ParamError>;
 
 }  // namespace
 
 ControllerOptions parse_controller_options(const YAML::Node& root) {
-  if (root.IsDefined() && !root.IsNull() && !root.IsMap()) throw ParamError("(root): must be a mapping");
+  if (root.IsDefined() && !root.IsNull() && !root.IsMap()) throw ParamError("(root)", "must be a mapping");
   Tree p(root);
   ControllerOptions o;
   o.scene = p.text("scene", "");
   o.rate = p.number("rate", o.rate);
-  if (!(o.rate >= 1.0 && o.rate <= 1000.0)) throw ParamError("rate: must lie in [1, 1000] Hz");
+  if (!(o.rate >= 1.0 && o.rate <= 1000.0)) p.fail("rate", "must lie in [1, 1000] Hz");
   o.autostart = p.boolean("autostart", o.autostart);
   o.base_frame = p.text("base_frame", o.base_frame);
   const std::string mode = p.text("mode", "closed");
   if (mode == "closed") o.controller.mode = control::LoopMode::kClosed;
   else if (mode == "open") o.controller.mode = control::LoopMode::kOpen;
-  else throw ParamError("mode: must be 'closed' or 'open', got '" + mode + "'");
+  else p.fail("mode", "must be 'closed' or 'open', got '" + mode + "'");
 
   // Each numeric parameter: its key, the core's field name (as ControllerParams::validate() names
   // it) and where it lives.
@@ -134,7 +63,7 @@ ControllerOptions parse_controller_options(const YAML::Node& root) {
     std::string k = field == "stale_periods" || field == "max_solver_failures" ? "safety/" + field : field;
     for (const auto& n : numbers)
       if (field == n.field) k = n.key;
-    throw ParamError(k + err.substr(field.size()));
+    p.fail(k, err.substr(std::min(err.size(), field.size() + 2)));
   }
 
   actuation::FlowRegulatorParameters& f = o.flow;
@@ -146,7 +75,7 @@ ControllerOptions parse_controller_options(const YAML::Node& root) {
   const std::string ferr = actuation::validate(f);
   if (!ferr.empty()) {
     const size_t sp = ferr.find(' ');
-    throw ParamError("flow_regulator/" + ferr.substr(0, sp) + ":" + ferr.substr(sp));
+    p.fail("flow_regulator/" + ferr.substr(0, sp), ferr.substr(std::min(ferr.size(), sp + 1)));
   }
   p.reject_unknown();
   return o;

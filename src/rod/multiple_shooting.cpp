@@ -309,6 +309,7 @@ bool ShootingSolver::ms_solve(const Load& target, int M, RodSolution* sol) {
     for (const Mat3& R : start.R) warm = warm && R.allFinite();
   }
   if (!warm) start = ms_unloaded_nodes(M);
+  const Vec3 p_from = warm ? tip_pos_ : unloaded_tip_position();
   double det_prev = warm ? det_ : unloaded_det();
   int crossings = 0;
   auto note = [&](double d) {
@@ -320,8 +321,9 @@ bool ShootingSolver::ms_solve(const Load& target, int M, RodSolution* sol) {
   Nodes x = start;
   double det = 0.0;
   bool ok = warm && ms_newton(&x, target, sol, &det);
-  auto continuation = [&](const Load& l0, const Nodes& x0) {
+  auto continuation = [&](const Load& l0, const Nodes& x0, const Vec3& p0) {
     Nodes xc = x0;
+    Vec3 pc = p0;
     double lambda = 0.0, dl = 0.25;
     while (lambda < 1.0) {
       if (sol->continuation_steps >= settings_.max_continuation_steps || dl < 1e-6) return false;
@@ -333,11 +335,12 @@ bool ShootingSolver::ms_solve(const Load& target, int M, RodSolution* sol) {
       Nodes xt = xc;
       ++sol->continuation_steps;
       double d = 0.0;
-      // Taken only if no node orientation moved by more than max_step (else: a branch jump?).
+      // Taken only if no node orientation moved by more than max_step and the tip by no more than
+      // L/4 (else: a branch jump, or a snap-through at a fold).
       auto near = [&] {
         for (int k = 1; k <= M; ++k)
           if (so3::log(xc.R[k].transpose() * xt.R[k]).norm() > settings_.max_step) return false;
-        return true;
+        return (sol->tip_position - pc).norm() <= 0.25 * model_.rod.length;
       };
       if (ms_newton(&xt, l, sol, &d)) {
         const bool jump = !near();
@@ -350,6 +353,7 @@ bool ShootingSolver::ms_solve(const Load& target, int M, RodSolution* sol) {
           det_prev = std::nan("");
         }
         xc = xt;
+        pc = sol->tip_position;
         lambda = ln;
         dl = std::min(2.0 * dl, 0.5);
         if (ln < 1.0) note(d);
@@ -362,31 +366,35 @@ bool ShootingSolver::ms_solve(const Load& target, int M, RodSolution* sol) {
     return true;
   };
   bool far = false;
-  if (ok)
+  if (ok) {
     for (int k = 1; k <= M; ++k) far = far || so3::log(start.R[k].transpose() * x.R[k]).norm() > settings_.max_step;
+    far = far || (sol->tip_position - p_from).norm() > 0.25 * model_.rod.length;
+  }
   if (ok && (far || (std::isfinite(det_prev) && det_prev != 0.0 && det != 0.0 && (det > 0.0) != (det_prev > 0.0)))) {
     // Newton crossed a singular Jacobian or moved far (a snap, or another branch): prefer the
     // equilibrium reached along the load path, as single shooting does.
     const Nodes x_direct = x;
     const double det_direct = det;
     const RodSolution s_direct = *sol;
-    if (!continuation(from, start)) {
+    if (!continuation(from, start, p_from)) {
+      // The path breaks down at a fold: keep the far direct result (the snap) and report it.
+      const bool crossed = std::isfinite(det_) && det_ != 0.0 && det_direct != 0.0 && (det_direct > 0.0) != (det_ > 0.0);
       x = x_direct;
       det = det_direct;
       *sol = s_direct;
       det_prev = det_;
-      crossings = 0;
+      crossings = crossed ? 0 : 1;  // a sign change is counted by note() below
     }
   }
   if (!ok && warm) {
     det_prev = det_;
     crossings = 0;
-    ok = continuation(from, start);
+    ok = continuation(from, start, p_from);
   }
   if (!ok) {
     det_prev = unloaded_det();
     crossings = 0;
-    ok = continuation(zero, ms_unloaded_nodes(M));
+    ok = continuation(zero, ms_unloaded_nodes(M), unloaded_tip_position());
   }
   sol->converged = ok && std::isfinite(sol->residual) && sol->residual <= settings_.residual_tolerance &&
                    sol->tip_position.allFinite();
@@ -398,13 +406,8 @@ bool ShootingSolver::ms_solve(const Load& target, int M, RodSolution* sol) {
     sol->error_estimate = ms_error_estimate(x, target);
     const double allowed = settings_.accuracy_tolerance * model_.rod.length;
     if (!(sol->error_estimate <= allowed)) {
-      char buf[240];
-      std::snprintf(buf, sizeof buf,
-                    "estimated tip error %.2g m of %s with %d steps over %d segments exceeds accuracy_tolerance*L = "
-                    "%.2g m: use more steps or an adaptive integrator",
-                    sol->error_estimate, integrator_name(settings_.integrator.type), settings_.integrator.steps, M,
-                    allowed);
-      sol->message = buf;
+      sol->message = internal::accuracy_refusal(sol->error_estimate, settings_.integrator.type,
+                                                settings_.integrator.steps, M, allowed);
       sol->converged = false;
       return false;
     }
@@ -421,6 +424,7 @@ bool ShootingSolver::ms_solve(const Load& target, int M, RodSolution* sol) {
   multiple_ = true;
   nodes_ = x;
   R_tip_ = x.R[M];
+  tip_pos_ = sol->tip_position;
   load_ = target;
   det_ = det;
   return true;

@@ -3,6 +3,9 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
+#include <cstdio>
+#include <string>
 #include <Eigen/Dense>
 
 #include "hydrojet_control/rod/cvode_integrator.h"
@@ -13,6 +16,20 @@
 namespace hydrojet {
 namespace rod {
 namespace internal {
+
+/// Why a fixed-step solve is refused by the accuracy check (ShootingSettings::accuracy_tolerance).
+inline std::string accuracy_refusal(double estimate, IntegratorType type, int steps, int segments, double allowed) {
+  const std::string how = std::string(integrator_name(type)) + " with " + std::to_string(steps) + " steps" +
+                          (segments > 1 ? " over " + std::to_string(segments) + " segments" : "");
+  char buf[200];
+  if (std::isfinite(estimate))
+    std::snprintf(buf, sizeof buf, "estimated tip error %.2g m of %s exceeds accuracy_tolerance*L = %.2g m", estimate,
+                  how.c_str(), allowed);
+  else
+    std::snprintf(buf, sizeof buf, "tip error of %s cannot be estimated (the half-step integration diverged)",
+                  how.c_str());
+  return std::string(buf) + ": use more steps or an adaptive integrator";
+}
 
 /// Copies the fixed parameters of one RodOde into another (of any D / variant).
 template <class A, class B>

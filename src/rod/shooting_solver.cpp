@@ -112,9 +112,15 @@ double ShootingSolver::unloaded_det() const {
     int rhs = 0;
     const Eval u = evaluate(unloaded_tip_rotation(), zero, &rhs);
     unloaded_det_ = u.ok ? u.J.determinant() : std::nan("");
+    unloaded_tip_ = u.ok ? Vec3(-u.R0.transpose() * u.p0) : Vec3::Zero();
     have_unloaded_det_ = true;
   }
   return unloaded_det_;
+}
+
+Vec3 ShootingSolver::unloaded_tip_position() const {
+  unloaded_det();
+  return unloaded_tip_;
 }
 
 double ShootingSolver::growth_estimate(const TipWrench& w) const {
@@ -220,6 +226,7 @@ RodSolution ShootingSolver::solve(const TipWrench& wrench) {
       sol.message.clear();
       have_solution_ = true;
       det_ = sol.jacobian_det;
+      tip_pos_ = sol.tip_position;
       multiple_ = false;
       R_tip_ = R;
       load_ = target;
@@ -262,8 +269,17 @@ RodSolution ShootingSolver::solve(const TipWrench& wrench) {
   zero.gravity_scale = 0.0;
 
   // Load continuation from `from` (an equilibrium at R_from) to the target load.
-  auto continuation = [&](const Load& from, const Mat3& R_from) {
+  // Tip position of an evaluation (base frame).
+  auto tip_of = [](const Eval& x) { return Vec3(-x.R0.transpose() * x.p0); };
+  // Two equilibria are "far" apart when the tip turned by more than max_step or moved by more than
+  // L/4: more than a load step of a path should do; a jump to another branch or a snap-through.
+  const double far_move = 0.25 * model_.rod.length;
+  auto far_apart = [&](const Mat3& Ra, const Vec3& pa, const Mat3& Rb, const Vec3& pb) {
+    return so3::log(Ra.transpose() * Rb).norm() > settings_.max_step || (pa - pb).norm() > far_move;
+  };
+  auto continuation = [&](const Load& from, const Mat3& R_from, const Vec3& p_from) {
     Mat3 Rc = R_from;
+    Vec3 pc = p_from;
     double lambda = 0.0, dl = 0.25;
     while (lambda < 1.0) {
       if (sol.continuation_steps >= settings_.max_continuation_steps || dl < 1e-6) return false;
@@ -274,12 +290,13 @@ RodSolution ShootingSolver::solve(const TipWrench& wrench) {
       l.gravity_scale = from.gravity_scale + ln * (target.gravity_scale - from.gravity_scale);
       Mat3 Rt = Rc;
       ++sol.continuation_steps;
-      // A step is taken when Newton stays near the previous equilibrium (tip rotation change
-      // ≤ max_step); a larger change is a jump to another branch: the step is halved, and if the
-      // jump persists down to a tiny step the path has reached a fold and snaps through (taken and
-      // reported as a fold crossing).
+      // A step is taken when Newton stays near the previous equilibrium (far_apart() false); a
+      // larger change is a jump to another branch: the step is halved, and if the jump persists down
+      // to a tiny step the path has reached a fold and snaps through (taken and reported as a fold
+      // crossing).
       if (newton(&Rt, l, &sol, &e)) {
-        const bool jump = so3::log(Rc.transpose() * Rt).norm() > settings_.max_step;
+        const Vec3 pt = tip_of(e);
+        const bool jump = far_apart(Rc, pc, Rt, pt);
         if (jump && dl > kSnapStep) {
           dl *= 0.5;
           continue;
@@ -289,6 +306,7 @@ RodSolution ShootingSolver::solve(const TipWrench& wrench) {
           folds.det = std::nan("");  // a new branch: its det starts a new comparison
         }
         Rc = Rt;
+        pc = pt;
         lambda = ln;
         dl = std::min(2.0 * dl, 0.5);
         if (ln < 1.0) folds.note(e.J.determinant());
@@ -301,38 +319,43 @@ RodSolution ShootingSolver::solve(const TipWrench& wrench) {
   };
 
   const Mat3 R_start = R;
+  const Vec3 p_start = have_solution_ ? tip_pos_ : unloaded_tip_position();
   bool ok = newton(&R, target, &sol, &e);
   if (ok && e.ok) {
     // The direct Newton result is the equilibrium connected to the start along the load path unless
     // Newton (a) went across a singular shooting Jacobian (det changed sign), or (b) moved far: a
-    // warm start whose tip turned by more than max_step (a snap, or another branch), or a cold start
-    // of a strongly loaded rod (λL > 4, where several equilibria exist) that did. Then follow the
+    // warm start whose tip turned by more than max_step or moved by more than L/4 (a snap, or another
+    // branch), or a cold start of a strongly loaded rod (λL > 4, where several equilibria exist)
+    // that did. Then follow the
     // load path instead (it reports folds and snap-throughs on the way); keep the direct result
     // only if the path fails.
     const double start = folds.det, d = e.J.determinant();
     const bool crossed = std::isfinite(start) && start != 0.0 && d != 0.0 && (d > 0.0) != (start > 0.0);
-    const bool far = so3::log(R_start.transpose() * R).norm() > settings_.max_step &&
-                     (have_solution_ || growth_estimate(wrench) > 4.0);
+    const bool far = far_apart(R_start, p_start, R, tip_of(e)) && (have_solution_ || growth_estimate(wrench) > 4.0);
     if (crossed || far) {
       const Mat3 R_direct = R;
       const Eval e_direct = e;
-      const bool path = have_solution_ ? continuation(load_, R_tip_) : continuation(zero, unloaded_tip_rotation());
+      const bool path = have_solution_ ? continuation(load_, R_tip_, tip_pos_)
+                                       : continuation(zero, unloaded_tip_rotation(), unloaded_tip_position());
       if (!path) {
+        // The path breaks down (Newton fails near a fold): the far direct result is where the rod
+        // snaps to. Keep it, and report the snap (a det sign change is counted by finish()).
         R = R_direct;
         e = e_direct;
         sol.residual = e.r.norm();
         sol.message.clear();
         folds.start(start);
+        if (!crossed) ++folds.crossings;
       }
     }
   }
   if (!ok && have_solution_) {
     folds.start(det_);
-    ok = continuation(load_, R_tip_);
+    ok = continuation(load_, R_tip_, tip_pos_);
   }
   if (!ok) {
     folds.start(unloaded_det());
-    ok = continuation(zero, unloaded_tip_rotation());
+    ok = continuation(zero, unloaded_tip_rotation(), unloaded_tip_position());
   }
   if (ok && e.ok && settings_.accuracy_tolerance > 0.0 && !is_adaptive(settings_.integrator.type)) {
     // A fixed-step solve is only as good as its steps: estimate the tip error and refuse to call
@@ -341,12 +364,8 @@ RodSolution ShootingSolver::solve(const TipWrench& wrench) {
     sol.error_estimate = (this->*kernels_->error)(R, target, e);
     const double allowed = settings_.accuracy_tolerance * model_.rod.length;
     if (!(sol.error_estimate <= allowed)) {
-      char buf[240];
-      std::snprintf(buf, sizeof buf,
-                    "estimated tip error %.2g m of %s with %d steps exceeds accuracy_tolerance*L = %.2g m: "
-                    "use more steps or an adaptive integrator",
-                    sol.error_estimate, integrator_name(settings_.integrator.type), settings_.integrator.steps, allowed);
-      sol.message = buf;
+      sol.message = internal::accuracy_refusal(sol.error_estimate, settings_.integrator.type, settings_.integrator.steps,
+                                               1, allowed);
       sol.residual = e.r.norm();
       sol.tip_rotation = so3::orthonormalize(e.R0.transpose() * R);
       sol.tip_position = -e.R0.transpose() * e.p0;

@@ -57,81 +57,46 @@ RecorderOptions read_options(const ros::NodeHandle& pnh) {
   RecorderOptions o;
   // Flow regulator defaults: config/controller.yaml's flow_regulator (duty per m^3/s).
   o.flow.feedforward = 62500.0, o.flow.kp = 18750.0, o.flow.ki = 312500.0;
-  static const std::set<std::string> known = {
-      "scene", "bag", "out", "result_file", "report_file", "fit", "calibrate_args", "samples", "seed", "rate",
-      "hold_time", "start_hold", "max_jet_force_fraction", "max_net_force", "min_net_force", "calibrate",
-      "exit_when_done", "flow_regulator"};
-  for (const auto& kv : y)
-    if (!known.count(kv.first.as<std::string>()))
-      throw config::ParamError("~" + kv.first.as<std::string>() + ": unknown parameter");
-  auto str = [&](const char* k, std::string* v) {
-    if (y[k]) *v = y[k].as<std::string>();
-  };
-  auto num = [&](const YAML::Node& n, const std::string& k, double* v) {
-    if (!n[k]) return;
-    try {
-      *v = n[k].as<double>();
-    } catch (const YAML::Exception&) {
-      throw config::ParamError("~" + k + ": must be a number");
-    }
-    if (!std::isfinite(*v)) throw config::ParamError("~" + k + ": must be finite");
-  };
-  auto boolean = [&](const char* k, bool* v) {
-    if (!y[k]) return;
-    try {
-      *v = y[k].as<bool>();
-    } catch (const YAML::Exception&) {
-      throw config::ParamError(std::string("~") + k + ": must be true or false");
-    }
-  };
-  str("scene", &o.scene);
-  str("bag", &o.bag);
-  str("out", &o.out);
-  str("result_file", &o.result_file);
-  str("report_file", &o.report_file);
-  str("fit", &o.fit);
-  str("calibrate_args", &o.calibrate_args);
-  double samples = o.samples, seed = o.seed;
-  num(y, "samples", &samples);
-  num(y, "seed", &seed);
-  num(y, "rate", &o.rate);
-  num(y, "hold_time", &o.hold_time);
-  num(y, "start_hold", &o.start_hold);
-  num(y, "max_jet_force_fraction", &o.max_jet_force_fraction);
-  num(y, "max_net_force", &o.max_net_force);
-  num(y, "min_net_force", &o.min_net_force);
-  boolean("calibrate", &o.calibrate);
-  boolean("exit_when_done", &o.exit_when_done);
-  if (y["flow_regulator"]) {
-    const YAML::Node f = y["flow_regulator"];
-    if (!f.IsMap()) throw config::ParamError("~flow_regulator: must be a mapping");
-    for (const auto& kv : f) {
-      const std::string k = kv.first.as<std::string>();
-      if (k != "feedforward" && k != "kp" && k != "ki" && k != "output_min" && k != "output_max")
-        throw config::ParamError("~flow_regulator/" + k + ": unknown parameter");
-    }
-    num(f, "feedforward", &o.flow.feedforward);
-    num(f, "kp", &o.flow.kp);
-    num(f, "ki", &o.flow.ki);
-    num(f, "output_min", &o.flow.output_min);
-    num(f, "output_max", &o.flow.output_max);
-    const std::string e = actuation::validate(o.flow);
-    if (!e.empty()) throw config::ParamError("~flow_regulator/" + e);
+  config::YamlTree<config::ParamError> t(y, '/', "~");
+  t.keys("", {"scene", "bag", "out", "result_file", "report_file", "fit", "calibrate_args", "samples", "seed", "rate",
+              "hold_time", "start_hold", "max_jet_force_fraction", "max_net_force", "min_net_force", "calibrate",
+              "exit_when_done", "flow_regulator"});
+  t.keys("flow_regulator", {"feedforward", "kp", "ki", "output_min", "output_max"});
+  o.scene = t.text("scene", o.scene);
+  o.bag = t.text("bag", o.bag);
+  o.out = t.text("out", o.out);
+  o.result_file = t.text("result_file", o.result_file);
+  o.report_file = t.text("report_file", o.report_file);
+  o.fit = t.text("fit", o.fit);
+  o.calibrate_args = t.text("calibrate_args", o.calibrate_args);
+  o.samples = t.integer("samples", o.samples, 1, 100000);
+  o.seed = t.integer("seed", o.seed);
+  o.rate = t.number("rate", o.rate);
+  o.hold_time = t.positive("hold_time", o.hold_time);
+  o.start_hold = t.nonnegative("start_hold", o.start_hold);
+  o.max_jet_force_fraction = t.number("max_jet_force_fraction", o.max_jet_force_fraction);
+  o.max_net_force = t.number("max_net_force", o.max_net_force);
+  o.min_net_force = t.number("min_net_force", o.min_net_force);
+  o.calibrate = t.boolean("calibrate", o.calibrate);
+  o.exit_when_done = t.boolean("exit_when_done", o.exit_when_done);
+  o.flow.feedforward = t.number("flow_regulator/feedforward", o.flow.feedforward);
+  o.flow.kp = t.number("flow_regulator/kp", o.flow.kp);
+  o.flow.ki = t.number("flow_regulator/ki", o.flow.ki);
+  o.flow.output_min = t.number("flow_regulator/output_min", o.flow.output_min);
+  o.flow.output_max = t.number("flow_regulator/output_max", o.flow.output_max);
+  const std::string e = actuation::validate(o.flow);
+  if (!e.empty()) {
+    const size_t sp = e.find(' ');
+    t.fail("flow_regulator/" + e.substr(0, sp), e.substr(std::min(e.size(), sp + 1)));
   }
-  if (o.scene.empty()) throw config::ParamError("~scene: missing (path of the nominal scene YAML)");
-  if (o.bag.empty()) throw config::ParamError("~bag: missing (path of the bag to record)");
-  if (o.calibrate && o.out.empty()) throw config::ParamError("~out: missing (path of the calibrated scene YAML)");
-  if (samples != std::floor(samples) || samples < 1 || samples > 100000)
-    throw config::ParamError("~samples: must be an integer in [1, 100000]");
-  o.samples = static_cast<int>(samples);
-  o.seed = static_cast<int>(seed);
-  if (!(o.rate >= 1.0 && o.rate <= 1000.0)) throw config::ParamError("~rate: must lie in [1, 1000] Hz");
-  if (!(o.hold_time > 0.0)) throw config::ParamError("~hold_time: must be positive");
-  if (!(o.start_hold >= 0.0)) throw config::ParamError("~start_hold: must not be negative");
+  if (o.scene.empty()) t.fail("scene", "missing (path of the nominal scene YAML)");
+  if (o.bag.empty()) t.fail("bag", "missing (path of the bag to record)");
+  if (o.calibrate && o.out.empty()) t.fail("out", "missing (path of the calibrated scene YAML)");
+  if (!(o.rate >= 1.0 && o.rate <= 1000.0)) t.fail("rate", "must lie in [1, 1000] Hz");
   if (!(o.max_jet_force_fraction > 0.0 && o.max_jet_force_fraction <= 1.0))
-    throw config::ParamError("~max_jet_force_fraction: must lie in (0, 1]");
+    t.fail("max_jet_force_fraction", "must lie in (0, 1]");
   if (!(o.max_net_force > o.min_net_force && o.min_net_force >= 0.0))
-    throw config::ParamError("~max_net_force: must exceed ~min_net_force >= 0");
+    t.fail("max_net_force", "must exceed ~min_net_force >= 0");
   return o;
 }
 

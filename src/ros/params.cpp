@@ -40,10 +40,11 @@ YAML::Node private_params_as_yaml(const ros::NodeHandle& pnh) {
 config::ControllerOptions read_controller_options(const ros::NodeHandle& pnh) {
   try {
     config::ControllerOptions o = config::parse_controller_options(private_params_as_yaml(pnh));
-    if (o.scene.empty()) throw config::ParamError("scene: missing (path of the scene YAML)");
+    if (o.scene.empty()) throw config::ParamError("scene", "missing (path of the scene YAML)");
     return o;
-  } catch (const config::ParamError& e) {
-    throw config::ParamError(std::string("~") + e.what());
+  } catch (const config::ParamError& e) {  // private parameters: name them ~key
+    if (e.key().empty()) throw config::ParamError(std::string("~") + e.what());
+    throw config::ParamError("~" + e.key(), e.detail());
   }
 }
 

@@ -39,39 +39,26 @@ struct PlantNodeOptions {
 PlantNodeOptions read_options(const ros::NodeHandle& pnh) {
   const YAML::Node y = ros_bridge::private_params_as_yaml(pnh);
   PlantNodeOptions o;
-  static const std::set<std::string> known = {
-      "scene", "plant", "seed", "rate", "lockstep", "command_wait", "duration", "tracker_frame",
-      "tracker_dropout_at", "tracker_dropout_duration", "flow_fault_at", "stuck_open_at", "stuck_open_jet", "stuck_duty"};
-  for (const auto& kv : y)
-    if (!known.count(kv.first.as<std::string>())) throw config::ParamError("~" + kv.first.as<std::string>() + ": unknown parameter");
-  auto num = [&](const char* k, double* v) {
-    if (!y[k]) return;
-    try {
-      *v = y[k].as<double>();
-    } catch (const YAML::Exception&) {
-      throw config::ParamError(std::string("~") + k + ": must be a number");
-    }
-  };
-  if (!y["scene"]) throw config::ParamError("~scene: missing (path of the scene YAML)");
-  o.scene = y["scene"].as<std::string>();
-  if (y["plant"]) o.plant_file = y["plant"].as<std::string>();
-  double seed = o.seed, jet = o.stuck_open_jet;
-  num("seed", &seed);
-  num("rate", &o.rate);
-  num("command_wait", &o.command_wait);
-  num("duration", &o.duration);
-  num("tracker_dropout_at", &o.tracker_dropout_at);
-  num("tracker_dropout_duration", &o.tracker_dropout_duration);
-  num("flow_fault_at", &o.flow_fault_at);
-  num("stuck_open_at", &o.stuck_open_at);
-  num("stuck_open_jet", &jet);
-  num("stuck_duty", &o.stuck_duty);
-  o.seed = static_cast<int>(seed);
-  o.stuck_open_jet = static_cast<int>(jet);
-  if (y["lockstep"]) o.lockstep = y["lockstep"].as<bool>();
-  if (y["tracker_frame"]) o.tracker_frame = y["tracker_frame"].as<std::string>();
-  if (!(o.rate >= 1.0 && o.rate <= 1000.0)) throw config::ParamError("~rate: must lie in [1, 1000] Hz");
-  if (o.stuck_open_jet < 1 || o.stuck_open_jet > 3) throw config::ParamError("~stuck_open_jet: must be 1, 2 or 3");
+  config::YamlTree<config::ParamError> t(y, '/', "~");
+  t.keys("", {"scene", "plant", "seed", "rate", "lockstep", "command_wait", "duration", "tracker_frame",
+              "tracker_dropout_at", "tracker_dropout_duration", "flow_fault_at", "stuck_open_at", "stuck_open_jet",
+              "stuck_duty"});
+  o.scene = t.text("scene", "");
+  if (o.scene.empty()) t.fail("scene", "missing (path of the scene YAML)");
+  o.plant_file = t.text("plant", o.plant_file);
+  o.seed = t.integer("seed", o.seed);
+  o.rate = t.number("rate", o.rate);
+  o.lockstep = t.boolean("lockstep", o.lockstep);
+  o.command_wait = t.number("command_wait", o.command_wait);
+  o.duration = t.number("duration", o.duration);
+  o.tracker_frame = t.text("tracker_frame", o.tracker_frame);
+  o.tracker_dropout_at = t.number("tracker_dropout_at", o.tracker_dropout_at);
+  o.tracker_dropout_duration = t.number("tracker_dropout_duration", o.tracker_dropout_duration);
+  o.flow_fault_at = t.number("flow_fault_at", o.flow_fault_at);
+  o.stuck_open_at = t.number("stuck_open_at", o.stuck_open_at);
+  o.stuck_open_jet = t.integer("stuck_open_jet", o.stuck_open_jet, 1, 3);
+  o.stuck_duty = t.number("stuck_duty", o.stuck_duty);
+  if (!(o.rate >= 1.0 && o.rate <= 1000.0)) t.fail("rate", "must lie in [1, 1000] Hz");
   return o;
 }
 

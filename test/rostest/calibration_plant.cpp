@@ -16,6 +16,7 @@
 
 #include "hydrojet_control/config/plant_config.h"
 #include "hydrojet_control/config/scene.h"
+#include "../cli_helpers.h"
 
 namespace {
 
@@ -25,22 +26,8 @@ std::string param(const std::string& name) {
   return v;
 }
 
-/// The text of `"key": {...}` (flat object) in a JSON line, or "".
-std::string object_field(const std::string& json, const std::string& key) {
-  const size_t i = json.find("\"" + key + "\": {");
-  if (i == std::string::npos) return "";
-  const size_t a = json.find('{', i), b = json.find('}', a);
-  return json.substr(a, b - a + 1);
-}
-
-/// A number field `"key": x` (NaN when absent or null).
-double number_field(const std::string& json, const std::string& key) {
-  const size_t i = json.find("\"" + key + "\": ");
-  if (i == std::string::npos) return std::nan("");
-  const std::string rest = json.substr(i + key.size() + 4);
-  if (rest.compare(0, 4, "null") == 0) return std::nan("");
-  return std::stod(rest);
-}
+using hydrojet::test::number_field;
+using hydrojet::test::object_field;
 
 }  // namespace
 

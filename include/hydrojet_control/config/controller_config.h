@@ -9,14 +9,18 @@
 #include <string>
 
 #include "hydrojet_control/actuation/flow_regulator.h"
+#include "hydrojet_control/config/yaml_tree.h"
 #include "hydrojet_control/control/controller.h"
 
 namespace hydrojet {
 namespace config {
 
-class ParamError : public std::runtime_error {
+/// An option is missing or invalid: ParamError("gains/kp", "must be a number"), or one message
+/// for the options as a whole.
+class ParamError : public KeyError {
  public:
-  using std::runtime_error::runtime_error;
+  using KeyError::KeyError;
+  explicit ParamError(const std::string& message) : KeyError("", message) {}
 };
 
 struct ControllerOptions {

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "hydrojet_control/actuation/jet_map.h"
+#include "hydrojet_control/config/yaml_tree.h"
 #include "hydrojet_control/actuation/thrust.h"
 #include "hydrojet_control/control/controller.h"
 #include "hydrojet_control/rod/shooting_solver.h"
@@ -15,15 +16,10 @@
 namespace hydrojet {
 namespace config {
 
-/// A scene key is missing or invalid; key() is its dotted path ("rod.length").
-class SceneError : public std::runtime_error {
+/// A scene (or plant file) key is missing or invalid; key() is its dotted path ("rod.length").
+class SceneError : public KeyError {
  public:
-  SceneError(const std::string& key, const std::string& what)
-      : std::runtime_error(key + ": " + what), key_(key) {}
-  const std::string& key() const { return key_; }
-
- private:
-  std::string key_;
+  using KeyError::KeyError;
 };
 
 struct Scene {

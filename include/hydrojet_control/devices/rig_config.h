@@ -10,10 +10,10 @@
 #include <cctype>
 #include <cmath>
 #include <cstdint>
-#include <set>
 #include <stdexcept>
 #include <string>
 
+#include "hydrojet_control/config/yaml_tree.h"
 #include "hydrojet_control/devices/aurora_client.h"
 #include "hydrojet_control/devices/flow_sensors.h"
 #include "hydrojet_control/devices/valve_board.h"
@@ -21,9 +21,12 @@
 namespace hydrojet {
 namespace devices {
 
-class RigConfigError : public std::runtime_error {
+/// A rig option is missing or invalid: RigConfigError("tracker/rate", "must lie in (0, 1000] Hz"),
+/// or one message "<key>: <what>".
+class RigConfigError : public config::KeyError {
  public:
-  using std::runtime_error::runtime_error;
+  using config::KeyError::KeyError;
+  explicit RigConfigError(const std::string& message) : config::KeyError("", message) {}
 };
 
 struct RigConfig {
@@ -57,100 +60,30 @@ inline double flow_unit_scale(const std::string& unit) {
 
 namespace rig_config_detail {
 
-/// Typed access by "a/b" paths, remembering the keys read so that unknown ones can be rejected.
-class Tree {
+/// The shared reader (config/yaml_tree.h) plus the one type only the rig has: an integer given as
+/// a number or as hex text ("0x0A", "0A"; a launch-file <param> gives a string).
+class Tree : public config::YamlTree<RigConfigError> {
  public:
-  explicit Tree(const YAML::Node& root) : root_(root) {}
-
-  YAML::Node find(const std::string& path) const {
-    YAML::Node n = YAML::Clone(root_);
-    size_t start = 0;
-    for (;;) {
-      const size_t slash = path.find('/', start);
-      const std::string part = path.substr(start, slash == std::string::npos ? std::string::npos : slash - start);
-      if (!n.IsMap() || !n[part]) return YAML::Node(YAML::NodeType::Undefined);
-      n = n[part];
-      if (slash == std::string::npos) return n;
-      start = slash + 1;
-    }
-  }
-  double number(const std::string& path, double fallback) {
-    read_.insert(path);
-    const YAML::Node n = find(path);
-    if (!n.IsDefined() || n.IsNull()) return fallback;
-    double v;
-    try {
-      v = n.as<double>();
-    } catch (const YAML::Exception&) {
-      throw RigConfigError(path + ": must be a number");
-    }
-    if (!std::isfinite(v)) throw RigConfigError(path + ": must be finite");
-    return v;
-  }
-  int integer(const std::string& path, int fallback) {
-    read_.insert(path);
-    const YAML::Node n = find(path);
-    if (!n.IsDefined() || n.IsNull()) return fallback;
-    try {
-      return n.as<int>();
-    } catch (const YAML::Exception&) {
-      throw RigConfigError(path + ": must be an integer");
-    }
-  }
-  /// An integer given as a number or as hex text ("0x0A", "0A").
+  using config::YamlTree<RigConfigError>::YamlTree;
   long hex_or_int(const std::string& path, long fallback) {
-    read_.insert(path);
+    allow(path);
     const YAML::Node n = find(path);
-    if (!n.IsDefined() || n.IsNull()) return fallback;
-    if (!n.IsScalar()) throw RigConfigError(path + ": must be an integer or hex text");
+    if (!n.IsDefined()) return fallback;
+    if (!n.IsScalar()) fail(path, "must be an integer or hex text");
     try {
       return n.as<long>();
     } catch (const YAML::Exception&) {
     }
     std::string s = n.Scalar();
     if (s.size() > 2 && s[0] == '0' && (s[1] == 'x' || s[1] == 'X')) s = s.substr(2);
-    if (s.empty() || s.size() > 8) throw RigConfigError(path + ": must be an integer or hex text");
+    if (s.empty() || s.size() > 8) fail(path, "must be an integer or hex text");
     long v = 0;
     for (char c : s) {
-      if (!std::isxdigit(static_cast<unsigned char>(c))) throw RigConfigError(path + ": must be an integer or hex text");
+      if (!std::isxdigit(static_cast<unsigned char>(c))) fail(path, "must be an integer or hex text");
       v = v * 16 + (std::isdigit(static_cast<unsigned char>(c)) ? c - '0' : std::toupper(c) - 'A' + 10);
     }
     return v;
   }
-  bool boolean(const std::string& path, bool fallback) {
-    read_.insert(path);
-    const YAML::Node n = find(path);
-    if (!n.IsDefined() || n.IsNull()) return fallback;
-    try {
-      return n.as<bool>();
-    } catch (const YAML::Exception&) {
-      throw RigConfigError(path + ": must be true or false");
-    }
-  }
-  std::string text(const std::string& path, const std::string& fallback) {
-    read_.insert(path);
-    const YAML::Node n = find(path);
-    if (!n.IsDefined() || n.IsNull()) return fallback;
-    if (!n.IsScalar()) throw RigConfigError(path + ": must be a string");
-    return n.Scalar();
-  }
-  void allow(const std::string& path) { read_.insert(path); }
-  void reject_unknown() const { visit(root_, ""); }
-
- private:
-  void visit(const YAML::Node& n, const std::string& prefix) const {
-    if (!n.IsMap()) {
-      if (!prefix.empty() && !read_.count(prefix)) throw RigConfigError(prefix + ": unknown parameter");
-      return;
-    }
-    if (!prefix.empty() && read_.count(prefix)) return;  // a whole map read as one value
-    for (const auto& kv : n) {
-      const std::string k = prefix.empty() ? kv.first.as<std::string>() : prefix + "/" + kv.first.as<std::string>();
-      visit(kv.second, k);
-    }
-  }
-  YAML::Node root_;
-  std::set<std::string> read_;
 };
 
 /// Re-labels a core validate() message "<field>: <what>" with its YAML section.

@@ -170,6 +170,7 @@ class ShootingSolver {
                                  const IntegratorSettings& settings) const;
   Mat3 unloaded_tip_rotation() const;
   double unloaded_det() const;
+  Vec3 unloaded_tip_position() const;
   void select_kernels();
 
   // Multiple shooting (src/rod/multiple_shooting.cpp).
@@ -193,9 +194,11 @@ class ShootingSolver {
   Eval eval_;
   RodSolution last_;
   double det_ = 0.0;       ///< det ∂r/∂x of the stored solution (fold tracking)
+  Vec3 tip_pos_ = Vec3::Zero();  ///< tip position of the stored solution (jump detection)
   bool multiple_ = false;  ///< the stored solution came from multiple shooting (nodes_ holds it)
   Nodes nodes_;
   mutable double unloaded_det_ = 0.0;  ///< det ∂r/∂x at the unloaded shape (cached per model)
+  mutable Vec3 unloaded_tip_ = Vec3::Zero();
   mutable bool have_unloaded_det_ = false;
   mutable Scratch scratch_;
 };
