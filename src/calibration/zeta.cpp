@@ -63,17 +63,9 @@ CrossSection cross_section_from_scene_text(const std::string& text, const CrossS
     throw config::SceneError("scene", std::string("malformed YAML: ") + e.what());
   }
   if (!root.IsMap() || !root["rod"] || !root["rod"].IsMap()) return cs;
-  const YAML::Node r = root["rod"];
-  auto read = [&](const char* key, double* v) {
-    if (!r[key]) return;
-    try {
-      *v = r[key].as<double>();
-    } catch (const YAML::Exception&) {
-      throw config::SceneError(std::string("rod.") + key, "must be a number");
-    }
-  };
-  read("outer_diameter", &cs.outer_diameter);
-  read("inner_diameter", &cs.inner_diameter);
+  config::YamlTree<config::SceneError> t(root, '.');
+  cs.outer_diameter = t.number("rod.outer_diameter", cs.outer_diameter);
+  cs.inner_diameter = t.number("rod.inner_diameter", cs.inner_diameter);
   const std::string e = cs.validate();
   if (!e.empty()) throw config::SceneError("rod." + e.substr(0, e.find(':')), e.substr(e.find(':') + 2));
   return cs;
