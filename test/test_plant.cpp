@@ -94,6 +94,10 @@ TEST(PlantConfig, ErrorsNameTheKey) {
   EXPECT_EQ(key("plant: {sensor_noise: maybe}"), "plant.sensor_noise");
   EXPECT_EQ(key("plant: {dynamics: {internal_dt: 0.5}}"), "plant.internal_dt");
   EXPECT_EQ(key("plant: [1"), "plant");
+  EXPECT_EQ(key("plant: {tracker: {latnecy: 0.01}}"), "plant.tracker.latnecy");
+  EXPECT_EQ(key("plant: {flow_sensors: {sigma: low}}"), "plant.flow_sensors.sigma");
+  EXPECT_EQ(key("plant: {dynamics: {tip_inertia: [1, 2]}}"), "plant.dynamics.tip_inertia");
+  EXPECT_EQ(key("plant: {command_timeout: .nan}"), "plant.command_timeout");
   // The base tilt is read off the scene's gravity: 30°.
   EXPECT_NEAR(config::make_plant(sc, "").base_tilt, M_PI / 6, 1e-9);
 }

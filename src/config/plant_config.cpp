@@ -73,16 +73,32 @@ plant::PlantParameters make_plant(const Scene& nominal, const std::string& text)
     const std::string D = "plant.dynamics.";
     t.keys("plant.dynamics", {"shear_stiffness", "axial_stiffness", "kelvin_voigt_time", "linear_drag", "tip_drag",
                               "tip_angular_drag", "tip_inertia", "linear_density", "nodes", "internal_dt", "alpha"});
-    p.rod.shear_stiffness = t.number(D + "shear_stiffness", p.rod.shear_stiffness);
-    p.rod.axial_stiffness = t.number(D + "axial_stiffness", p.rod.axial_stiffness);
-    p.rod.kelvin_voigt_time = t.number(D + "kelvin_voigt_time", p.rod.kelvin_voigt_time);
-    p.rod.linear_drag = t.number(D + "linear_drag", p.rod.linear_drag);
-    p.rod.tip_drag = t.number(D + "tip_drag", p.rod.tip_drag);
-    p.rod.tip_angular_drag = t.number(D + "tip_angular_drag", p.rod.tip_angular_drag);
+    t.keys("plant.tracker", {"position_sigma", "angle_sigma", "position_quantum", "latency", "dropout_rate",
+                             "dropout_duration"});
+    t.keys("plant.flow_sensors", {"sigma", "quantum"});
+    // Optional numbers: key (below its section) and where it lives.
+    const std::pair<std::string, double*> numbers[] = {
+        {D + "shear_stiffness", &p.rod.shear_stiffness},
+        {D + "axial_stiffness", &p.rod.axial_stiffness},
+        {D + "kelvin_voigt_time", &p.rod.kelvin_voigt_time},
+        {D + "linear_drag", &p.rod.linear_drag},
+        {D + "tip_drag", &p.rod.tip_drag},
+        {D + "tip_angular_drag", &p.rod.tip_angular_drag},
+        {D + "linear_density", &p.rod.model.rod.linear_density},
+        {D + "alpha", &p.rod.alpha},
+        {D + "internal_dt", &p.internal_dt},
+        {"plant.tracker.position_sigma", &p.tracker.position_sigma},
+        {"plant.tracker.angle_sigma", &p.tracker.angle_sigma},
+        {"plant.tracker.position_quantum", &p.tracker.position_quantum},
+        {"plant.tracker.latency", &p.tracker.latency},
+        {"plant.tracker.dropout_rate", &p.tracker.dropout_rate},
+        {"plant.tracker.dropout_duration", &p.tracker.dropout_duration},
+        {"plant.flow_sensors.sigma", &p.flow.sigma},
+        {"plant.flow_sensors.quantum", &p.flow.quantum},
+        {"plant.command_timeout", &p.command_timeout},
+    };
+    for (const auto& n : numbers) *n.second = t.number(n.first, *n.second);
     p.rod.tip_inertia = t.vec3(D + "tip_inertia", p.rod.tip_inertia);
-    p.rod.model.rod.linear_density = t.number(D + "linear_density", p.rod.model.rod.linear_density);
-    p.rod.alpha = t.number(D + "alpha", p.rod.alpha);
-    p.internal_dt = t.number(D + "internal_dt", p.internal_dt);
     p.rod.nodes = t.integer(D + "nodes", p.rod.nodes);
 
     if (t.has("plant.valves")) {
@@ -92,21 +108,7 @@ plant::PlantParameters make_plant(const Scene& nominal, const std::string& text)
       for (int i = 0; i < 3; ++i) parse_valve(v[i], "plant.valves[" + std::to_string(i) + "]", &p.valves[i]);
     }
 
-    const std::string T = "plant.tracker.";
-    t.keys("plant.tracker", {"position_sigma", "angle_sigma", "position_quantum", "latency", "dropout_rate",
-                             "dropout_duration"});
-    p.tracker.position_sigma = t.number(T + "position_sigma", p.tracker.position_sigma);
-    p.tracker.angle_sigma = t.number(T + "angle_sigma", p.tracker.angle_sigma);
-    p.tracker.position_quantum = t.number(T + "position_quantum", p.tracker.position_quantum);
-    p.tracker.latency = t.number(T + "latency", p.tracker.latency);
-    p.tracker.dropout_rate = t.number(T + "dropout_rate", p.tracker.dropout_rate);
-    p.tracker.dropout_duration = t.number(T + "dropout_duration", p.tracker.dropout_duration);
-
-    t.keys("plant.flow_sensors", {"sigma", "quantum"});
-    p.flow.sigma = t.number("plant.flow_sensors.sigma", p.flow.sigma);
-    p.flow.quantum = t.number("plant.flow_sensors.quantum", p.flow.quantum);
     p.sensor_noise = t.boolean("plant.sensor_noise", p.sensor_noise);
-    p.command_timeout = t.number("plant.command_timeout", p.command_timeout);
     p.base_position = t.vec3("plant.base_position", p.base_position);
   }
   p.rod.model.rod.precurvature += du;
