@@ -15,8 +15,10 @@
 #include <thread>
 
 #include "hydrojet_control/devices/rig_config.h"
+#include "emulator_process.h"
 
 using namespace hydrojet::devices;
+using hydrojet::test::eventually;
 
 namespace {
 
@@ -37,16 +39,6 @@ struct Pty {
     master = -1;
   }
 };
-
-template <class F>
-bool eventually(F cond, double timeout_s) {
-  const auto until = SteadyClock::now() + seconds(timeout_s);
-  while (SteadyClock::now() < until) {
-    if (cond()) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
-  return cond();
-}
 
 }  // namespace
 

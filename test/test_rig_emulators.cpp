@@ -21,23 +21,13 @@
 #include "hydrojet_control/devices/aurora_client.h"
 #include "hydrojet_control/devices/flow_sensors.h"
 #include "hydrojet_control/devices/valve_board.h"
+#include "emulator_process.h"
 
-extern char** environ;
 using namespace hydrojet::devices;
+using hydrojet::test::Emulator;
+using hydrojet::test::eventually;
 
 namespace {
-
-const std::string kEmulators = std::string(HYDROJET_SOURCE_DIR) + "/test/emulators/";
-
-template <class F>
-bool eventually(F cond, double timeout_s) {
-  const auto until = SteadyClock::now() + seconds(timeout_s);
-  while (SteadyClock::now() < until) {
-    if (cond()) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
-  return cond();
-}
 
 void sleep_s(double s) { std::this_thread::sleep_for(std::chrono::duration<double>(s)); }
 
@@ -60,42 +50,6 @@ struct TempDir {
     std::filesystem::remove_all(path, ec);
   }
   std::string operator/(const std::string& name) const { return path + "/" + name; }
-};
-
-/// An emulator child process; SIGTERM and reaped on destruction.
-class Emulator {
- public:
-  Emulator(const std::string& script, const std::vector<std::string>& args, const std::string& wait_for = "") {
-    std::vector<std::string> argv = {"/usr/bin/python3", kEmulators + script, "--exit-with-parent"};
-    argv.insert(argv.end(), args.begin(), args.end());
-    std::vector<char*> cargv;
-    for (auto& a : argv) cargv.push_back(const_cast<char*>(a.c_str()));
-    cargv.push_back(nullptr);
-    if (posix_spawn(&pid_, cargv[0], nullptr, nullptr, cargv.data(), environ) != 0) pid_ = -1;
-    if (!wait_for.empty()) eventually([&] { return access(wait_for.c_str(), F_OK) == 0; }, 10.0);
-  }
-  ~Emulator() { kill(); }
-  bool started() const { return pid_ > 0; }
-  void kill() {
-    if (pid_ <= 0) return;
-    ::kill(pid_, SIGTERM);
-    int st;
-    waitpid(pid_, &st, 0);
-    pid_ = -1;
-  }
-  /// True once the process has exited by itself (reaps it).
-  bool exited() {
-    if (pid_ <= 0) return true;
-    int st;
-    if (waitpid(pid_, &st, WNOHANG) == pid_) {
-      pid_ = -1;
-      return true;
-    }
-    return false;
-  }
-
- private:
-  pid_t pid_ = -1;
 };
 
 /// Samples delivered by an AuroraClient.

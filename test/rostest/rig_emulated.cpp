@@ -22,37 +22,11 @@
 
 #include "hydrojet_control/ControllerStatus.h"
 #include "hydrojet_control/JetState.h"
-
-extern char** environ;
+#include "../emulator_process.h"
 
 namespace {
 
-const std::string kEmulators = std::string(HYDROJET_SOURCE_DIR) + "/test/emulators/";
-
-/// An emulator child process; SIGTERM and reaped on destruction.
-class Emulator {
- public:
-  Emulator(const std::string& script, const std::vector<std::string>& args) {
-    std::vector<std::string> argv = {"/usr/bin/python3", kEmulators + script, "--exit-with-parent"};
-    argv.insert(argv.end(), args.begin(), args.end());
-    std::vector<char*> c;
-    for (auto& a : argv) c.push_back(const_cast<char*>(a.c_str()));
-    c.push_back(nullptr);
-    if (posix_spawn(&pid_, c[0], nullptr, nullptr, c.data(), environ) != 0) pid_ = -1;
-  }
-  ~Emulator() { kill(); }
-  void kill() {
-    if (pid_ <= 0) return;
-    ::kill(pid_, SIGTERM);
-    int st;
-    waitpid(pid_, &st, 0);
-    pid_ = -1;
-  }
-  bool started() const { return pid_ > 0; }
-
- private:
-  pid_t pid_ = -1;
-};
+using hydrojet::test::Emulator;
 
 struct BoardState {
   double duty[3] = {NAN, NAN, NAN};
