@@ -7,6 +7,7 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <type_traits>
 #include <utility>
 
 #include "hydrojet_control/rod/shooting_solver.h"
@@ -176,25 +177,23 @@ Vec6 DynamicRod::pass(const Vec6& x, const rod::TipWrench& wr, Mat12X* rec,
   if (nodes) (*nodes)[0] = y;
   Vec24 k1, k2, k3, k4, t;
   const double h = h_;
+  // The four RK4 stages at slots sl..sl+3; `record` (std::true_type / std::false_type) picks at
+  // compile time whether the right-hand side records z into `rec`.
+  auto stages = [&](auto record, int sl) {
+    constexpr bool kRecord = decltype(record)::value;
+    rhs<kRecord>(y, sl, k1, rec);
+    t = y + (0.5 * h) * k1;
+    rhs<kRecord>(t, sl + 1, k2, rec);
+    t = y + (0.5 * h) * k2;
+    rhs<kRecord>(t, sl + 2, k3, rec);
+    t = y + h * k3;
+    rhs<kRecord>(t, sl + 3, k4, rec);
+  };
   for (int j = 0; j < steps_; ++j) {
-    const int sl = 4 * j;
-    if (rec) {
-      rhs<true>(y, sl, k1, rec);
-      t = y + (0.5 * h) * k1;
-      rhs<true>(t, sl + 1, k2, rec);
-      t = y + (0.5 * h) * k2;
-      rhs<true>(t, sl + 2, k3, rec);
-      t = y + h * k3;
-      rhs<true>(t, sl + 3, k4, rec);
-    } else {
-      rhs<false>(y, sl, k1, nullptr);
-      t = y + (0.5 * h) * k1;
-      rhs<false>(t, sl + 1, k2, nullptr);
-      t = y + (0.5 * h) * k2;
-      rhs<false>(t, sl + 2, k3, nullptr);
-      t = y + h * k3;
-      rhs<false>(t, sl + 3, k4, nullptr);
-    }
+    if (rec)
+      stages(std::true_type{}, 4 * j);
+    else
+      stages(std::false_type{}, 4 * j);
     y += (h / 6.0) * (k1 + 2.0 * (k2 + k3) + k4);
     if (nodes) (*nodes)[j + 1] = y;
   }
