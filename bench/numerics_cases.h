@@ -76,10 +76,10 @@ inline std::vector<Case> work_precision_cases() {
       make_case("hj30_mid", "HydroJet 30°, jets 1+2 at half force", hj30, mid_jet()),
       make_case("hj30_max", "HydroJet 30°, jet 1 at full force", hj30, max_jet()),
       make_case("hj30_3x", "HydroJet 30°, 3× the full jet force (bends past 2π)", hj30, max_jet(3.0)),
-      make_case("cosserat_shear_stiff", "HydroJet 30° as a Cosserat rod, EA = GA = 1e8·EI", to_cosserat(hj30, 6.01e4, 6.01e4),
-                max_jet()),
-      make_case("cosserat_silicone", "HydroJet 30° as a Cosserat rod, silicone EA = 1.3 N, GA = 0.4 N", to_cosserat(hj30, 0.4, 1.3),
-                max_jet()),
+      make_case("cosserat_shear_stiff", "HydroJet 30° as a Cosserat rod, EA = GA = 1e8·EI",
+                to_cosserat(hj30, 6.01e4, 6.01e4), max_jet()),
+      make_case("cosserat_silicone", "HydroJet 30° as a Cosserat rod, silicone EA = 1.3 N, GA = 0.4 N",
+                to_cosserat(hj30, 0.4, 1.3), max_jet()),
       make_case("soft_long", "L × 5, EI × 0.2 (a very soft long rod), mid jet force", soft_long, mid_jet(), 8),
   };
 }
@@ -94,15 +94,15 @@ inline std::vector<Case> extreme_cases() {
   tilted.gravity = Vec3(0.0, 9.81, 0.0);  // base turned 90° about x: gravity across the rod
   tilted.tip_mass *= 10.0;
   longr.rod.length *= 10.0;
-  v.push_back(make_case("very_soft", "EI, GJ × 1e-3, jet force × 1e-3 (same shape scale as gravity)", soft,
-                        mid_jet(1e-3), 16));
+  v.push_back(
+      make_case("very_soft", "EI, GJ × 1e-3, jet force × 1e-3 (same shape scale as gravity)", soft, mid_jet(1e-3), 16));
   v.push_back(make_case("very_soft_full_jets", "EI, GJ × 1e-3 under the full mid jet force (FL²/EI ≈ 2500)", soft,
                         mid_jet(), 48));
   v.push_back(make_case("very_stiff", "EI, GJ × 1e3, full jet force", stiff, max_jet()));
-  v.push_back(make_case("cosserat_shear_stiff", "Cosserat, EA = GA = 1e8·EI (EA/EI = 1e8 m⁻²)", to_cosserat(hj30, 6.01e4, 6.01e4),
-                        max_jet()));
-  v.push_back(make_case("cosserat_silicone", "Cosserat, EA = 1.3 N, GA = 0.4 N (silicone bellows)", to_cosserat(hj30, 0.4, 1.3),
-                        max_jet()));
+  v.push_back(make_case("cosserat_shear_stiff", "Cosserat, EA = GA = 1e8·EI (EA/EI = 1e8 m⁻²)",
+                        to_cosserat(hj30, 6.01e4, 6.01e4), max_jet()));
+  v.push_back(make_case("cosserat_silicone", "Cosserat, EA = 1.3 N, GA = 0.4 N (silicone bellows)",
+                        to_cosserat(hj30, 0.4, 1.3), max_jet()));
   v.push_back(make_case("follower_1x", "follower force 1× the full jet force", hj30, max_jet(1.0)));
   v.push_back(make_case("follower_3x", "follower force 3× (bends past 2π)", hj30, max_jet(3.0)));
   v.push_back(make_case("follower_10x", "follower force 10×", hj30, max_jet(10.0)));
@@ -137,8 +137,8 @@ struct Reference {
   Vec3 position = Vec3::Zero();
   Mat3 rotation = Mat3::Identity();
   rod::Mat6 compliance = rod::Mat6::Zero();
-  double agreement = NAN;             ///< |p_rk8 − p_dopri5| [m]
-  double angle_agreement = NAN;       ///< rotation angle between them [rad]
+  double agreement = NAN;        ///< |p_rk8 − p_dopri5| [m]
+  double angle_agreement = NAN;  ///< rotation angle between them [rad]
   std::string message;
 };
 

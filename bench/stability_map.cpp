@@ -110,15 +110,16 @@ int main(int argc, char** argv) {
     f << "q1,q2,q3,fx,fy,converged,sigma_c,eig_min,tip_x,tip_y,tip_z,fold_crossings\n";
     char buf[400];
     for (const Row& r : rows) {
-      std::snprintf(buf, sizeof buf, "%.6g,%.6g,%.6g,%.6g,%.6g,%d,%.8g,%.8g,%.8g,%.8g,%.8g,%d\n", r.q[0], r.q[1], r.q[2],
-                    r.f[0], r.f[1], r.converged ? 1 : 0, r.sigma, r.eig, r.tip[0], r.tip[1], r.tip[2], r.folds);
+      std::snprintf(buf, sizeof buf, "%.6g,%.6g,%.6g,%.6g,%.6g,%d,%.8g,%.8g,%.8g,%.8g,%.8g,%d\n", r.q[0], r.q[1],
+                    r.q[2], r.f[0], r.f[1], r.converged ? 1 : 0, r.sigma, r.eig, r.tip[0], r.tip[1], r.tip[2], r.folds);
       f << buf;
     }
   }
-  std::printf("{\"scene\": \"%s\", \"scale\": %g, \"points\": %zu, \"solver_time_s\": %.6f, \"failures\": %d, "
-              "\"fold_crossings\": %d, \"min_sigma_c\": %.6g, \"min_eig\": %.6g, \"unstable_points\": %d, "
-              "\"integrator\": \"%s\", \"steps\": %d}\n",
-              scene_file.c_str(), scale, grid.size(), seconds, failures, folds, min_sigma, min_eig, unstable,
-              rod::integrator_name(sc.solver.integrator.type), sc.solver.integrator.steps);
+  std::printf(
+      "{\"scene\": \"%s\", \"scale\": %g, \"points\": %zu, \"solver_time_s\": %.6f, \"failures\": %d, "
+      "\"fold_crossings\": %d, \"min_sigma_c\": %.6g, \"min_eig\": %.6g, \"unstable_points\": %d, "
+      "\"integrator\": \"%s\", \"steps\": %d}\n",
+      scene_file.c_str(), scale, grid.size(), seconds, failures, folds, min_sigma, min_eig, unstable,
+      rod::integrator_name(sc.solver.integrator.type), sc.solver.integrator.steps);
   return failures == 0 ? 0 : 1;
 }

@@ -194,8 +194,8 @@ int stiffness() {
         max_re = std::max(max_re, ev[i].real() * p.length);
       }
     }
-    std::printf("| %s | %.1f | %.1f | %.1f | %.1f |\n", c.name.c_str(), solver.growth_estimate(c.wrench), max_abs, min_re,
-                max_re);
+    std::printf("| %s | %.1f | %.1f | %.1f | %.1f |\n", c.name.c_str(), solver.growth_estimate(c.wrench), max_abs,
+                min_re, max_re);
     std::fflush(stdout);
   }
   return 0;
@@ -256,8 +256,8 @@ int extreme(const std::string& out) {
       } else {
         const double err = (sol.tip_position - ref.position).norm();
         const std::string seg = sol.segments > 1 ? ", M = " + std::to_string(sol.segments) : "";
-        std::snprintf(cell, sizeof cell, " %s %.0e m, %.3g ms%s%s |", err <= c.tolerance ? "✓" : "**✗ silent**", err, ms,
-                      seg.c_str(), sol.fold_crossings ? ", fold reported" : "");
+        std::snprintf(cell, sizeof cell, " %s %.0e m, %.3g ms%s%s |", err <= c.tolerance ? "✓" : "**✗ silent**", err,
+                      ms, seg.c_str(), sol.fold_crossings ? ", fold reported" : "");
       }
       md << cell;
       std::printf("   %-18s%s\n", k.name, cell);
@@ -305,8 +305,7 @@ int main(int argc, char** argv) {
        << "flags: " << HYDROJET_CXX_FLAGS << "\n"
        << "eigen: " << EIGEN_WORLD_VERSION << "." << EIGEN_MAJOR_VERSION << "." << EIGEN_MINOR_VERSION << "\n"
        << "sundials: " << SUNDIALS_VERSION << "\n"
-       << "mode: " << (quick ? "quick" : "full") << ", " << reps << " repetitions, >= " << min_us / 1e3
-       << " ms each\n";
+       << "mode: " << (quick ? "quick" : "full") << ", " << reps << " repetitions, >= " << min_us / 1e3 << " ms each\n";
 
   std::ofstream refcsv(out + "/work_precision_reference.csv");
   refcsv << "scene,description,agreement_m,angle_agreement_rad,ref_ok,message\n";
@@ -318,8 +317,8 @@ int main(int argc, char** argv) {
   for (const Case& c : work_precision_cases()) {
     if (!only.empty() && std::find(only.begin(), only.end(), c.name) == only.end()) continue;
     const Reference ref = reference(c);
-    refcsv << c.name << ",\"" << c.description << "\"," << ref.agreement << "," << ref.angle_agreement << ","
-           << ref.ok << ",\"" << ref.message << "\"\n";
+    refcsv << c.name << ",\"" << c.description << "\"," << ref.agreement << "," << ref.angle_agreement << "," << ref.ok
+           << ",\"" << ref.message << "\"\n";
     std::printf("%-22s reference agreement %.1e m %s\n", c.name.c_str(), ref.agreement, ref.message.c_str());
     std::fflush(stdout);
     // The path of the timed warm solves: 8 wrenches on a small circle (2 % of |f|) around c.wrench.
@@ -356,8 +355,19 @@ int main(int argc, char** argv) {
         newton = double(it) / path.size();
         const int per = static_cast<int>(path.size());
         const int r = cold > 2e4 ? 3 : reps;  // slow points (> 20 ms a solve): 3 repetitions suffice
-        warm = median_time([&] { for (const auto& w : path) s.solve(w); }, per, r, min_us);
-        warm_cb = median_time([&] { for (const auto& w : path) { s.solve(w); s.compliance(); } }, per, r, min_us);
+        warm = median_time(
+            [&] {
+              for (const auto& w : path) s.solve(w);
+            },
+            per, r, min_us);
+        warm_cb = median_time(
+            [&] {
+              for (const auto& w : path) {
+                s.solve(w);
+                s.compliance();
+              }
+            },
+            per, r, min_us);
       }
       char row[512];
       std::snprintf(row, sizeof row, "%s,%s,%s,%d,%.6e,%.6e,%.6e,%.4f,%.4f,%.4f,%.1f,%.3f,%d,%d", c.name.c_str(),

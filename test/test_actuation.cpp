@@ -41,8 +41,7 @@ TEST(JetMap, NominalColumnsAreUnitVectors120DegreesApart) {
     EXPECT_EQ(W(2, i), 0.0);                    // f_z = 0
   }
   // 120° apart: pairwise cosines −1/2; balanced: equal jet forces give zero net force.
-  for (int i = 0; i < 3; ++i)
-    EXPECT_NEAR(W.col(i).head<3>().dot(W.col((i + 1) % 3).head<3>()), -0.5, 1e-15);
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(W.col(i).head<3>().dot(W.col((i + 1) % 3).head<3>()), -0.5, 1e-15);
   EXPECT_LT(map.wrench(Vector3d::Ones()).norm(), 1e-15);
 }
 
@@ -59,8 +58,7 @@ TEST(JetMap, MisalignmentRotatesEachColumnAboutTipZ) {
     const double nominal[3] = {30 * kDeg, 270 * kDeg, 150 * kDeg};
     const double rot[3] = {mis(1), mis(0), -mis(2)};
     for (int i = 0; i < 3; ++i) {
-      const Vector3d expected =
-          Eigen::AngleAxisd(rot[i], Vector3d::UnitZ()) * planar_dir(nominal[i]);
+      const Vector3d expected = Eigen::AngleAxisd(rot[i], Vector3d::UnitZ()) * planar_dir(nominal[i]);
       EXPECT_LT((map.wrench_matrix().col(i).head<3>() - expected).norm(), 1e-15);
       EXPECT_LT((map.planar().col(i) - expected.head<2>()).norm(), 1e-15);
     }
@@ -150,8 +148,8 @@ namespace {
 
 /// KKT conditions of the box-constrained convex QP at q: gradient of the objective
 /// g = 2(Aᵀ(Aq − w) + λq) vanishes on free coordinates, is ≥ 0 at a lower bound and ≤ 0 at an upper.
-void expect_kkt(const AllocMatrix& A, const AllocVector& w, const Vector3d& lo, const Vector3d& hi,
-                double lambda, const Vector3d& q, double tol) {
+void expect_kkt(const AllocMatrix& A, const AllocVector& w, const Vector3d& lo, const Vector3d& hi, double lambda,
+                const Vector3d& q, double tol) {
   const Vector3d g = 2.0 * (A.transpose() * (A * q - w) + lambda * q);
   for (int i = 0; i < 3; ++i) {
     const double bt = 1e-12 * std::max({1.0, std::abs(lo(i)), std::abs(hi(i))});
@@ -159,17 +157,20 @@ void expect_kkt(const AllocMatrix& A, const AllocVector& w, const Vector3d& lo, 
     ASSERT_LE(q(i), hi(i) + bt);
     const bool at_lo = q(i) <= lo(i) + bt, at_hi = q(i) >= hi(i) - bt;
     if (at_lo && at_hi) continue;
-    if (at_lo) EXPECT_GE(g(i), -tol) << "coordinate " << i;
-    else if (at_hi) EXPECT_LE(g(i), tol) << "coordinate " << i;
-    else EXPECT_NEAR(g(i), 0.0, tol) << "coordinate " << i;
+    if (at_lo)
+      EXPECT_GE(g(i), -tol) << "coordinate " << i;
+    else if (at_hi)
+      EXPECT_LE(g(i), tol) << "coordinate " << i;
+    else
+      EXPECT_NEAR(g(i), 0.0, tol) << "coordinate " << i;
   }
 }
 
 /// Brute force: best point of an n³ grid over the box, then cyclic coordinate descent with exact
 /// clamped 1-D minimisation (converges to the minimum value of a convex box-constrained quadratic).
 /// Returns the best objective; `grid_best` gets the best grid objective (≥ the true minimum).
-double brute_force(const AllocMatrix& A, const AllocVector& w, const Vector3d& lo,
-                   const Vector3d& hi, double lambda, int n, double* grid_best) {
+double brute_force(const AllocMatrix& A, const AllocVector& w, const Vector3d& lo, const Vector3d& hi, double lambda,
+                   int n, double* grid_best) {
   Vector3d best_q = lo;
   double best = allocation_objective(A, w, lo, lambda);
   Vector3d q;
@@ -245,8 +246,8 @@ TEST(Allocation, MatchesBruteForceAndSatisfiesKkt) {
         w += 5.0 * (c.A.norm() + 1.0) * d;
       }
       for (double lambda : {0.0, 1e-3, 1.0}) {
-        SCOPED_TRACE(testing::Message() << "case " << n_cases << " rows " << m << " variant "
-                                        << variant << " lambda " << lambda);
+        SCOPED_TRACE(testing::Message() << "case " << n_cases << " rows " << m << " variant " << variant << " lambda "
+                                        << lambda);
         const AllocationResult r = allocate(c.A, w, c.lo, c.hi, lambda);
         ASSERT_TRUE(r.ok) << r.message;
         const double f = allocation_objective(c.A, w, r.q, lambda);
@@ -281,8 +282,8 @@ TEST(Allocation, HydroJetFineGridBruteForce) {
   // 81³ grid plus refinement for the paper's A and bounds.
   const AllocMatrix A = JetMap(hydrojet_geometry()).planar();
   const Vector3d lo = Vector3d::Zero();
-  for (const Eigen::Vector2d& w2 : {Eigen::Vector2d(0.05, -0.1), Eigen::Vector2d(0.3, 0.4),
-                                    Eigen::Vector2d(-0.12, 0.02)}) {
+  for (const Eigen::Vector2d& w2 :
+       {Eigen::Vector2d(0.05, -0.1), Eigen::Vector2d(0.3, 0.4), Eigen::Vector2d(-0.12, 0.02)}) {
     const AllocVector w = w2;
     for (double lambda : {0.0, 1e-3, 1.0}) {
       const AllocationResult r = allocate(A, w, lo, kTable1QMax, lambda);
@@ -302,8 +303,7 @@ TEST(Allocation, ReachableForceIsReproducedExactlyWithZeroLambda) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> U01(0.0, 1.0);
   for (int k = 0; k < 200; ++k) {
-    const Vector3d qf(kTable1QMax(0) * U01(rng), kTable1QMax(1) * U01(rng),
-                      kTable1QMax(2) * U01(rng));
+    const Vector3d qf(kTable1QMax(0) * U01(rng), kTable1QMax(1) * U01(rng), kTable1QMax(2) * U01(rng));
     const AllocVector w = A * qf;
     const AllocationResult r = allocate(A, w, Vector3d::Zero(), kTable1QMax, 0.0);
     ASSERT_TRUE(r.ok);
@@ -477,9 +477,9 @@ TEST(FlowRegulator, NonFiniteInputOrBadDtGivesZeroCommand) {
     double q_des, q_meas, dt;
     const char* what;
   };
-  for (const Bad& b : {Bad{1e-5, NAN, 0.01, "measured"}, Bad{1e-5, INFINITY, 0.01, "measured"},
-                       Bad{NAN, 1e-5, 0.01, "desired"}, Bad{1e-5, 1e-5, 0.0, "dt"},
-                       Bad{1e-5, 1e-5, -0.01, "dt"}, Bad{1e-5, 1e-5, NAN, "dt"}}) {
+  for (const Bad& b :
+       {Bad{1e-5, NAN, 0.01, "measured"}, Bad{1e-5, INFINITY, 0.01, "measured"}, Bad{NAN, 1e-5, 0.01, "desired"},
+        Bad{1e-5, 1e-5, 0.0, "dt"}, Bad{1e-5, 1e-5, -0.01, "dt"}, Bad{1e-5, 1e-5, NAN, "dt"}}) {
     EXPECT_EQ(reg.update(b.q_des, b.q_meas, b.dt), 0.0);
     EXPECT_EQ(reg.output(), 0.0);
     EXPECT_FALSE(reg.ok());

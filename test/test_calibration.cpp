@@ -169,9 +169,10 @@ void check_recovery(double tilt_deg) {
   const config::Scene fitted = apply_zeta(nominal, r.zeta, cs);
   const double val_fit = rms_error(fitted, valid), val_truth = rms_error(truth, valid);
   const double pred = rms_model_difference(fitted, truth, valid);
-  std::printf("tilt %g: train RMS %.3f deg, validation RMS %.3f deg (truth model %.3f deg), prediction error "
-              "%.3f deg, %.3f s\n",
-              tilt_deg, r.rms_rad / kDeg, val_fit / kDeg, val_truth / kDeg, pred / kDeg, r.time_s);
+  std::printf(
+      "tilt %g: train RMS %.3f deg, validation RMS %.3f deg (truth model %.3f deg), prediction error "
+      "%.3f deg, %.3f s\n",
+      tilt_deg, r.rms_rad / kDeg, val_fit / kDeg, val_truth / kDeg, pred / kDeg, r.time_s);
   EXPECT_LT(val_fit, 1.10 * val_truth);
   EXPECT_LT(pred, 0.4 * noise_angle);
   EXPECT_GT(rms_model_difference(nominal, truth, valid), 10 * pred);  // the nominal model is far off
@@ -182,8 +183,8 @@ TEST(CalibrationSynthetic, RecoversZetaBaseTilted30) { check_recovery(30.0); }
 
 TEST(CalibrationSynthetic, NoiseFreeDataGiveTheTruth) {
   const ZetaVector zt = truth_zeta();
-  const CalibrationResult r = calibrate(shipped("hydrojet_0deg"), CrossSection(), data(truth_scene(zt, 0), 40, 0.0, 5),
-                                        CalibrationOptions());
+  const CalibrationResult r =
+      calibrate(shipped("hydrojet_0deg"), CrossSection(), data(truth_scene(zt, 0), 40, 0.0, 5), CalibrationOptions());
   ASSERT_TRUE(r.converged) << r.message;
   EXPECT_LT(r.rms_rad, 1e-7);
   for (int i = 0; i < kNumParams; ++i)
@@ -271,7 +272,8 @@ TEST(CalibrationIdentifiability, SmallForcesLeaveTorsionPoorlyDetermined) {
   const config::Scene truth = truth_scene(truth_zeta(), 0);
   SyntheticOptions o;
   o.samples = 40, o.noise_rad = 0.5 * kDeg, o.seed = 8, o.max_force_fraction = 0.1;
-  const CalibrationResult r = calibrate(shipped("hydrojet_0deg"), CrossSection(), synthesize(truth, o), CalibrationOptions());
+  const CalibrationResult r =
+      calibrate(shipped("hydrojet_0deg"), CrossSection(), synthesize(truth, o), CalibrationOptions());
   EXPECT_FALSE(r.identifiable[kG]);
   bool warned = false;
   for (const std::string& w : r.warnings) warned |= w.find("G is ") == 0;
@@ -285,7 +287,8 @@ TEST(CalibrationRobust, HuberLossShrugsOffOutliers) {
   const CalibrationResult clean = calibrate(nominal, CrossSection(), s, CalibrationOptions());
   ASSERT_TRUE(clean.converged);
   // Two samples whose tracker reading jumped by 15°.
-  for (int k : {4, 17}) s[k].tip_orientation = s[k].tip_orientation * Eigen::AngleAxisd(15 * kDeg, Eigen::Vector3d(1, 1, 0).normalized());
+  for (int k : {4, 17})
+    s[k].tip_orientation = s[k].tip_orientation * Eigen::AngleAxisd(15 * kDeg, Eigen::Vector3d(1, 1, 0).normalized());
   CalibrationOptions o;
   o.loss = Loss::kHuber;
   o.loss_scale = 0.02;
@@ -337,9 +340,12 @@ std::string error_of(const std::function<void()>& f) {
 TEST(CalibrationData, BadSamplesAreRejectedByName) {
   const config::Scene nominal = shipped("hydrojet_0deg");
   std::vector<Sample> s = data(nominal, 10, 0.5, 1);
-  auto fit = [&](const std::vector<Sample>& x) { return [&nominal, x] { calibrate(nominal, CrossSection(), x, CalibrationOptions()); }; };
+  auto fit = [&](const std::vector<Sample>& x) {
+    return [&nominal, x] { calibrate(nominal, CrossSection(), x, CalibrationOptions()); };
+  };
 
-  EXPECT_NE(error_of(fit(std::vector<Sample>(s.begin(), s.begin() + 6))).find("too few samples: 6 for 7"), std::string::npos);
+  EXPECT_NE(error_of(fit(std::vector<Sample>(s.begin(), s.begin() + 6))).find("too few samples: 6 for 7"),
+            std::string::npos);
   std::vector<Sample> zero = s;
   for (Sample& x : zero) x.jet_force.setZero();
   EXPECT_NE(error_of(fit(zero)).find("all jet forces are zero"), std::string::npos);
@@ -378,7 +384,8 @@ TEST(CalibrationCsv, ErrorsNameTheLineAndColumn) {
             std::string::npos);
   EXPECT_NE(err("q1,q2,q3,qw,qx,qy,qz\n0.1,0,0,0.9,0,0,0\n").find("d.csv:2: quaternion (qw,qx,qy,qz) is not unit"),
             std::string::npos);
-  EXPECT_NE(err("q1,q2,q3,qw,qx,qy,qz\n0.1,0,0,1,0,0\n").find("d.csv:2: 6 fields, the header has 7"), std::string::npos);
+  EXPECT_NE(err("q1,q2,q3,qw,qx,qy,qz\n0.1,0,0,1,0,0\n").find("d.csv:2: 6 fields, the header has 7"),
+            std::string::npos);
   EXPECT_NE(err("q1,q2,q3,qw,qx,qy,qz\n0.1,x,0,1,0,0,0\n").find("d.csv:2: column q2: 'x' is not a number"),
             std::string::npos);
   EXPECT_NE(err("").find("empty"), std::string::npos);

@@ -57,7 +57,9 @@ std::string write(const std::string& name, const std::string& text) {
   return p;
 }
 
-std::string scene(const std::string& name) { return std::string(HYDROJET_SOURCE_DIR) + "/config/scenes/" + name + ".yaml"; }
+std::string scene(const std::string& name) {
+  return std::string(HYDROJET_SOURCE_DIR) + "/config/scenes/" + name + ".yaml";
+}
 
 /// The truth of these tests: Table 1 with the mismatch of config/plant.yaml (ũ + (0.6, −0.4),
 /// EI × 0.8, GJ × 1.25, misalignments + (0.06, −0.06, 0.05)), stiffness given directly.
@@ -118,7 +120,8 @@ TEST(CalibrateCli, FitsCsvWritesSceneAndEndsWithJson) {
   ASSERT_EQ(again.status, 0) << again.err;
   const std::string p2 = object_field(again.last_line(), "parameters");
   for (int i = 0; i < 7; ++i)
-    EXPECT_NEAR(number_field(p2, kNames[i]), number_field(p, kNames[i]), 0.01 * number_field(s, kNames[i])) << kNames[i];
+    EXPECT_NEAR(number_field(p2, kNames[i]), number_field(p, kNames[i]), 0.01 * number_field(s, kNames[i]))
+        << kNames[i];
 }
 
 TEST(CalibrateCli, FitSubsetKeepsTheOthersAndReportsNullStd) {
@@ -151,7 +154,8 @@ TEST(CalibrateCli, CrossSectionOptionsRescaleTheModuli) {
 TEST(CalibrateCli, BoundHitIsWarned) {
   // The truth's E (3.5 MPa) lies below the allowed range: the fit stops at the bound and says so.
   const std::string csv = synthesized_csv(40, 4);
-  const CliRun r = run("--scene " + scene("hydrojet_0deg") + " --data " + csv + " --bound E=4.2e6:5e6 --out " + tmp("bd.yaml"));
+  const CliRun r =
+      run("--scene " + scene("hydrojet_0deg") + " --data " + csv + " --bound E=4.2e6:5e6 --out " + tmp("bd.yaml"));
   ASSERT_NE(r.status, 2) << r.err;
   EXPECT_NEAR(number_field(object_field(r.last_line(), "parameters"), "E"), 4.2e6, 1.0);
   EXPECT_NE(r.last_line().find("E ended at its bound"), std::string::npos) << r.last_line();
@@ -183,7 +187,8 @@ TEST(CalibrateCli, BadInputExitsTwoNamingTheProblem) {
   const std::string nan = write("nan.csv", head + rows + "0.1,NaN,0.02,1,0,0,0\n" + rows);
   check("--scene " + s0 + " --data " + nan + " --out " + out, nan + ":12: q2 is not finite");
   const std::string nonunit = write("nonunit.csv", head + rows + "0.1,0.05,0.02,0.5,0,0,0\n");
-  check("--scene " + s0 + " --data " + nonunit + " --out " + out, nonunit + ":12: quaternion (qw,qx,qy,qz) is not unit");
+  check("--scene " + s0 + " --data " + nonunit + " --out " + out,
+        nonunit + ":12: quaternion (qw,qx,qy,qz) is not unit");
   const std::string few = write("few.csv", head + "0.1,0.05,0.02,1,0,0,0\n0.1,0.05,0.02,1,0,0,0\n");
   check("--scene " + s0 + " --data " + few + " --out " + out, "too few samples: 2 for 7 fitted parameters");
   std::string zeros;
@@ -202,8 +207,9 @@ TEST(CalibrateCli, BadInputExitsTwoNamingTheProblem) {
   check("--scene " + s0 + " --data " + zero + " --out " + out + " --bound EI=1:2", "--bound: unknown parameter 'EI'");
   const std::string good = synthesized_csv(20, 6);
   check("--scene " + s0 + " --data " + good + " --out " + out + " --bound E=1e7:2e7", "bounds of E: the start");
-  const std::string nojets = write("nojets.yaml", "rod: {length: 0.09, bending_stiffness: [6e-4, 6e-4], torsional_stiffness: 2e-4}\n"
-                                                  "tip: {mass: 0.0}\ngravity: [0, 0, 9.81]\n");
+  const std::string nojets = write("nojets.yaml",
+                                   "rod: {length: 0.09, bending_stiffness: [6e-4, 6e-4], torsional_stiffness: 2e-4}\n"
+                                   "tip: {mass: 0.0}\ngravity: [0, 0, 9.81]\n");
   check("--scene " + nojets + " --data " + zero + " --out " + out, "jets: missing");
 }
 
@@ -263,8 +269,8 @@ TEST(CalibrateCli, FitsARosbagOfTheDriversTopics) {
   const config::Scene truth = config::parse_scene(kTruthScene);
   const std::string bag = tmp("data.bag"), out = tmp("bagfit.yaml"), samples = tmp("bag_samples.csv");
   write_bag(bag, truth, 30, "/hydrojet/");  // namespaced topics match by suffix
-  const CliRun r = run("--scene " + scene("hydrojet_0deg") + " --data " + bag + " --samples-out " + samples +
-                       " --out " + out);
+  const CliRun r =
+      run("--scene " + scene("hydrojet_0deg") + " --data " + bag + " --samples-out " + samples + " --out " + out);
   ASSERT_EQ(r.status, 0) << r.err << r.out;
   EXPECT_NE(r.out.find("6000 paired points (0 skipped)"), std::string::npos) << r.out;
   const std::string json = r.last_line();
@@ -287,7 +293,8 @@ TEST(CalibrateCli, FitsARosbagOfTheDriversTopics) {
   write_bag(nojets, truth, 3, "/", false);
   const CliRun bad = run("--scene " + scene("hydrojet_0deg") + " --data " + nojets + " --out " + out);
   EXPECT_EQ(bad.status, 2);
-  EXPECT_NE(bad.err.find("no hydrojet_control/JetState messages on a topic 'jets/state'"), std::string::npos) << bad.err;
+  EXPECT_NE(bad.err.find("no hydrojet_control/JetState messages on a topic 'jets/state'"), std::string::npos)
+      << bad.err;
 }
 
 }  // namespace

@@ -17,8 +17,8 @@ using control::Vec3;
 
 namespace {
 
-constexpr double kDt = 0.01;            // 100 Hz
-constexpr double kFlowPerDuty = 1.6e-5; // plant valve: full duty gives 1.6e-5 m^3/s
+constexpr double kDt = 0.01;             // 100 Hz
+constexpr double kFlowPerDuty = 1.6e-5;  // plant valve: full duty gives 1.6e-5 m^3/s
 
 actuation::FlowRegulatorParameters flow_gains() {
   actuation::FlowRegulatorParameters p;
@@ -100,8 +100,8 @@ TEST(Controller, ConvergesOnStaticTargetsClosedAndOpenLoop) {
         c.start(0.0);
         const ControllerOutput out = run(c, plant, 0.0, 8.0);
         ASSERT_EQ(out.state, ControllerState::kRunning) << out.reason;
-        EXPECT_LT(out.error_geodesic, 1e-3) << name << " " << control::to_string(mode) << " target "
-                                             << target.first << "," << target.second;
+        EXPECT_LT(out.error_geodesic, 1e-3)
+            << name << " " << control::to_string(mode) << " target " << target.first << "," << target.second;
         EXPECT_NEAR(control::bend_angle(plant.tip.col(2)), target.first, 1e-3);
       }
     }
@@ -164,11 +164,13 @@ struct SafetyRig {
   StaticPlant plant;
   explicit SafetyRig(control::ControllerParams p = static_target(0.5, 0.0),
                      rod::ShootingSettings solver = test::scene("hydrojet_0deg").solver)
-      : c([&] {
-          auto m = config::make_controller_model(sc, flow_gains());
-          m.solver = solver;
-          return m;
-        }(), p),
+      : c(
+            [&] {
+              auto m = config::make_controller_model(sc, flow_gains());
+              m.solver = solver;
+              return m;
+            }(),
+            p),
         plant(sc, sc.model) {
     c.start(0.0);
     const ControllerOutput out = run(c, plant, 0.0, 1.0);  // running, jets on

@@ -239,8 +239,7 @@ TEST(AuroraBx, RoundTripTwoHandlesMmToM) {
   EXPECT_NEAR(tip.rms_m, 0.4e-3, 1e-9);
   EXPECT_EQ(tip.port_status, 0x31u);
   EXPECT_EQ(tip.frame, 4242u);
-  const double qn = std::sqrt(tip.q[0] * tip.q[0] + tip.q[1] * tip.q[1] + tip.q[2] * tip.q[2] +
-                              tip.q[3] * tip.q[3]);
+  const double qn = std::sqrt(tip.q[0] * tip.q[0] + tip.q[1] * tip.q[1] + tip.q[2] * tip.q[2] + tip.q[3] * tip.q[3]);
   EXPECT_NEAR(qn, 1.0, 1e-12);
   const HandlePose& base = out.handles[1];
   EXPECT_EQ(base.handle, 0x0B);
@@ -417,8 +416,7 @@ TEST(BxParser, GarbageBeforeAndBetweenFrames) {
     add_garbage(i);
   }
   BxParser p;
-  for (size_t pos = 0; pos < stream.size(); pos += 13)
-    p.feed(&stream[pos], std::min<size_t>(13, stream.size() - pos));
+  for (size_t pos = 0; pos < stream.size(); pos += 13) p.feed(&stream[pos], std::min<size_t>(13, stream.size() - pos));
   const auto got = drain(&p);
   ASSERT_EQ(got.size(), 10u);
   for (uint32_t i = 0; i < 10; ++i) expect_tip(got[i], i);
@@ -558,14 +556,13 @@ TEST(BxParser, RandomCorruptionNeverEmitsBadFrames) {
   std::vector<uint8_t> noisy;
   for (uint8_t b : stream) {
     const double r = u(rng);
-    if (r < 0.0005) continue;                                   // drop
+    if (r < 0.0005) continue;                                        // drop
     if (r < 0.001) b ^= static_cast<uint8_t>(1 << (byte(rng) % 8));  // flip
     noisy.push_back(b);
     if (u(rng) < 0.0005) noisy.push_back(static_cast<uint8_t>(byte(rng)));  // insert
   }
   BxParser p;
-  for (size_t pos = 0; pos < noisy.size(); pos += 64)
-    p.feed(&noisy[pos], std::min<size_t>(64, noisy.size() - pos));
+  for (size_t pos = 0; pos < noisy.size(); pos += 64) p.feed(&noisy[pos], std::min<size_t>(64, noisy.size() - pos));
   const auto got = drain(&p);
   EXPECT_GT(got.size(), static_cast<size_t>(n * 0.8));
   uint32_t last = 0;
@@ -676,8 +673,7 @@ TEST(Valve, CommandFormat) {
   EXPECT_EQ(format_valve_command({-0.2, 1.7, 0.123456}).substr(0, 23), "V,0.0000,1.0000,0.1235*");
   EXPECT_EQ(format_valve_command({-0.0, 0.0, 0.0}).substr(0, 23), "V,0.0000,0.0000,0.0000*");
   EXPECT_THROW(format_valve_command({kNaN, 0.0, 0.0}), std::invalid_argument);
-  EXPECT_THROW(format_valve_command({0.0, std::numeric_limits<double>::infinity(), 0.0}),
-               std::invalid_argument);
+  EXPECT_THROW(format_valve_command({0.0, std::numeric_limits<double>::infinity(), 0.0}), std::invalid_argument);
 }
 
 TEST(Valve, CommandAckRoundTrip) {
@@ -697,8 +693,7 @@ TEST(Valve, CommandAckRoundTrip) {
   EXPECT_TRUE(parse_valve_command("V,0.2500,0.5000,1.0000*67", &board, &err)) << err;  // no '\n'
   // Short numbers and a lower-case checksum are accepted on the board side.
   const uint8_t c = valve_checksum("V,0.25,0.5,1");
-  const std::string lower = std::string("V,0.25,0.5,1*") + "0123456789abcdef"[c >> 4] +
-                            "0123456789abcdef"[c & 15];
+  const std::string lower = std::string("V,0.25,0.5,1*") + "0123456789abcdef"[c >> 4] + "0123456789abcdef"[c & 15];
   EXPECT_TRUE(parse_valve_command(lower, &board, &err)) << err;
   EXPECT_DOUBLE_EQ(board[2], 1.0);
 }
@@ -728,23 +723,23 @@ TEST(Valve, MalformedLinesRejected) {
     const uint8_t c = valve_checksum(payload);
     return payload + "*" + kHex[c >> 4] + kHex[c & 15] + "\n";
   };
-  EXPECT_FALSE(parse_valve_command(framed("V,0.1,0.2"), &d, &err));            // 2 fields
-  EXPECT_FALSE(parse_valve_command(framed("V,0.1,0.2,0.3,0.4"), &d, &err));    // 4 fields
-  EXPECT_FALSE(parse_valve_command(framed("V,nan,0.2,0.3"), &d, &err));        // NaN
+  EXPECT_FALSE(parse_valve_command(framed("V,0.1,0.2"), &d, &err));          // 2 fields
+  EXPECT_FALSE(parse_valve_command(framed("V,0.1,0.2,0.3,0.4"), &d, &err));  // 4 fields
+  EXPECT_FALSE(parse_valve_command(framed("V,nan,0.2,0.3"), &d, &err));      // NaN
   EXPECT_NE(err.find("not finite"), std::string::npos);
-  EXPECT_FALSE(parse_valve_command(framed("V,1.0001,0.2,0.3"), &d, &err));     // > 1
-  EXPECT_FALSE(parse_valve_command(framed("V,-0.1,0.2,0.3"), &d, &err));       // < 0
+  EXPECT_FALSE(parse_valve_command(framed("V,1.0001,0.2,0.3"), &d, &err));  // > 1
+  EXPECT_FALSE(parse_valve_command(framed("V,-0.1,0.2,0.3"), &d, &err));    // < 0
   EXPECT_FALSE(parse_valve_command(framed("V,abc,0.2,0.3"), &d, &err));
   EXPECT_FALSE(parse_valve_command(framed("V,,0.2,0.3"), &d, &err));
-  EXPECT_FALSE(parse_valve_command(framed("A,0.1,0.2,0.3"), &d, &err));        // wrong type
+  EXPECT_FALSE(parse_valve_command(framed("A,0.1,0.2,0.3"), &d, &err));  // wrong type
   EXPECT_FALSE(parse_valve_command(framed("V0.1,0.2,0.3"), &d, &err));
-  EXPECT_FALSE(parse_valve_command("V,0.1,0.2,0.3\n", &d, &err));              // no checksum
-  EXPECT_FALSE(parse_valve_command("V,0.1,0.2,0.3*G1\n", &d, &err));           // not hex
+  EXPECT_FALSE(parse_valve_command("V,0.1,0.2,0.3\n", &d, &err));     // no checksum
+  EXPECT_FALSE(parse_valve_command("V,0.1,0.2,0.3*G1\n", &d, &err));  // not hex
   EXPECT_FALSE(parse_valve_command("V,0.1,0.2,0.3*1\n", &d, &err));
   EXPECT_FALSE(parse_valve_command("", &d, &err));
   EXPECT_FALSE(parse_valve_command(framed("V,0.1,0.2,0.3" + std::string(80, '0')), &d, &err));
-  EXPECT_EQ(d[0], 9.0);  // untouched on failure
-  EXPECT_FALSE(parse_valve_ack(framed("V,0.1,0.2,0.3"), &err));               // not an ack
+  EXPECT_EQ(d[0], 9.0);                                          // untouched on failure
+  EXPECT_FALSE(parse_valve_ack(framed("V,0.1,0.2,0.3"), &err));  // not an ack
   EXPECT_FALSE(parse_valve_ack(framed("A,0.1,0.2"), &err));
 }
 

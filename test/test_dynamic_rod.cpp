@@ -126,8 +126,7 @@ TEST(DynamicRodStatic, ResetToStaticMatchesKirchhoffAndStaysPut) {
   ASSERT_TRUE(ref.converged) << ref.message;
   const double dp = (rod.tip_position() - ref.tip_position).norm();
   const double dr = rotation_error(rod.tip_rotation(), ref.tip_rotation);
-  std::printf("[ static ] reset_to_static vs ShootingSolver: |dp| = %.3e m, |dR| = %.3e rad\n", dp,
-              dr);
+  std::printf("[ static ] reset_to_static vs ShootingSolver: |dp| = %.3e m, |dR| = %.3e rad\n", dp, dr);
   EXPECT_LT(dp, position_tolerance(p, rod.base_force().norm()));
   EXPECT_LT(dr, kRotationTolerance);
   EXPECT_EQ(rod.backbone().size(), static_cast<size_t>(p.nodes));
@@ -164,8 +163,7 @@ TEST(DynamicRodStatic, SettlesToKirchhoffSolutionUnderConstantForce) {
   ASSERT_TRUE(ref.converged) << ref.message;
   const double dp = (rod.tip_position() - ref.tip_position).norm();
   const double dr = rotation_error(rod.tip_rotation(), ref.tip_rotation);
-  std::printf("[ static ] settled after %d steps vs ShootingSolver: |dp| = %.3e m, |dR| = %.3e rad\n",
-              steps, dp, dr);
+  std::printf("[ static ] settled after %d steps vs ShootingSolver: |dp| = %.3e m, |dR| = %.3e rad\n", steps, dp, dr);
   EXPECT_LT(dp, position_tolerance(p, rod.base_force().norm()));
   EXPECT_LT(dr, kRotationTolerance);
 
@@ -177,8 +175,7 @@ TEST(DynamicRodStatic, SettlesToKirchhoffSolutionUnderConstantForce) {
   tilted.gravity = g;
   const rod::RodSolution ref2 = kirchhoff(tilted, w);
   ASSERT_TRUE(ref2.converged);
-  EXPECT_LT((rod.tip_position() - ref2.tip_position).norm(),
-            position_tolerance(p, rod.base_force().norm()));
+  EXPECT_LT((rod.tip_position() - ref2.tip_position).norm(), position_tolerance(p, rod.base_force().norm()));
   EXPECT_LT(rotation_error(rod.tip_rotation(), ref2.tip_rotation), kRotationTolerance);
   EXPECT_GT((ref2.tip_position - ref.tip_position).norm(), 1e-3);  // the tilt did matter
 }
@@ -192,8 +189,7 @@ TEST(DynamicRodStatic, SettlesToKirchhoffSolutionUnderConstantForce) {
 // Tolerances: 0.3 % without J_t, 1 % with the default J_t against the uncorrected estimate.
 TEST(DynamicRodVibration, PeriodMatchesCantileverWithTipMass) {
   const double rho_a = 1e-3;  // exercises the 33/140 ρA L term (0.8 % of m_t)
-  const double T_est =
-      2.0 * M_PI * std::sqrt((kTipMass + 33.0 / 140.0 * rho_a * kL) * kL * kL * kL / (3.0 * kEI));
+  const double T_est = 2.0 * M_PI * std::sqrt((kTipMass + 33.0 / 140.0 * rho_a * kL) * kL * kL * kL / (3.0 * kEI));
   for (const Vec3& Jt : {Vec3(0, 0, 0), DynamicRodParameters().tip_inertia}) {
     DynamicRod rod(straight_undamped(rho_a, Jt));
     rod::TipWrench push;
@@ -206,11 +202,11 @@ TEST(DynamicRodVibration, PeriodMatchesCantileverWithTipMass) {
     ASSERT_GE(o.up_crossings.size(), 4u);
     ASSERT_GE(o.peaks.size(), 3u);
     const double T = mean_period(o);
-    const double T_corr = T_est * std::sqrt(1.0 + Jt.x() * 2.25 / (kL * kL) /
-                                                      (kTipMass + 33.0 / 140.0 * rho_a * kL));
-    std::printf("[ period ] J_t = %.0e: T = %.5f s, estimate %.5f s (%+.3f %%), with J_t correction "
-                "%.5f s (%+.3f %%)\n",
-                Jt.x(), T, T_est, 100.0 * (T / T_est - 1.0), T_corr, 100.0 * (T / T_corr - 1.0));
+    const double T_corr = T_est * std::sqrt(1.0 + Jt.x() * 2.25 / (kL * kL) / (kTipMass + 33.0 / 140.0 * rho_a * kL));
+    std::printf(
+        "[ period ] J_t = %.0e: T = %.5f s, estimate %.5f s (%+.3f %%), with J_t correction "
+        "%.5f s (%+.3f %%)\n",
+        Jt.x(), T, T_est, 100.0 * (T / T_est - 1.0), T_corr, 100.0 * (T / T_corr - 1.0));
     EXPECT_NEAR(T / T_est, 1.0, Jt.x() == 0.0 ? 3e-3 : 1e-2);
     EXPECT_NEAR(T / T_corr, 1.0, 3e-3);
     // No growth (BDF-α dissipates only at high frequency): peaks never increase, and little decays.
@@ -270,8 +266,7 @@ TEST(DynamicRodDamping, KelvinVoigtDecayGrowsWithRetardationTime) {
     const double decrement = std::log(o.peaks.front() / o.peaks.back()) / (o.peaks.size() - 1);
     const double zeta = tau * w1 / 2.0;
     const double expected = 2.0 * M_PI * zeta / std::sqrt(1.0 - zeta * zeta);
-    std::printf("[ damping] tau = %.3f s: log decrement %.4f per period, estimate %.4f\n", tau,
-                decrement, expected);
+    std::printf("[ damping] tau = %.3f s: log decrement %.4f per period, estimate %.4f\n", tau, decrement, expected);
     EXPECT_NEAR(decrement / expected, 1.0, 0.05);
     EXPECT_GT(decrement, previous_decrement);
     previous_decrement = decrement;
@@ -304,16 +299,15 @@ TEST(DynamicRodHydroJet, JetForceStepOvershootsAndSettles) {
     if (progress > 1.0) peaked = true;
     if (peaked) min_after_peak = std::min(min_after_peak, progress);
   }
-  std::printf("[hydrojet] travel %.4f m, overshoot %.1f %%, undershoot after the peak to %.1f %%\n",
-              travel, 100.0 * (max_progress - 1.0), 100.0 * min_after_peak);
+  std::printf("[hydrojet] travel %.4f m, overshoot %.1f %%, undershoot after the peak to %.1f %%\n", travel,
+              100.0 * (max_progress - 1.0), 100.0 * min_after_peak);
   EXPECT_GT(max_progress, 1.2);     // overshoot
   EXPECT_LT(min_after_peak, 0.95);  // and swings back: an oscillation
   EXPECT_LT(rod.tip_velocity().norm(), 1e-6);
   EXPECT_LT((rod.tip_position() - pf).norm(), 1e-7);
   const rod::RodSolution ref = kirchhoff(p.model, w);
   ASSERT_TRUE(ref.converged);
-  EXPECT_LT((rod.tip_position() - ref.tip_position).norm(),
-            position_tolerance(p, rod.base_force().norm()));
+  EXPECT_LT((rod.tip_position() - ref.tip_position).norm(), position_tolerance(p, rod.base_force().norm()));
   EXPECT_LT(rotation_error(rod.tip_rotation(), ref.tip_rotation), kRotationTolerance);
 }
 
@@ -350,11 +344,9 @@ TEST(DynamicRodHydroJet, DragAndBodyMassReduceOvershootAndSettle) {
     EXPECT_LT((rod.tip_position() - pf).norm(), 1e-6);
     const rod::RodSolution ref = kirchhoff(p.model, w);
     ASSERT_TRUE(ref.converged);
-    EXPECT_LT((rod.tip_position() - ref.tip_position).norm(),
-              position_tolerance(p, rod.base_force().norm()));
+    EXPECT_LT((rod.tip_position() - ref.tip_position).norm(), position_tolerance(p, rod.base_force().norm()));
   }
-  std::printf("[  drag  ] overshoot without drag %.1f %%, with drag %.1f %%\n", 100 * overshoot[0],
-              100 * overshoot[1]);
+  std::printf("[  drag  ] overshoot without drag %.1f %%, with drag %.1f %%\n", 100 * overshoot[0], 100 * overshoot[1]);
   EXPECT_GT(overshoot[0], 0.1);
   EXPECT_LT(overshoot[1], 0.7 * overshoot[0]);
 }
@@ -403,16 +395,14 @@ TEST(DynamicRodInput, RejectsInvalidParametersNamingThem) {
       {"tip_drag", [](DynamicRodParameters* p) { p->tip_drag = -1.0; }},
       {"tip_angular_drag", [](DynamicRodParameters* p) { p->tip_angular_drag = INFINITY; }},
       {"tip_inertia", [](DynamicRodParameters* p) { p->tip_inertia.y() = -1e-8; }},
-      {"rotational_inertia_per_length",
-       [](DynamicRodParameters* p) { p->rotational_inertia_per_length = -1.0; }},
+      {"rotational_inertia_per_length", [](DynamicRodParameters* p) { p->rotational_inertia_per_length = -1.0; }},
       {"nodes", [](DynamicRodParameters* p) { p->nodes = 1; }},
       {"max_substep_halvings", [](DynamicRodParameters* p) { p->max_substep_halvings = -1; }},
       {"tolerance", [](DynamicRodParameters* p) { p->tolerance = 0.0; }},
       {"alpha", [](DynamicRodParameters* p) { p->alpha = 0.3; }},
       {"model.rod.length", [](DynamicRodParameters* p) { p->model.rod.length = 0.0; }},
       {"model.rod.stiffness", [](DynamicRodParameters* p) { p->model.rod.stiffness.z() = 0.0; }},
-      {"model.rod.linear_density",
-       [](DynamicRodParameters* p) { p->model.rod.linear_density = -1e-3; }},
+      {"model.rod.linear_density", [](DynamicRodParameters* p) { p->model.rod.linear_density = -1e-3; }},
       {"model.tip_mass", [](DynamicRodParameters* p) { p->model.tip_mass = std::nan(""); }},
       {"model.gravity", [](DynamicRodParameters* p) { p->model.gravity.x() = std::nan(""); }},
   };
@@ -446,11 +436,10 @@ TEST(DynamicRodPerformance, MicrosecondsPerStep) {
       iterations += rod.last_iterations();
       passes += rod.last_evaluations();
     }
-    const double us =
-        std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count() /
-        steps;
-    std::printf("[  perf  ] dt = %.3f s: %.1f us/step (%.2f Newton iterations, %.2f shooting passes "
-                "per step; 600 s of simulation: %.1f s)\n",
-                dt, us, double(iterations) / steps, double(passes) / steps, us * 1e-6 * 600.0 / dt);
+    const double us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count() / steps;
+    std::printf(
+        "[  perf  ] dt = %.3f s: %.1f us/step (%.2f Newton iterations, %.2f shooting passes "
+        "per step; 600 s of simulation: %.1f s)\n",
+        dt, us, double(iterations) / steps, double(passes) / steps, us * 1e-6 * 600.0 / dt);
   }
 }

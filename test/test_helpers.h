@@ -14,8 +14,7 @@ inline config::Scene scene(const std::string& name) {
 }
 
 /// Jet map of eq. (24) with Table 1's misalignments: tip-frame force from three jet forces [N].
-inline rod::Vec3 jet_force(double q1, double q2, double q3, double da = 0.12, double db = 0.06,
-                           double dg = -0.08) {
+inline rod::Vec3 jet_force(double q1, double q2, double q3, double da = 0.12, double db = 0.06, double dg = -0.08) {
   const double p3 = M_PI / 3.0;
   return rod::Vec3(std::sin(p3 - db) * q1 + std::sin(da) * q2 - std::sin(p3 - dg) * q3,
                    std::cos(p3 - db) * q1 - std::cos(da) * q2 + std::cos(p3 - dg) * q3, 0.0);

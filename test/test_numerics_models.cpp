@@ -110,7 +110,8 @@ TEST(Cosserat, ComplianceMatchesCentralDifferences) {
     rod::Vec6 col;
     col.head<3>() = c.tip_rotation.transpose() * (sa.tip_position - sb.tip_position) / (2 * h);
     col.tail<3>() = (so3::log(c.tip_rotation.transpose() * sa.tip_rotation) -
-                     so3::log(c.tip_rotation.transpose() * sb.tip_rotation)) / (2 * h);
+                     so3::log(c.tip_rotation.transpose() * sb.tip_rotation)) /
+                    (2 * h);
     EXPECT_LT((C.body.col(i) - col).norm(), 1e-5 * col.norm()) << "column " << i;
   }
 }
@@ -143,8 +144,8 @@ TEST(Specialization, VariantsMatchTheGeneralRightHandSide) {
     const rod::RodSolution a = special.solve(w), b = general.solve(w);
     ASSERT_TRUE(a.converged && b.converged) << c.variant;
     EXPECT_LT((a.tip_position - b.tip_position).norm(), 1e-13) << c.variant;
-    EXPECT_LT((special.compliance().body - general.compliance().body).norm(),
-              1e-10 * general.compliance().body.norm()) << c.variant;
+    EXPECT_LT((special.compliance().body - general.compliance().body).norm(), 1e-10 * general.compliance().body.norm())
+        << c.variant;
   }
 }
 
@@ -171,7 +172,8 @@ TEST(Cvode, AdamsAndBdfMatchTheReference) {
       ASSERT_TRUE(C.ok) << what;
       EXPECT_LT((C.body - Cref).norm(), 1e-5 * Cref.norm()) << what;
       // warm solves along a short path keep converging (CVODE memory reused)
-      for (int k = 1; k <= 5; ++k) EXPECT_TRUE(solver.solve(force(test::jet_force(0.2 - 0.02 * k, 0.05, 0.1))).converged);
+      for (int k = 1; k <= 5; ++k)
+        EXPECT_TRUE(solver.solve(force(test::jet_force(0.2 - 0.02 * k, 0.05, 0.1))).converged);
     }
   }
   rod::ShootingSettings k = sc.solver;

@@ -105,7 +105,8 @@ TEST(PlantConfig, ErrorsNameTheKey) {
 // With constant valve duties the plant settles to the quasi-static model at its true parameters.
 TEST(Plant, SettlesToTheQuasiStaticModel) {
   const config::Scene sc = test::scene("hydrojet_30deg");
-  plant::PlantParameters p = config::make_plant(sc, "plant: {sensor_noise: false, dynamics: {kelvin_voigt_time: 0.03}}");
+  plant::PlantParameters p =
+      config::make_plant(sc, "plant: {sensor_noise: false, dynamics: {kelvin_voigt_time: 0.03}}");
   plant::Plant pl(p, 1);
   const Eigen::Vector3d duty(0.4, 0.2, 0.3);
   for (int k = 1; k <= 600; ++k) {

@@ -190,7 +190,7 @@ TEST(FlowAggregator, ValidityStalenessAndNoRepublish) {
   ASSERT_TRUE(agg.take(t0 + seconds(0.03), &s));
   EXPECT_EQ(s.valid, (std::array<bool, 3>{true, true, true}));
   EXPECT_DOUBLE_EQ(s.flow[2], 3e-6);
-  EXPECT_EQ(s.stamp, t0);  // the oldest reading used
+  EXPECT_EQ(s.stamp, t0);                          // the oldest reading used
   EXPECT_FALSE(agg.take(t0 + seconds(0.04), &s));  // nothing new: not republished
 
   // Jet 2's next line is rejected: invalid (NaN) until its next good line.
@@ -295,10 +295,12 @@ TEST(ValveLoop, GatesCommandsDetectsSilenceReconnectsAndClosesOnStop) {
   EXPECT_EQ(applied(), Duty({0, 0, 0}));
 
   // Commands pass while fresh and every device is healthy.
-  ASSERT_TRUE(eventually([&] {
-    loop.command({0.3, 0.6, 0.9});
-    return applied() == Duty({0.3, 0.6, 0.9});
-  }, 1.0));
+  ASSERT_TRUE(eventually(
+      [&] {
+        loop.command({0.3, 0.6, 0.9});
+        return applied() == Duty({0.3, 0.6, 0.9});
+      },
+      1.0));
   EXPECT_EQ(loop.status().acknowledged, Duty({0.3, 0.6, 0.9}));
   EXPECT_TRUE(loop.status().gate_open);
 
@@ -308,15 +310,19 @@ TEST(ValveLoop, GatesCommandsDetectsSilenceReconnectsAndClosesOnStop) {
 
   // A device becomes unhealthy: zero although commands keep coming.
   devices_ok = false;
-  ASSERT_TRUE(eventually([&] {
-    loop.command({0.3, 0.6, 0.9});
-    return applied() == Duty({0, 0, 0}) && loop.status().gate_reason == "tracker: silent";
-  }, 1.0));
+  ASSERT_TRUE(eventually(
+      [&] {
+        loop.command({0.3, 0.6, 0.9});
+        return applied() == Duty({0, 0, 0}) && loop.status().gate_reason == "tracker: silent";
+      },
+      1.0));
   devices_ok = true;
-  ASSERT_TRUE(eventually([&] {
-    loop.command({0.1, 0.1, 0.1});
-    return applied() == Duty({0.1, 0.1, 0.1});
-  }, 0.5));
+  ASSERT_TRUE(eventually(
+      [&] {
+        loop.command({0.1, 0.1, 0.1});
+        return applied() == Duty({0.1, 0.1, 0.1});
+      },
+      0.5));
 
   // The backend stops acknowledging: unhealthy after max_failures, reconnect loop, healthy again
   // only after it acknowledged zero duty.
@@ -407,12 +413,15 @@ TEST(RigConfig, InvalidKeysAreNamed) {
       {[](YAML::Node& n) { n["tracker"]["bogus"] = 1; }, "tracker/bogus: unknown key"},
       {[](YAML::Node& n) { n["tracker"].remove("port"); }, "tracker/port: missing"},
       {[](YAML::Node& n) { n["flow"]["ports"].remove("jet2"); }, "flow/ports/jet2: missing"},
-      {[](YAML::Node& n) { n["flow"]["ports"]["jet3"] = "/dev/ttyUSB1"; }, "flow/ports/jet3: '/dev/ttyUSB1' is already flow/ports/jet1"},
-      {[](YAML::Node& n) { n["valves"]["port"] = "/dev/ttyUSB0"; }, "valves/port: '/dev/ttyUSB0' is already tracker/port"},
+      {[](YAML::Node& n) { n["flow"]["ports"]["jet3"] = "/dev/ttyUSB1"; },
+       "flow/ports/jet3: '/dev/ttyUSB1' is already flow/ports/jet1"},
+      {[](YAML::Node& n) { n["valves"]["port"] = "/dev/ttyUSB0"; },
+       "valves/port: '/dev/ttyUSB0' is already tracker/port"},
       {[](YAML::Node& n) { n["flow"]["format"]["unit"] = "gal/min"; }, "flow/format/unit: 'gal/min' is not one of"},
       {[](YAML::Node& n) { n["flow"]["format"].remove("unit"); }, "flow/format/unit: missing"},
       {[](YAML::Node& n) { n["flow"]["format"]["regex"] = "(unclosed"; }, "flow/format/regex: invalid regex"},
-      {[](YAML::Node& n) { n["flow"]["format"]["regex"] = "\\d+"; }, "flow/format/regex: regex '\\d+' has no capture group"},
+      {[](YAML::Node& n) { n["flow"]["format"]["regex"] = "\\d+"; },
+       "flow/format/regex: regex '\\d+' has no capture group"},
       {[](YAML::Node& n) { n["flow"]["format"]["separator"] = ",;"; }, "flow/format/separator: must be one character"},
       {[](YAML::Node& n) { n["flow"]["baud"] = 1234; }, "flow/baud: 1234 is not a supported rate"},
       {[](YAML::Node& n) { n["flow"]["timeout"] = -1; }, "flow/timeout: must be finite and > 0"},

@@ -157,7 +157,8 @@ TEST(AuroraEmulator, NominalSession) {
 
 TEST(AuroraEmulator, CrcErrorsCountedNeverDelivered) {
   TempDir d;
-  Emulator emu("aurora_emulator.py", {"--symlink", d / "aurora", "--crc-error-every", "3", "--seed", "7"}, d / "aurora");
+  Emulator emu("aurora_emulator.py", {"--symlink", d / "aurora", "--crc-error-every", "3", "--seed", "7"},
+               d / "aurora");
   Collector c;
   AuroraClient client(aurora_config(d), [&](const AuroraSample& s) { c.add(s); });
   client.start();
@@ -191,21 +192,24 @@ TEST(AuroraEmulator, OutOfVolumeNeverValid) {
   TempDir d;
   // The tip leaves the volume from 1.0 s to 2.0 s after the emulator started, still sending its
   // (meaningless) transform but with the out-of-volume port-status bit.
-  Emulator emu("aurora_emulator.py",
-               {"--symlink", d / "aurora", "--out-of-volume-after", "1.0", "--out-of-volume-for", "1.0",
-                "--oov-keep-transform"},
-               d / "aurora");
+  Emulator emu(
+      "aurora_emulator.py",
+      {"--symlink", d / "aurora", "--out-of-volume-after", "1.0", "--out-of-volume-for", "1.0", "--oov-keep-transform"},
+      d / "aurora");
   Collector c;
   AuroraConfig cfg = aurora_config(d);
   AuroraClient client(cfg, [&](const AuroraSample& s) { c.add(s); });
   client.start();
   bool saw_unhealthy_tip = false;
-  ASSERT_TRUE(eventually([&] {
-    const AuroraStatus s = client.status();
-    if (s.tip.out_of_volume > 0 && !AuroraStatus::handle_ok(s.tip, SteadyClock::now(), cfg.timeout))
-      saw_unhealthy_tip = true;
-    return saw_unhealthy_tip && s.tip.last_status == HandlePose::kValid && s.tip.out_of_volume > 5;
-  }, 8.0)) << "tip out_of_volume " << client.status().tip.out_of_volume;
+  ASSERT_TRUE(eventually(
+      [&] {
+        const AuroraStatus s = client.status();
+        if (s.tip.out_of_volume > 0 && !AuroraStatus::handle_ok(s.tip, SteadyClock::now(), cfg.timeout))
+          saw_unhealthy_tip = true;
+        return saw_unhealthy_tip && s.tip.last_status == HandlePose::kValid && s.tip.out_of_volume > 5;
+      },
+      8.0))
+      << "tip out_of_volume " << client.status().tip.out_of_volume;
   const std::vector<AuroraSample> v = c.get();
   size_t oov = 0, valid_after = 0;
   for (const auto& s : v) {
@@ -221,7 +225,7 @@ TEST(AuroraEmulator, OutOfVolumeNeverValid) {
     }
   }
   EXPECT_GT(oov, 20u);
-  EXPECT_GE(valid_after, 1u);  // back in the volume: valid again
+  EXPECT_GE(valid_after, 1u);                                     // back in the volume: valid again
   EXPECT_TRUE(client.status().healthy(SteadyClock::now(), 1.0));  // the tracker itself was fine
   expect_consistent(v);
 }
@@ -232,10 +236,12 @@ TEST(AuroraEmulator, UnplugAndReplug) {
   AuroraConfig cfg = aurora_config(d);
   std::mutex log_mu;
   std::vector<std::string> logs;
-  AuroraClient client(cfg, [&](const AuroraSample& s) { c.add(s); }, [&](LogLevel, const std::string& m) {
-    std::lock_guard<std::mutex> l(log_mu);
-    logs.push_back(m);
-  });
+  AuroraClient client(
+      cfg, [&](const AuroraSample& s) { c.add(s); },
+      [&](LogLevel, const std::string& m) {
+        std::lock_guard<std::mutex> l(log_mu);
+        logs.push_back(m);
+      });
   {
     Emulator first("aurora_emulator.py", {"--symlink", d / "aurora", "--die-after", "1.0"}, d / "aurora");
     client.start();
@@ -257,7 +263,9 @@ TEST(AuroraEmulator, UnplugAndReplug) {
 
   const size_t before = c.count_valid_tip();
   Emulator second("aurora_emulator.py", {"--symlink", d / "aurora"}, d / "aurora");
-  ASSERT_TRUE(eventually([&] { return client.status().healthy(SteadyClock::now(), cfg.timeout) && c.count_valid_tip() >= before + 5; }, 8.0))
+  ASSERT_TRUE(eventually(
+      [&] { return client.status().healthy(SteadyClock::now(), cfg.timeout) && c.count_valid_tip() >= before + 5; },
+      8.0))
       << client.status().message;
   EXPECT_EQ(client.status().sessions, 2u);
   expect_consistent(c.get());
@@ -303,8 +311,9 @@ TEST(AuroraEmulator, DeviceErrorsDecodedAndMissingHandleNamed) {
     AuroraClient client(cfg, nullptr);
     client.start();
     ASSERT_TRUE(eventually([&] { return client.status().connect_failures >= 1; }, 5.0));
-    EXPECT_NE(client.status().last_error.find("base sensor: port handle 0C not reported by the tracker (handles: 0A 0B)"),
-              std::string::npos)
+    EXPECT_NE(
+        client.status().last_error.find("base sensor: port handle 0C not reported by the tracker (handles: 0A 0B)"),
+        std::string::npos)
         << client.status().last_error;
   }
 }
@@ -414,7 +423,8 @@ TEST(FlowEmulator, SilenceAndUnplugThenRecovery) {
   EXPECT_TRUE(eventually([&] { return s.status().state == LinkState::kDisconnected; }, 1.0));
   const uint64_t connects = s.status().connects;
   Emulator again("flow_emulator.py", {"--sensor", d / "flow1", "--duty", "0.25"}, d / "flow1");
-  ASSERT_TRUE(eventually([&] { return s.status().healthy(SteadyClock::now(), cfg.timeout) && s.status().connects > connects; }, 5.0))
+  ASSERT_TRUE(eventually(
+      [&] { return s.status().healthy(SteadyClock::now(), cfg.timeout) && s.status().connects > connects; }, 5.0))
       << s.status().message;
   EXPECT_TRUE(eventually([&] { return std::fabs(s.status().last_flow - 4e-6) < 5e-8; }, 1.0));
 }
@@ -450,11 +460,11 @@ std::unique_ptr<ValveLoop> make_loop(const std::string& port, std::atomic<bool>*
   l.command_timeout = 0.1;
   l.max_failures = 3;
   l.reconnect_period = reconnect;
-  return std::unique_ptr<ValveLoop>(new ValveLoop(std::unique_ptr<ValveDriver>(new SerialValveBoard(b)), l,
-                                                  [ok](std::string* why) {
-                                                    if (!ok->load()) *why = "tracker: silent";
-                                                    return ok->load();
-                                                  }));
+  return std::unique_ptr<ValveLoop>(
+      new ValveLoop(std::unique_ptr<ValveDriver>(new SerialValveBoard(b)), l, [ok](std::string* why) {
+        if (!ok->load()) *why = "tracker: silent";
+        return ok->load();
+      }));
 }
 
 }  // namespace
@@ -467,10 +477,12 @@ TEST(ValveEmulator, CommandsReachTheBoardAndAreGated) {
   loop->start();
   ASSERT_TRUE(eventually([&] { return loop->status().healthy; }, 5.0)) << loop->status().message;
   const Duty want{0.25, 0.5, 1.0};
-  ASSERT_TRUE(eventually([&] {
-    loop->command(want);
-    return near(board_duty(d / "valves.json"), want) && near(loop->status().acknowledged, want);
-  }, 2.0));
+  ASSERT_TRUE(eventually(
+      [&] {
+        loop->command(want);
+        return near(board_duty(d / "valves.json"), want) && near(loop->status().acknowledged, want);
+      },
+      2.0));
   // Commands stop: the driver closes the valves (command timeout).
   ASSERT_TRUE(eventually([&] { return near(board_duty(d / "valves.json"), Duty{}); }, 1.0));
   EXPECT_TRUE(eventually([&] { return near(loop->status().acknowledged, Duty{}); }, 0.5));
@@ -484,10 +496,12 @@ TEST(ValveEmulator, CommandsReachTheBoardAndAreGated) {
   EXPECT_TRUE(near(board_duty(d / "valves.json"), Duty{}));
   EXPECT_EQ(loop->status().gate_reason, "tracker: silent");
   ok = true;
-  ASSERT_TRUE(eventually([&] {
-    loop->command({0.1, 0.2, 0.3});
-    return near(board_duty(d / "valves.json"), {0.1, 0.2, 0.3});
-  }, 2.0));
+  ASSERT_TRUE(eventually(
+      [&] {
+        loop->command({0.1, 0.2, 0.3});
+        return near(board_duty(d / "valves.json"), {0.1, 0.2, 0.3});
+      },
+      2.0));
   // Stop closes them (the emulator writes its state file just after acknowledging).
   loop->stop();
   EXPECT_TRUE(eventually([&] { return near(board_duty(d / "valves.json"), Duty{}); }, 1.0));
@@ -496,10 +510,10 @@ TEST(ValveEmulator, CommandsReachTheBoardAndAreGated) {
 
 TEST(ValveEmulator, SilenceMakesBoardUnhealthyUntilItAnswersAgain) {
   TempDir d;
-  Emulator emu("valve_emulator.py",
-               {"--symlink", d / "valves", "--state-file", d / "valves.json", "--silence-after", "0.6",
-                "--silence-for", "1.0"},
-               d / "valves");
+  Emulator emu(
+      "valve_emulator.py",
+      {"--symlink", d / "valves", "--state-file", d / "valves.json", "--silence-after", "0.6", "--silence-for", "1.0"},
+      d / "valves");
   std::atomic<bool> ok{true};
   auto loop = make_loop(d / "valves", &ok);
   loop->start();
@@ -522,10 +536,12 @@ TEST(ValveEmulator, NacksAndCorruptAcksCountedUnplugDetected) {
                  d / "valves");
     loop->start();
     ASSERT_TRUE(eventually([&] { return loop->status().healthy; }, 5.0));
-    ASSERT_TRUE(eventually([&] {
-      loop->command({0.2, 0.2, 0.2});
-      return loop->status().rejected >= 3;
-    }, 3.0));
+    ASSERT_TRUE(eventually(
+        [&] {
+          loop->command({0.2, 0.2, 0.2});
+          return loop->status().rejected >= 3;
+        },
+        3.0));
     EXPECT_TRUE(loop->status().healthy);  // isolated failures: still healthy
     EXPECT_NE(loop->status().last_error.find("valve"), std::string::npos) << loop->status().last_error;
     ASSERT_TRUE(eventually([&] { return emu.exited(); }, 3.0));

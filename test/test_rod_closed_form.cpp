@@ -31,8 +31,7 @@ TEST(RodClosedForm, PureTipMomentGivesCircularArc) {
     EXPECT_LT((sol.tip_position - p_exact).norm(), 1e-10) << "bend " << bend;
     EXPECT_LT(rotation_angle_between(sol.tip_rotation, so3::exp(Vec3(bend, 0, 0))), 1e-10);
     // Every backbone point lies on the circle of radius 1/κ centred at (0, −1/κ, 0).
-    for (const Vec3& p : solver.shape(10))
-      EXPECT_NEAR((p - Vec3(0, -1.0 / kappa, 0)).norm(), 1.0 / kappa, 1e-10);
+    for (const Vec3& p : solver.shape(10)) EXPECT_NEAR((p - Vec3(0, -1.0 / kappa, 0)).norm(), 1.0 / kappa, 1e-10);
   }
 }
 
@@ -51,8 +50,9 @@ TEST(RodClosedForm, PrecurvatureOnlyGivesUnloadedArc) {
   EXPECT_GE(sol.iterations, 2);
   const double L = m.rod.length, k = m.rod.precurvature.norm(), th = k * L;
   const Mat3 U = so3::hat(m.rod.precurvature);
-  const Vec3 p_exact = (L * Mat3::Identity() + (1 - std::cos(th)) / (k * k) * U +
-                        (th - std::sin(th)) / (k * k * k) * U * U) * Vec3::UnitZ();
+  const Vec3 p_exact =
+      (L * Mat3::Identity() + (1 - std::cos(th)) / (k * k) * U + (th - std::sin(th)) / (k * k * k) * U * U) *
+      Vec3::UnitZ();
   EXPECT_LT((sol.tip_position - p_exact).norm(), 1e-10);
   EXPECT_LT(rotation_angle_between(sol.tip_rotation, so3::exp(L * m.rod.precurvature)), 1e-10);
 }

@@ -33,7 +33,8 @@ Mat6 finite_difference_compliance(rod::ShootingSolver& solver, const rod::TipWre
     EXPECT_TRUE(sa.converged && sb.converged);
     C.block<3, 1>(0, i) = c.tip_rotation.transpose() * (sa.tip_position - sb.tip_position) / (2 * h);
     C.block<3, 1>(3, i) = (so3::log(c.tip_rotation.transpose() * sa.tip_rotation) -
-                           so3::log(c.tip_rotation.transpose() * sb.tip_rotation)) / (2 * h);
+                           so3::log(c.tip_rotation.transpose() * sb.tip_rotation)) /
+                          (2 * h);
   }
   solver.solve(w);
   return C;
@@ -75,7 +76,7 @@ TEST(Compliance, StraightRodMatchesBeamTheoryAndFollowerLoadBreaksSymmetry) {
   EXPECT_NEAR(C(4, 0), L * L / (2 * EI), 1e-9);   // ω_y per f_x
   EXPECT_NEAR(C(3, 1), -L * L / (2 * EI), 1e-9);  // ω_x per f_y
   EXPECT_NEAR(C(5, 5), L / GJ, 1e-9);
-  EXPECT_NEAR(C(2, 2), 0.0, 1e-12);               // inextensible
+  EXPECT_NEAR(C(2, 2), 0.0, 1e-12);  // inextensible
 
   const config::Scene sc = test::scene("hydrojet_0deg");
   rod::ShootingSolver hj(sc.model, sc.solver);

@@ -40,9 +40,9 @@ TEST(RodFkCli, SolvesAndPrintsContractFields) {
   const CliRun r = run("--scene " + scene("hydrojet_0deg") + " --force 0.1 0.05 0 --compliance --shape 4");
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1);
-  for (const char* key : {"\"converged\": true", "\"iterations\"", "\"residual\"", "\"tip_position\"",
-                          "\"tip_quaternion_wxyz\"", "\"solve_time_us\"", "\"compliance\": [[",
-                          "\"stability_margin\"", "\"stability_eig_min\"", "\"shape\": [["})
+  for (const char* key :
+       {"\"converged\": true", "\"iterations\"", "\"residual\"", "\"tip_position\"", "\"tip_quaternion_wxyz\"",
+        "\"solve_time_us\"", "\"compliance\": [[", "\"stability_margin\"", "\"stability_eig_min\"", "\"shape\": [["})
     EXPECT_NE(r.out.find(key), std::string::npos) << key << "\n" << r.out;
   const auto q = array_field(r.out, "tip_quaternion_wxyz");
   ASSERT_EQ(q.size(), 4u);
@@ -72,7 +72,8 @@ TEST(RodFkCli, CvodeIntegratorsByName) {
   const CliRun a = run("--scene " + scene("hydrojet_30deg") + " --force 0.1 0.05 0 --compliance");
   ASSERT_EQ(a.status, 0) << a.err;
   for (const char* name : {"cvode-adams", "cvode-bdf", "dopri5"}) {
-    const CliRun b = run("--scene " + scene("hydrojet_30deg") + " --force 0.1 0.05 0 --compliance --tol 1e-10 --integrator " + name);
+    const CliRun b =
+        run("--scene " + scene("hydrojet_30deg") + " --force 0.1 0.05 0 --compliance --tol 1e-10 --integrator " + name);
     ASSERT_EQ(b.status, 0) << name << ": " << b.err;
     EXPECT_NE(b.out.find(std::string("\"integrator\": \"") + name + "\""), std::string::npos) << b.out;
     const auto pa = array_field(a.out, "tip_position"), pb = array_field(b.out, "tip_position");
@@ -118,12 +119,14 @@ TEST(RodFkCli, BadInputExitsTwoAndNamesIt) {
   }
   // Scene errors name the key.
   const std::vector<std::pair<std::string, std::string>> scenes = {
-      {"rod: {length: 0.09, bending_stiffness: [-6.01e-4, 6.01e-4], torsional_stiffness: 2.23e-4}\ntip: {mass: 0}\ngravity: [0,0,0]\n",
+      {"rod: {length: 0.09, bending_stiffness: [-6.01e-4, 6.01e-4], torsional_stiffness: 2.23e-4}\ntip: {mass: "
+       "0}\ngravity: [0,0,0]\n",
        "rod.bending_stiffness[0]"},
       {"rod: {bending_stiffness: [6.01e-4, 6.01e-4], torsional_stiffness: 2.23e-4}\ntip: {mass: 0}\ngravity: [0,0,0]\n",
        "rod.length"},
       {std::string(kGoodScene) + "solver: {colour: 1}\n", "solver.colour"},
-      {"rod: {length: 0.09, bending_stiffness: [6.01e-4, 6.01e-4], torsional_stiffness: 2.23e-4, shear: 1}\ntip: {mass: 0}\ngravity: [0,0,0]\n",
+      {"rod: {length: 0.09, bending_stiffness: [6.01e-4, 6.01e-4], torsional_stiffness: 2.23e-4, shear: 1}\ntip: "
+       "{mass: 0}\ngravity: [0,0,0]\n",
        "rod.shear"},
   };
   for (const auto& s : scenes) {

@@ -106,8 +106,9 @@ TEST(Scene, CosseratModelAndSolverKeys) {
   EXPECT_EQ(s.solver.integrator.type, hydrojet::rod::IntegratorType::kCvodeBdf);
   EXPECT_EQ(s.solver.shooting_segments, 4);
   EXPECT_EQ(s.solver.accuracy_tolerance, 0.0);
-  const auto c = parse_scene(replace(kGood, "  linear_density: 0.01\n",
-                                     "  linear_density: 0.01\n  model: cosserat\n  shear_stiffness: 0.4\n  axial_stiffness: 1.3\n"));
+  const auto c = parse_scene(
+      replace(kGood, "  linear_density: 0.01\n",
+              "  linear_density: 0.01\n  model: cosserat\n  shear_stiffness: 0.4\n  axial_stiffness: 1.3\n"));
   EXPECT_EQ(c.model.rod.kind, hydrojet::rod::RodKind::kCosserat);
   EXPECT_DOUBLE_EQ(c.model.rod.shear_stiffness, 0.4);
   EXPECT_DOUBLE_EQ(c.model.rod.axial_stiffness, 1.3);

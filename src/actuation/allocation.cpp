@@ -20,8 +20,8 @@ struct Candidate {
 };
 
 /// Exact minimiser of eq. (20) over the box by enumeration of the 27 active sets.
-Candidate solve_box(const AllocMatrix& A, const AllocVector& w, const Eigen::Vector3d& lo,
-                    const Eigen::Vector3d& hi, double lambda) {
+Candidate solve_box(const AllocMatrix& A, const AllocVector& w, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+                    double lambda) {
   const Eigen::Index m = A.rows();
   const double sqrt_lambda = std::sqrt(lambda);
   const double tie = 1e-12 * w.squaredNorm();
@@ -33,8 +33,10 @@ Candidate solve_box(const AllocMatrix& A, const AllocVector& w, const Eigen::Vec
     Eigen::Vector3d q = Eigen::Vector3d::Zero();
     for (int i = 0, c = code; i < 3; ++i, c /= 3) {
       state[i] = c % 3;
-      if (state[i] == 0) free_idx[nf++] = i;
-      else q(i) = state[i] == 1 ? lo(i) : hi(i);
+      if (state[i] == 0)
+        free_idx[nf++] = i;
+      else
+        q(i) = state[i] == 1 ? lo(i) : hi(i);
     }
     if (nf > 0) {
       // Reduced problem: min ‖[A_F; √λ I] q_F − [w − A_B q_B; 0]‖².
@@ -62,8 +64,7 @@ Candidate solve_box(const AllocMatrix& A, const AllocVector& w, const Eigen::Vec
       if (!feasible) continue;
     }
     const double cost = allocation_objective(A, w, q, lambda);
-    if (cost < best.cost - tie ||
-        (cost <= best.cost + tie && q.squaredNorm() < best.q.squaredNorm())) {
+    if (cost < best.cost - tie || (cost <= best.cost + tie && q.squaredNorm() < best.q.squaredNorm())) {
       best.q = q;
       best.cost = cost;
     }
@@ -80,14 +81,12 @@ AllocationResult failure(const std::string& message) {
 
 }  // namespace
 
-double allocation_objective(const AllocMatrix& A, const AllocVector& w_des,
-                            const Eigen::Vector3d& q, double lambda) {
+double allocation_objective(const AllocMatrix& A, const AllocVector& w_des, const Eigen::Vector3d& q, double lambda) {
   return (A * q - w_des).squaredNorm() + lambda * q.squaredNorm();  // eq. (20)
 }
 
-AllocationResult allocate(const AllocMatrix& A, const AllocVector& w_des,
-                          const Eigen::Vector3d& q_min, const Eigen::Vector3d& q_max, double lambda,
-                          double tolerance) {
+AllocationResult allocate(const AllocMatrix& A, const AllocVector& w_des, const Eigen::Vector3d& q_min,
+                          const Eigen::Vector3d& q_max, double lambda, double tolerance) {
   if (A.rows() < 1) return failure("A: needs 1..6 rows");
   if (w_des.rows() != A.rows()) return failure("w_des: size must equal A.rows()");
   if (!A.allFinite()) return failure("A: non-finite entry");
@@ -96,8 +95,7 @@ AllocationResult allocate(const AllocMatrix& A, const AllocVector& w_des,
   if (!q_max.allFinite()) return failure("q_max: non-finite entry");
   if (!(q_min.array() <= q_max.array()).all()) return failure("q_min/q_max: q_min > q_max");
   if (!std::isfinite(lambda) || lambda < 0.0) return failure("lambda: must be finite and >= 0");
-  if (!std::isfinite(tolerance) || tolerance < 0.0)
-    return failure("tolerance: must be finite and >= 0");
+  if (!std::isfinite(tolerance) || tolerance < 0.0) return failure("tolerance: must be finite and >= 0");
 
   const Candidate best = solve_box(A, w_des, q_min, q_max, lambda);
   AllocationResult r;
@@ -105,8 +103,7 @@ AllocationResult allocate(const AllocMatrix& A, const AllocVector& w_des,
   r.q = best.q;
   r.residual_norm = (A * r.q - w_des).norm();
   const double reach_residual =
-      lambda == 0.0 ? r.residual_norm
-                    : (A * solve_box(A, w_des, q_min, q_max, 0.0).q - w_des).norm();
+      lambda == 0.0 ? r.residual_norm : (A * solve_box(A, w_des, q_min, q_max, 0.0).q - w_des).norm();
   r.reachable = reach_residual <= tolerance * std::max(1.0, w_des.norm());
   return r;
 }

@@ -8,11 +8,9 @@ namespace hydrojet {
 namespace actuation {
 
 std::string validate(const FlowRegulatorParameters& p) {
-  const std::pair<const char*, double> gains[] = {
-      {"kp", p.kp}, {"ki", p.ki}, {"feedforward", p.feedforward}};
+  const std::pair<const char*, double> gains[] = {{"kp", p.kp}, {"ki", p.ki}, {"feedforward", p.feedforward}};
   for (const auto& g : gains)
-    if (!std::isfinite(g.second) || g.second < 0.0)
-      return std::string(g.first) + " must be finite and >= 0";
+    if (!std::isfinite(g.second) || g.second < 0.0) return std::string(g.first) + " must be finite and >= 0";
   if (!std::isfinite(p.output_min) || p.output_min < 0.0) return "output_min must be in [0, 1]";
   if (!std::isfinite(p.output_max) || p.output_max > 1.0) return "output_max must be in [0, 1]";
   if (!(p.output_min <= p.output_max)) return "output_min must be <= output_max";
@@ -32,8 +30,8 @@ void FlowRegulator::reset() {
 }
 
 double FlowRegulator::update(double q_des, double q_meas, double dt) {
-  const char* bad = !std::isfinite(q_des)    ? "desired flow is not finite"
-                    : !std::isfinite(q_meas) ? "measured flow is not finite"
+  const char* bad = !std::isfinite(q_des)              ? "desired flow is not finite"
+                    : !std::isfinite(q_meas)           ? "measured flow is not finite"
                     : !(std::isfinite(dt) && dt > 0.0) ? "dt must be finite and > 0"
                                                        : nullptr;
   if (bad) {
@@ -48,8 +46,8 @@ double FlowRegulator::update(double q_des, double q_meas, double dt) {
   // Conditional integration: if the output (with the integrator as it stands) is already beyond a
   // limit and e pushes further out, freeze I. So I overshoots its headroom by at most one step.
   const double before = base + integrator_;
-  const bool frozen = params_.anti_windup && ((before > params_.output_max && e > 0.0) ||
-                                              (before < params_.output_min && e < 0.0));
+  const bool frozen =
+      params_.anti_windup && ((before > params_.output_max && e > 0.0) || (before < params_.output_min && e < 0.0));
   if (!frozen) integrator_ += params_.ki * e * dt;
   const double unclamped = base + integrator_;
   saturated_ = unclamped > params_.output_max || unclamped < params_.output_min;
@@ -63,8 +61,8 @@ FlowRegulatorBank::FlowRegulatorBank(const FlowRegulatorParameters& params)
 FlowRegulatorBank::FlowRegulatorBank(const std::array<FlowRegulatorParameters, 3>& params)
     : jets_{FlowRegulator(params[0]), FlowRegulator(params[1]), FlowRegulator(params[2])} {}
 
-Eigen::Vector3d FlowRegulatorBank::update(const Eigen::Vector3d& q_des_flow,
-                                          const Eigen::Vector3d& q_meas_flow, double dt) {
+Eigen::Vector3d FlowRegulatorBank::update(const Eigen::Vector3d& q_des_flow, const Eigen::Vector3d& q_meas_flow,
+                                          double dt) {
   Eigen::Vector3d u;
   for (int i = 0; i < 3; ++i) u(i) = jets_[i].update(q_des_flow(i), q_meas_flow(i), dt);
   return u;

@@ -26,8 +26,8 @@ std::string validate(const NozzleParameters& n) {
     if (!e.empty()) return e;
   }
   if (!(n.outlet_area < n.inlet_area))
-    return "outlet_area must be smaller than inlet_area (else eq. 26 gives thrust <= 0), got " +
-           fmt(n.outlet_area) + " >= " + fmt(n.inlet_area);
+    return "outlet_area must be smaller than inlet_area (else eq. 26 gives thrust <= 0), got " + fmt(n.outlet_area) +
+           " >= " + fmt(n.inlet_area);
   return {};
 }
 

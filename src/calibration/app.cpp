@@ -37,7 +37,8 @@ double parse_double(const std::string& opt, const std::string& s) {
 int parse_int(const std::string& opt, const std::string& s, int lo, int hi) {
   const double v = parse_double(opt, s);
   if (v != std::floor(v) || v < lo || v > hi)
-    throw UsageError(opt + ": must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " + s);
+    throw UsageError(opt + ": must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " +
+                     s);
   return static_cast<int>(v);
 }
 
@@ -71,8 +72,10 @@ std::string fmt(const char* f, double v) {
 std::string json_params(const ZetaVector& v, const ParamMask* only = nullptr) {
   util::JsonObject o;
   for (int i = 0; i < kNumParams; ++i) {
-    if (only && !(*only)[i]) o.add_null(param_name(i));
-    else o.add(param_name(i), v[i]);
+    if (only && !(*only)[i])
+      o.add_null(param_name(i));
+    else
+      o.add(param_name(i), v[i]);
   }
   return o.str();
 }
@@ -108,47 +111,74 @@ Args parse_args(const std::vector<std::string>& a) {
     if (k.rfind("--", 0) != 0) throw UsageError("unexpected argument '" + k + "'");
     if (i + 1 >= a.size()) throw UsageError(k + ": missing value");
     const std::string v = a[++i];
-    if (k == "--scene") r.scene = v;
-    else if (k == "--data") r.data = v;
-    else if (k == "--out") r.out = v;
-    else if (k == "--samples-out") r.samples_out = v;
-    else if (k == "--fit") r.fit = v;
-    else if (k == "--bound") r.bounds.push_back(v);
-    else if (k == "--outer-diameter") r.outer = positive(k, v);
+    if (k == "--scene")
+      r.scene = v;
+    else if (k == "--data")
+      r.data = v;
+    else if (k == "--out")
+      r.out = v;
+    else if (k == "--samples-out")
+      r.samples_out = v;
+    else if (k == "--fit")
+      r.fit = v;
+    else if (k == "--bound")
+      r.bounds.push_back(v);
+    else if (k == "--outer-diameter")
+      r.outer = positive(k, v);
     else if (k == "--inner-diameter") {
       r.inner = parse_double(k, v);
       if (r.inner < 0) throw UsageError(k + ": must not be negative");
     } else if (k == "--loss") {
-      if (v == "none") r.opt.loss = Loss::kNone;
-      else if (v == "huber") r.opt.loss = Loss::kHuber;
-      else if (v == "cauchy") r.opt.loss = Loss::kCauchy;
-      else throw UsageError(k + ": unknown loss '" + v + "' (none, huber, cauchy)");
-    } else if (k == "--loss-scale") r.opt.loss_scale = positive(k, v);
-    else if (k == "--max-iterations") r.opt.max_iterations = parse_int(k, v, 1, 100000);
-    else if (k == "--threads") r.opt.num_threads = parse_int(k, v, 1, 256);
-    else if (k == "--tip-topic") r.topics.tip = v;
-    else if (k == "--base-topic") r.topics.base = v;
-    else if (k == "--jets-topic") r.topics.jets = v;
-    else if (k == "--window") r.qs.window = positive(k, v);
-    else if (k == "--max-force-std") r.qs.max_force_std = positive(k, v);
-    else if (k == "--max-force-drift") r.qs.max_force_drift = positive(k, v);
-    else if (k == "--max-angle-std") r.qs.max_angle_std = positive(k, v);
-    else if (k == "--max-angle-drift") r.qs.max_angle_drift = positive(k, v);
-    else if (k == "--max-pair-dt") r.qs.max_pair_dt = positive(k, v);
-    else if (k == "--synthesize") r.synthesize = parse_int(k, v, 1, 1000000);
+      if (v == "none")
+        r.opt.loss = Loss::kNone;
+      else if (v == "huber")
+        r.opt.loss = Loss::kHuber;
+      else if (v == "cauchy")
+        r.opt.loss = Loss::kCauchy;
+      else
+        throw UsageError(k + ": unknown loss '" + v + "' (none, huber, cauchy)");
+    } else if (k == "--loss-scale")
+      r.opt.loss_scale = positive(k, v);
+    else if (k == "--max-iterations")
+      r.opt.max_iterations = parse_int(k, v, 1, 100000);
+    else if (k == "--threads")
+      r.opt.num_threads = parse_int(k, v, 1, 256);
+    else if (k == "--tip-topic")
+      r.topics.tip = v;
+    else if (k == "--base-topic")
+      r.topics.base = v;
+    else if (k == "--jets-topic")
+      r.topics.jets = v;
+    else if (k == "--window")
+      r.qs.window = positive(k, v);
+    else if (k == "--max-force-std")
+      r.qs.max_force_std = positive(k, v);
+    else if (k == "--max-force-drift")
+      r.qs.max_force_drift = positive(k, v);
+    else if (k == "--max-angle-std")
+      r.qs.max_angle_std = positive(k, v);
+    else if (k == "--max-angle-drift")
+      r.qs.max_angle_drift = positive(k, v);
+    else if (k == "--max-pair-dt")
+      r.qs.max_pair_dt = positive(k, v);
+    else if (k == "--synthesize")
+      r.synthesize = parse_int(k, v, 1, 1000000);
     else if (k == "--noise-deg") {
       r.noise_deg = parse_double(k, v);
       if (r.noise_deg < 0) throw UsageError(k + ": must not be negative");
-    } else if (k == "--seed") r.seed = static_cast<unsigned>(parse_int(k, v, 0, 2147483647));
+    } else if (k == "--seed")
+      r.seed = static_cast<unsigned>(parse_int(k, v, 0, 2147483647));
     else if (k == "--max-force-fraction") {
       r.max_force_fraction = positive(k, v);
       if (r.max_force_fraction > 1.0) throw UsageError(k + ": must lie in (0, 1]");
-    } else throw UsageError("unknown option '" + k + "' (see --help)");
+    } else
+      throw UsageError("unknown option '" + k + "' (see --help)");
   }
   if (r.help) return r;
   if (r.scene.empty()) throw UsageError("--scene: missing (the scene YAML with geometry and starting values)");
   if (r.synthesize == 0 && r.data.empty()) throw UsageError("--data: missing (CSV or rosbag)");
-  if (r.out.empty()) throw UsageError(r.synthesize ? "--out: missing (CSV to write)" : "--out: missing (scene YAML to write)");
+  if (r.out.empty())
+    throw UsageError(r.synthesize ? "--out: missing (CSV to write)" : "--out: missing (scene YAML to write)");
   try {
     r.opt.fit = parse_param_list(r.fit);
   } catch (const std::invalid_argument& e) {
@@ -232,9 +262,9 @@ int run_calibrate(const std::vector<std::string>& argv, std::ostream& out, std::
       const BagRecords br = read_bag(a.data, a.topics);
       const Extraction ex = extract_quasistatic(br.jets, br.tip, br.base, scene.nozzle, a.qs);
       rep << "bag " << a.data << ": " << br.tip.size() << " tip, " << br.base.size() << " base, " << br.jets.size()
-          << " jet-state messages; " << ex.paired_points << " paired points (" << ex.skipped_points
-          << " skipped); " << ex.quasistatic_windows << " of " << ex.windows << " windows quasistatic; "
-          << ex.samples.size() << " static samples (" << ex.merged_intervals << " repeated intervals merged)\n";
+          << " jet-state messages; " << ex.paired_points << " paired points (" << ex.skipped_points << " skipped); "
+          << ex.quasistatic_windows << " of " << ex.windows << " windows quasistatic; " << ex.samples.size()
+          << " static samples (" << ex.merged_intervals << " repeated intervals merged)\n";
       samples = ex.samples;
     } else {
       samples = read_csv(a.data);
@@ -242,8 +272,7 @@ int run_calibrate(const std::vector<std::string>& argv, std::ostream& out, std::
     if (!a.samples_out.empty()) write_text(a.samples_out, to_csv(samples), "--samples-out");
 
     const config::Scene& s0 = scene;
-    if (std::abs(s0.model.rod.stiffness.x() - s0.model.rod.stiffness.y()) >
-        1e-9 * std::abs(s0.model.rod.stiffness.x()))
+    if (std::abs(s0.model.rod.stiffness.x() - s0.model.rod.stiffness.y()) > 1e-9 * std::abs(s0.model.rod.stiffness.x()))
       rep << "note: the scene's EI_x and EI_y differ; E starts from their mean and the output is isotropic\n";
 
     // --- fit -------------------------------------------------------------------------------
@@ -271,7 +300,8 @@ int run_calibrate(const std::vector<std::string>& argv, std::ostream& out, std::
       if (!res.fitted[i]) continue;
       rep << param_name(i) << std::string(6 - std::string(param_name(i)).size(), ' ');
       for (int j = 0; j < kNumParams; ++j)
-        if (res.fitted[j]) rep << (std::isfinite(res.correlation(i, j)) ? fmt("%7.3f", res.correlation(i, j)) : std::string("      -"));
+        if (res.fitted[j])
+          rep << (std::isfinite(res.correlation(i, j)) ? fmt("%7.3f", res.correlation(i, j)) : std::string("      -"));
       rep << "\n";
     }
     rep << "per-sample orientation error [deg]:\n";

@@ -20,9 +20,7 @@ bool matches(const std::string& topic, const std::string& name) {
   return topic.size() >= n.size() && topic.compare(topic.size() - n.size(), n.size(), n) == 0;
 }
 
-double stamp_or(const ros::Time& stamp, const ros::Time& recv) {
-  return stamp.isZero() ? recv.toSec() : stamp.toSec();
-}
+double stamp_or(const ros::Time& stamp, const ros::Time& recv) { return stamp.isZero() ? recv.toSec() : stamp.toSec(); }
 
 }  // namespace
 
@@ -76,8 +74,8 @@ BagRecords read_bag(const std::string& path, const BagTopics& topics) {
   auto missing = [&](const std::string& name, const std::string& type) {
     std::string list;
     for (const std::string& t : found) list += (list.empty() ? "" : ", ") + t;
-    throw DataError("bag '" + path + "': no " + type + " messages on a topic '" + name + "' (topics: " +
-                    (list.empty() ? "none" : list) + ")");
+    throw DataError("bag '" + path + "': no " + type + " messages on a topic '" + name +
+                    "' (topics: " + (list.empty() ? "none" : list) + ")");
   };
   if (!have_tip) missing(topics.tip, "geometry_msgs/PoseStamped");
   if (!have_base) missing(topics.base, "geometry_msgs/PoseStamped");

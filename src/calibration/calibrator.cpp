@@ -27,11 +27,11 @@ std::string fmt(const char* f, double v) {
 
 /// Everything the per-sample residuals share.
 struct FitContext {
-  rod::RodModel model;             ///< the scene's model (stiffness, ũ replaced per evaluation)
+  rod::RodModel model;  ///< the scene's model (stiffness, ũ replaced per evaluation)
   rod::ShootingSettings settings;
-  actuation::JetGeometry jets;     ///< nozzle offset from the scene; misalignment per evaluation
-  double E0 = 1.0, G0 = 1.0;       ///< moduli at the start: internal coordinates are ln(E/E0), ln(G/G0)
-  double I = 0.0, J = 0.0;         ///< second and polar moments of the cross-section [m^4]
+  actuation::JetGeometry jets;  ///< nozzle offset from the scene; misalignment per evaluation
+  double E0 = 1.0, G0 = 1.0;    ///< moduli at the start: internal coordinates are ln(E/E0), ln(G/G0)
+  double I = 0.0, J = 0.0;      ///< second and polar moments of the cross-section [m^4]
   mutable std::atomic<int> solves{0}, failures{0};
 };
 
@@ -53,7 +53,9 @@ class SampleCost : public ceres::SizedCostFunction<3, 1, 1, 1, 1, 1, 1, 1> {
   static constexpr double kStep = 1e-6;
 
   SampleCost(const FitContext* ctx, const Sample& s)
-      : ctx_(ctx), q_(s.jet_force), R_meas_(s.tip_orientation.normalized().toRotationMatrix()),
+      : ctx_(ctx),
+        q_(s.jet_force),
+        R_meas_(s.tip_orientation.normalized().toRotationMatrix()),
         solver_(ctx->model, ctx->settings) {}
 
   bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
@@ -126,8 +128,8 @@ ceres::LossFunction* make_loss(Loss l, double scale) {
 }
 
 /// Residuals (3N) and, if J is given, the dense Jacobian (3N × fitted) at the current parameters.
-bool evaluate(ceres::Problem* problem, const std::vector<double*>& fitted, bool apply_loss,
-              Eigen::VectorXd* r, Eigen::MatrixXd* J) {
+bool evaluate(ceres::Problem* problem, const std::vector<double*>& fitted, bool apply_loss, Eigen::VectorXd* r,
+              Eigen::MatrixXd* J) {
   ceres::Problem::EvaluateOptions eo;
   eo.apply_loss_function = apply_loss;
   eo.parameter_blocks = fitted;
@@ -185,8 +187,7 @@ Eigen::Matrix3d predict_tip_rotation(const config::Scene& scene, const Eigen::Ve
 CalibrationResult calibrate(const config::Scene& scene, const CrossSection& cs, const std::vector<Sample>& samples,
                             const CalibrationOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
-  if (!scene.has_jets)
-    throw config::SceneError("jets", "missing (the calibration needs the jet geometry, eq. 24)");
+  if (!scene.has_jets) throw config::SceneError("jets", "missing (the calibration needs the jet geometry, eq. 24)");
   const std::string cse = cs.validate();
   if (!cse.empty()) throw std::invalid_argument("cross-section " + cse);
   int p = 0;
@@ -370,11 +371,12 @@ CalibrationResult calibrate(const config::Scene& scene, const CrossSection& cs, 
       res.identifiable[i] = true;
       continue;
     }
-    const std::string sd = (i == kE || i == kG) ? fmt("%.3g", 100.0 * rel) + " %" : fmt("%.3g", rel) + " " + param_unit(i);
+    const std::string sd =
+        (i == kE || i == kG) ? fmt("%.3g", 100.0 * rel) + " %" : fmt("%.3g", rel) + " " + param_unit(i);
     const std::string lim = (i == kE || i == kG) ? fmt("%.3g", 100.0 * opt.resolution[i]) + " %"
                                                  : fmt("%.3g", opt.resolution[i]) + " " + param_unit(i);
-    res.warnings.push_back(std::string(param_name(i)) + " is poorly identifiable from these data: std " + sd +
-                           " > " + lim + "; fix it (leave it out of --fit) or add samples that excite it");
+    res.warnings.push_back(std::string(param_name(i)) + " is poorly identifiable from these data: std " + sd + " > " +
+                           lim + "; fix it (leave it out of --fit) or add samples that excite it");
   }
   for (int i = 0; i < kNumParams; ++i)
     for (int j = i + 1; j < kNumParams; ++j)

@@ -32,9 +32,7 @@ int nearest(const std::vector<R>& v, double t, double tol) {
   return best;
 }
 
-bool usable(const Eigen::Quaterniond& q) {
-  return q.coeffs().allFinite() && std::abs(q.norm() - 1.0) < 0.01;
-}
+bool usable(const Eigen::Quaterniond& q) { return q.coeffs().allFinite() && std::abs(q.norm() - 1.0) < 0.01; }
 
 struct Point {
   double t;
@@ -60,8 +58,10 @@ WindowStats stats(const std::vector<Point>& p, int s, int e, double t_half) {
     v[k] = so3::log(Rref.transpose() * q.R);
     F_sum += q.F;
     v_sum += v[k];
-    if (q.t <= t_half) F1 += q.F, v1 += v[k], ++n1;
-    else F2 += q.F, v2 += v[k], ++n2;
+    if (q.t <= t_half)
+      F1 += q.F, v1 += v[k], ++n1;
+    else
+      F2 += q.F, v2 += v[k], ++n2;
   }
   w.F_mean = F_sum / n;
   const Eigen::Vector3d m = v_sum / n;

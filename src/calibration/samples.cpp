@@ -60,7 +60,8 @@ std::string sample_problem(const Eigen::Vector3d& q, const Eigen::Vector4d& wxyz
     if (!std::isfinite(wxyz[i])) return std::string(wn[i]) + " is not finite (" + num(wxyz[i]) + ")";
   const double n = wxyz.norm();
   if (std::abs(n - 1.0) > kUnitQuaternionTolerance)
-    return "quaternion (qw,qx,qy,qz) is not unit: norm " + num(n) + " (tolerance " + num(kUnitQuaternionTolerance) + ")";
+    return "quaternion (qw,qx,qy,qz) is not unit: norm " + num(n) + " (tolerance " + num(kUnitQuaternionTolerance) +
+           ")";
   return "";
 }
 
@@ -103,8 +104,7 @@ std::vector<Sample> parse_csv(const std::string& text, const std::string& name) 
     double v[7];
     for (int c = 0; c < 7; ++c) {
       const std::string& s = f[idx[c]];
-      if (!parse_number(s, &v[c]))
-        throw DataError(where + ": column " + cols[c] + ": '" + s + "' is not a number");
+      if (!parse_number(s, &v[c])) throw DataError(where + ": column " + cols[c] + ": '" + s + "' is not a number");
     }
     const Eigen::Vector3d q(v[0], v[1], v[2]);
     const Eigen::Vector4d wxyz(v[3], v[4], v[5], v[6]);
@@ -139,8 +139,7 @@ void validate_samples(const std::vector<Sample>& samples, int fitted_params) {
     const Eigen::Vector4d wxyz(s.tip_orientation.w(), s.tip_orientation.x(), s.tip_orientation.y(),
                                s.tip_orientation.z());
     const std::string p = sample_problem(s.jet_force, wxyz);
-    if (!p.empty())
-      throw DataError((s.origin.empty() ? "sample " + std::to_string(i + 1) : s.origin) + ": " + p);
+    if (!p.empty()) throw DataError((s.origin.empty() ? "sample " + std::to_string(i + 1) : s.origin) + ": " + p);
     if (s.jet_force.maxCoeff() > 0.0) any_force = true;
   }
   if (!any_force)
@@ -151,7 +150,7 @@ std::string to_csv(const std::vector<Sample>& samples) {
   std::string o = "q1,q2,q3,qw,qx,qy,qz\n";
   char b[64];
   for (const Sample& s : samples) {
-    const double v[7] = {s.jet_force[0], s.jet_force[1], s.jet_force[2], s.tip_orientation.w(),
+    const double v[7] = {s.jet_force[0],        s.jet_force[1],        s.jet_force[2],       s.tip_orientation.w(),
                          s.tip_orientation.x(), s.tip_orientation.y(), s.tip_orientation.z()};
     for (int i = 0; i < 7; ++i) {
       std::snprintf(b, sizeof(b), "%s%.17g", i ? "," : "", v[i]);

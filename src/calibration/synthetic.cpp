@@ -24,7 +24,8 @@ std::vector<Sample> synthesize(const config::Scene& truth, const SyntheticOption
     tw.force = w.head<3>();
     tw.moment = w.tail<3>();
     const rod::RodSolution sol = solver.solve(tw);
-    if (!sol.converged) throw std::runtime_error("synthesize: rod solve " + std::to_string(k + 1) + " did not converge");
+    if (!sol.converged)
+      throw std::runtime_error("synthesize: rod solve " + std::to_string(k + 1) + " did not converge");
     const Eigen::Vector3d n(n01(rng), n01(rng), n01(rng));
     s.tip_orientation = Eigen::Quaterniond(sol.tip_rotation * so3::exp(o.noise_rad * n)).normalized();
     s.origin = "synthetic " + std::to_string(k + 1);

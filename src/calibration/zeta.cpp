@@ -33,8 +33,7 @@ ParamMask parse_param_list(const std::string& list) {
     const size_t a = item.find_first_not_of(" \t"), b = item.find_last_not_of(" \t");
     item = a == std::string::npos ? "" : item.substr(a, b - a + 1);
     const int i = param_index(item);
-    if (i < 0)
-      throw std::invalid_argument("unknown parameter '" + item + "' (ux, uy, E, G, da, db, dg)");
+    if (i < 0) throw std::invalid_argument("unknown parameter '" + item + "' (ux, uy, E, G, da, db, dg)");
     if (m[i]) throw std::invalid_argument("parameter '" + item + "' given twice");
     m[i] = true;
     ++n;

@@ -22,9 +22,12 @@ ControllerOptions parse_controller_options(const YAML::Node& root) {
   o.autostart = p.boolean("autostart", o.autostart);
   o.base_frame = p.text("base_frame", o.base_frame);
   const std::string mode = p.text("mode", "closed");
-  if (mode == "closed") o.controller.mode = control::LoopMode::kClosed;
-  else if (mode == "open") o.controller.mode = control::LoopMode::kOpen;
-  else p.fail("mode", "must be 'closed' or 'open', got '" + mode + "'");
+  if (mode == "closed")
+    o.controller.mode = control::LoopMode::kClosed;
+  else if (mode == "open")
+    o.controller.mode = control::LoopMode::kOpen;
+  else
+    p.fail("mode", "must be 'closed' or 'open', got '" + mode + "'");
 
   // Each numeric parameter: its key, the core's field name (as ControllerParams::validate() names
   // it) and where it lives.

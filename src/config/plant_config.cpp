@@ -73,8 +73,8 @@ plant::PlantParameters make_plant(const Scene& nominal, const std::string& text)
     const std::string D = "plant.dynamics.";
     t.keys("plant.dynamics", {"shear_stiffness", "axial_stiffness", "kelvin_voigt_time", "linear_drag", "tip_drag",
                               "tip_angular_drag", "tip_inertia", "linear_density", "nodes", "internal_dt", "alpha"});
-    t.keys("plant.tracker", {"position_sigma", "angle_sigma", "position_quantum", "latency", "dropout_rate",
-                             "dropout_duration"});
+    t.keys("plant.tracker",
+           {"position_sigma", "angle_sigma", "position_quantum", "latency", "dropout_rate", "dropout_duration"});
     t.keys("plant.flow_sensors", {"sigma", "quantum"});
     // Optional numbers: key (below its section) and where it lives.
     const std::pair<std::string, double*> numbers[] = {
@@ -117,7 +117,9 @@ plant::PlantParameters make_plant(const Scene& nominal, const std::string& text)
   p.rod.model.tip_mass *= mass_scale;
   p.jets.misalignment += dmis;
   const std::string e = p.validate();
-  if (!e.empty()) throw SceneError("plant." + e.substr(0, e.find(':')), e.find(':') == std::string::npos ? e : e.substr(e.find(':') + 2));
+  if (!e.empty())
+    throw SceneError("plant." + e.substr(0, e.find(':')),
+                     e.find(':') == std::string::npos ? e : e.substr(e.find(':') + 2));
   return p;
 }
 

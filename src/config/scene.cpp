@@ -15,8 +15,9 @@ using Tree = YamlTree<SceneError>;
 
 void parse_rod(Tree& t, rod::RodParameters* p) {
   t.section("rod");
-  t.keys("rod", {"length", "bending_stiffness", "torsional_stiffness", "youngs_modulus", "shear_modulus", "outer_diameter",
-                 "inner_diameter", "precurvature", "linear_density", "model", "shear_stiffness", "axial_stiffness"});
+  t.keys("rod",
+         {"length", "bending_stiffness", "torsional_stiffness", "youngs_modulus", "shear_modulus", "outer_diameter",
+          "inner_diameter", "precurvature", "linear_density", "model", "shear_stiffness", "axial_stiffness"});
   p->length = t.positive("rod.length");
   const bool direct = t.has("rod.bending_stiffness") || t.has("rod.torsional_stiffness");
   const bool moduli = t.has("rod.youngs_modulus") || t.has("rod.shear_modulus") || t.has("rod.outer_diameter") ||
@@ -30,8 +31,8 @@ void parse_rod(Tree& t, rod::RodParameters* p) {
     const double d = t.nonnegative("rod.inner_diameter");
     if (d >= D) t.fail("rod.inner_diameter", "must be smaller than rod.outer_diameter");
     const double I = M_PI * (std::pow(D, 4) - std::pow(d, 4)) / 64.0;  // hollow cylinder
-    p->stiffness = rod::Vec3(E * I, E * I, G * 2.0 * I);                  // J = 2 I
-    const double A = M_PI * (D * D - d * d) / 4.0;                        // Cosserat: EA, GA
+    p->stiffness = rod::Vec3(E * I, E * I, G * 2.0 * I);               // J = 2 I
+    const double A = M_PI * (D * D - d * d) / 4.0;                     // Cosserat: EA, GA
     p->axial_stiffness = E * A;
     p->shear_stiffness = G * A;
   } else {
@@ -44,7 +45,8 @@ void parse_rod(Tree& t, rod::RodParameters* p) {
   // rod.model: kirchhoff (default) | cosserat. The Cosserat rod needs K_se = diag(GA, GA, EA): the
   // keys shear_stiffness and axial_stiffness [N], or moduli and diameters (GA = G·A, EA = E·A).
   const std::string kind = t.text("rod.model", "kirchhoff");
-  if (kind != "kirchhoff" && kind != "cosserat") t.fail("rod.model", "must be kirchhoff or cosserat, got '" + kind + "'");
+  if (kind != "kirchhoff" && kind != "cosserat")
+    t.fail("rod.model", "must be kirchhoff or cosserat, got '" + kind + "'");
   if (kind == "kirchhoff") {
     for (const char* k : {"rod.shear_stiffness", "rod.axial_stiffness"})
       if (t.has(k)) t.fail(k, "only with rod.model: cosserat");
@@ -77,7 +79,8 @@ void parse_tip(Tree& t, Scene* s) {
       const std::string n = a[i].IsScalar() ? a[i].Scalar() : "";
       int k = 0;
       while (k < 6 && n != names[k]) ++k;
-      if (k == 6) t.fail("tip.actuated[" + std::to_string(i) + "]", "unknown component '" + n + "' (fx fy fz mx my mz)");
+      if (k == 6)
+        t.fail("tip.actuated[" + std::to_string(i) + "]", "unknown component '" + n + "' (fx fy fz mx my mz)");
       s->actuated[k] = true;
     }
   }
@@ -85,8 +88,8 @@ void parse_tip(Tree& t, Scene* s) {
 
 void parse_solver(Tree& t, rod::ShootingSettings* st) {
   t.section("solver");
-  t.keys("solver", {"integrator", "steps", "tolerance", "residual_tolerance", "max_iterations", "max_continuation_steps",
-                    "shooting_segments", "accuracy_tolerance"});
+  t.keys("solver", {"integrator", "steps", "tolerance", "residual_tolerance", "max_iterations",
+                    "max_continuation_steps", "shooting_segments", "accuracy_tolerance"});
   if (t.has("solver.integrator")) {
     const std::string name = t.text("solver.integrator", "");
     if (!rod::parse_integrator(name, &st->integrator.type))

@@ -38,9 +38,12 @@ std::string ControllerParams::validate() const {
   if (!finite_pos(sample_period)) return bad("sample_period", sample_period, "must be finite and > 0");
   if (stale_periods < 1) return bad("stale_periods", stale_periods, "must be >= 1");
   if (max_solver_failures < 1) return bad("max_solver_failures", max_solver_failures, "must be >= 1");
-  if (!finite_nonneg(min_stability_margin)) return bad("min_stability_margin", min_stability_margin, "must be finite and >= 0");
-  if (!finite_pos(unreachable_tolerance)) return bad("unreachable_tolerance", unreachable_tolerance, "must be finite and > 0");
-  if (!finite_pos(flow_fault_tolerance)) return bad("flow_fault_tolerance", flow_fault_tolerance, "must be finite and > 0");
+  if (!finite_nonneg(min_stability_margin))
+    return bad("min_stability_margin", min_stability_margin, "must be finite and >= 0");
+  if (!finite_pos(unreachable_tolerance))
+    return bad("unreachable_tolerance", unreachable_tolerance, "must be finite and > 0");
+  if (!finite_pos(flow_fault_tolerance))
+    return bad("flow_fault_tolerance", flow_fault_tolerance, "must be finite and > 0");
   if (!finite_pos(flow_fault_time)) return bad("flow_fault_time", flow_fault_time, "must be finite and > 0");
   if (!finite_pos(path.duration)) return bad("path.duration", path.duration, "must be finite and > 0");
   if (!(path.theta_start >= 0 && path.theta_start <= M_PI / 2))
@@ -53,11 +56,7 @@ std::string ControllerParams::validate() const {
 }
 
 Controller::Controller(const ControllerModel& model, const ControllerParams& params)
-    : model_(model),
-      params_(params),
-      jet_map_(model.jets),
-      solver_(model.rod, model.solver),
-      regulators_(model.flow) {}
+    : model_(model), params_(params), jet_map_(model.jets), solver_(model.rod, model.solver), regulators_(model.flow) {}
 
 void Controller::start(double t) {
   state_ = ControllerState::kRunning;
@@ -124,7 +123,8 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
     return abort(out, "flow: samples stale (" + std::to_string(in.t - in.flow_stamp) + " s old)");
   for (int i = 0; i < 3; ++i)
     if (!std::isfinite(in.flows[i]) || in.flows[i] < 0.0)
-      return abort(out, "flow: jet " + std::to_string(i + 1) + " reading invalid (" + std::to_string(in.flows[i]) + " m^3/s)");
+      return abort(
+          out, "flow: jet " + std::to_string(i + 1) + " reading invalid (" + std::to_string(in.flows[i]) + " m^3/s)");
 
   // Actuator fault: a jet whose measured flow stays far from the flow it was commanded (a valve stuck
   // open or closed, a blocked line) cannot be controlled; the flow loop would only wind up. The
@@ -151,7 +151,8 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   out.solver_converged = sol.converged;
   if (!sol.converged) {
     if (++solver_failures_ >= params_.max_solver_failures)
-      return abort(out, "model: rod solver did not converge " + std::to_string(solver_failures_) + " times in a row (" + sol.message + ")");
+      return abort(out, "model: rod solver did not converge " + std::to_string(solver_failures_) + " times in a row (" +
+                            sol.message + ")");
     // Hold the previous command for one cycle.
     out.jet_force_command.setZero();
     const Vec3 q_hold = out.jet_force_observed;
@@ -167,9 +168,11 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   out.stability_eig_min = st.eig_min;
   out.model_tip_rotation = sol.tip_rotation;
   if (!C.ok || !st.ok) return abort(out, "model: compliance not finite");
-  if (st.eig_min <= 0.0) return abort(out, "stability: equilibrium unstable (min Re eig S = " + std::to_string(st.eig_min) + ")");
+  if (st.eig_min <= 0.0)
+    return abort(out, "stability: equilibrium unstable (min Re eig S = " + std::to_string(st.eig_min) + ")");
   if (st.margin < params_.min_stability_margin)
-    return abort(out, "stability: sigma_c = " + std::to_string(st.margin) + " N/m below margin " + std::to_string(params_.min_stability_margin));
+    return abort(out, "stability: sigma_c = " + std::to_string(st.margin) + " N/m below margin " +
+                          std::to_string(params_.min_stability_margin));
 
   // Task space: desired, measured and model tip directions (base frame).
   out.desired_direction = params_.path.direction_at(out.path_time);
@@ -182,8 +185,8 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   // the limit of the commanded direction, so that a far-away static target can still be reached.
   if (out.error_geodesic <= params_.max_oscillation) oscillation_armed_ = true;
   if (oscillation_armed_ && out.error_geodesic > params_.max_oscillation)
-    return abort(out, "oscillation: tip " + std::to_string(out.error_geodesic) + " rad from the commanded direction (limit " +
-                          std::to_string(params_.max_oscillation) + ")");
+    return abort(out, "oscillation: tip " + std::to_string(out.error_geodesic) +
+                          " rad from the commanded direction (limit " + std::to_string(params_.max_oscillation) + ")");
 
   // eqs. (17)–(18): x_err as the rotation vector taking x_obs onto x_des; PD on it, plus the
   // path's own motion this step as feedforward.
@@ -223,8 +226,8 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   out.wrench_command.head<2>() = f;
 
   // eq. (20): bounded allocation over the three jets.
-  const actuation::AllocationResult alloc = actuation::allocate(
-      jet_map_.planar(), f, Vec3::Zero(), model_.max_jet_force, params_.allocation_weight);
+  const actuation::AllocationResult alloc =
+      actuation::allocate(jet_map_.planar(), f, Vec3::Zero(), model_.max_jet_force, params_.allocation_weight);
   if (!alloc.ok) return abort(out, "allocation: " + alloc.message);
   out.jet_force_command = alloc.q;
   out.force_reachable = alloc.residual_norm <= params_.unreachable_tolerance;

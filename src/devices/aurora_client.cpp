@@ -321,8 +321,8 @@ bool AuroraClient::read_ascii_line(std::string* line, double timeout, std::strin
   }
 }
 
-bool AuroraClient::command(const std::string& name, const std::string& params, std::string* reply,
-                           std::string* err, double timeout) {
+bool AuroraClient::command(const std::string& name, const std::string& params, std::string* reply, std::string* err,
+                           double timeout) {
   port_.flush_input();
   const std::string cmd = format_command(name, params);
   std::string e;
@@ -353,8 +353,8 @@ bool AuroraClient::command(const std::string& name, const std::string& params, s
   return true;
 }
 
-bool AuroraClient::handle_list(const std::string& option,
-                               std::vector<std::pair<uint8_t, uint16_t>>* out, std::string* err) {
+bool AuroraClient::handle_list(const std::string& option, std::vector<std::pair<uint8_t, uint16_t>>* out,
+                               std::string* err) {
   std::string reply, e;
   if (!command("PHSR", option, &reply, &e, cfg_.command_timeout)) {
     *err = e;
@@ -408,7 +408,8 @@ void AuroraClient::track(std::string* err) {
     AuroraStatus s = status();
     if (seconds_between(s.last_frame, now) > cfg_.timeout) {
       char buf[96];
-      std::snprintf(buf, sizeof buf, "no valid BX reply for %.2f s (tracker silent)", seconds_between(s.last_frame, now));
+      std::snprintf(buf, sizeof buf, "no valid BX reply for %.2f s (tracker silent)",
+                    seconds_between(s.last_frame, now));
       *err = buf;
       return;
     }
@@ -424,9 +425,7 @@ AuroraClient::BxResult AuroraClient::request_bx(BxFrame* frame, std::string* err
     *err = "BX: " + e;
     return BxResult::kHangup;
   }
-  const auto rejected = [this] {
-    return parser_.crc_errors() + parser_.format_errors() + parser_.truncated_frames();
-  };
+  const auto rejected = [this] { return parser_.crc_errors() + parser_.format_errors() + parser_.truncated_frames(); };
   const uint64_t rejected0 = rejected();
   ascii_tail_.clear();
   const SteadyTime until = SteadyClock::now() + seconds(cfg_.reply_timeout);

@@ -42,8 +42,8 @@ bool parse_hex(const std::string& s, size_t pos, size_t n, uint32_t* v) {
 
 uint16_t le16(const uint8_t* p) { return static_cast<uint16_t>(p[0] | (p[1] << 8)); }
 uint32_t le32(const uint8_t* p) {
-  return static_cast<uint32_t>(p[0]) | (static_cast<uint32_t>(p[1]) << 8) |
-         (static_cast<uint32_t>(p[2]) << 16) | (static_cast<uint32_t>(p[3]) << 24);
+  return static_cast<uint32_t>(p[0]) | (static_cast<uint32_t>(p[1]) << 8) | (static_cast<uint32_t>(p[2]) << 16) |
+         (static_cast<uint32_t>(p[3]) << 24);
 }
 float lef32(const uint8_t* p) {
   const uint32_t u = le32(p);
@@ -118,8 +118,7 @@ std::string format_command(const std::string& name, const std::string& params) {
   if (name.empty()) throw std::invalid_argument("format_command: empty command name");
   for (char c : name) {
     if (!((c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9')))
-      throw std::invalid_argument("format_command: command name '" + name +
-                                  "' must be uppercase letters/digits");
+      throw std::invalid_argument("format_command: command name '" + name + "' must be uppercase letters/digits");
   }
   for (char c : params) {
     const auto u = static_cast<unsigned char>(c);
@@ -147,8 +146,7 @@ AsciiReply parse_ascii_reply(const std::string& line_without_cr) {
   }
   const uint16_t want = crc16_arc(r.text);
   if (got != want) {
-    r.error = "reply CRC mismatch (received " + s.substr(s.size() - 4) + ", computed " +
-              crc16_hex(want) + ")";
+    r.error = "reply CRC mismatch (received " + s.substr(s.size() - 4) + ", computed " + crc16_hex(want) + ")";
     return r;
   }
   r.crc_ok = true;
@@ -176,16 +174,15 @@ std::string describe_error(const std::string& code) {
   return label + ": " + (msg ? msg : "unknown");
 }
 
-bool parse_phsr(const std::string& text, std::vector<std::pair<uint8_t, uint16_t>>* out,
-                std::string* err) {
+bool parse_phsr(const std::string& text, std::vector<std::pair<uint8_t, uint16_t>>* out, std::string* err) {
   uint32_t n = 0;
   if (!parse_hex(text, 0, 2, &n)) {
     set_err(err, "PHSR reply '" + text + "': missing 2-hex-digit handle count");
     return false;
   }
   if (text.size() != 2 + 5 * static_cast<size_t>(n)) {
-    set_err(err, "PHSR reply '" + text + "': " + std::to_string(n) + " handles need " +
-                     std::to_string(2 + 5 * n) + " characters, got " + std::to_string(text.size()));
+    set_err(err, "PHSR reply '" + text + "': " + std::to_string(n) + " handles need " + std::to_string(2 + 5 * n) +
+                     " characters, got " + std::to_string(text.size()));
     return false;
   }
   std::vector<std::pair<uint8_t, uint16_t>> v;
@@ -229,8 +226,7 @@ const HandlePose* BxFrame::find(uint8_t handle) const {
   return nullptr;
 }
 
-bool decode_bx_body(const uint8_t* body, size_t n, uint32_t out_of_volume_mask, BxFrame* out,
-                    std::string* err) {
+bool decode_bx_body(const uint8_t* body, size_t n, uint32_t out_of_volume_mask, BxFrame* out, std::string* err) {
   if (n < 1) {
     set_err(err, "BX body is empty");
     return false;
@@ -257,8 +253,7 @@ bool decode_bx_body(const uint8_t* body, size_t n, uint32_t out_of_volume_mask, 
       continue;
     }
     if (st != kBxHandleValid && st != kBxHandleMissing) {
-      set_err(err, "BX handle " + std::to_string(h.handle) + " has unknown status byte " +
-                       std::to_string(st));
+      set_err(err, "BX handle " + std::to_string(h.handle) + " has unknown status byte " + std::to_string(st));
       return false;
     }
     const size_t need = (st == kBxHandleValid ? 32 : 0) + 8;
@@ -275,11 +270,11 @@ bool decode_bx_body(const uint8_t* body, size_t n, uint32_t out_of_volume_mask, 
           return false;
         }
       }
-      const double norm = std::sqrt(double(v[0]) * v[0] + double(v[1]) * v[1] +
-                                    double(v[2]) * v[2] + double(v[3]) * v[3]);
+      const double norm =
+          std::sqrt(double(v[0]) * v[0] + double(v[1]) * v[1] + double(v[2]) * v[2] + double(v[3]) * v[3]);
       if (std::fabs(norm - 1.0) > 1e-2) {
-        set_err(err, "BX handle " + std::to_string(h.handle) + " quaternion norm " +
-                         std::to_string(norm) + " is not 1");
+        set_err(err,
+                "BX handle " + std::to_string(h.handle) + " quaternion norm " + std::to_string(norm) + " is not 1");
         return false;
       }
       if (v[7] < 0.0f) {
@@ -371,9 +366,7 @@ void BxParser::feed(const uint8_t* data, size_t n) {
   buf_.insert(buf_.end(), data, data + n);
 }
 
-void BxParser::feed(const std::string& bytes) {
-  feed(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size());
-}
+void BxParser::feed(const std::string& bytes) { feed(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()); }
 
 void BxParser::reset() {
   garbage_bytes_ += buffered();
@@ -419,8 +412,7 @@ bool BxParser::next(BxFrame* out) {
   for (;;) {
     // 1. Hunt for the start sequence. A lone trailing C4 may be the first half of one: keep it.
     while (head_ < buf_.size()) {
-      if (buf_[head_] == kBxStart0 && (head_ + 1 == buf_.size() || buf_[head_ + 1] == kBxStart1))
-        break;
+      if (buf_[head_] == kBxStart0 && (head_ + 1 == buf_.size() || buf_[head_ + 1] == kBxStart1)) break;
       discard(1);
     }
     if (buf_.size() - head_ < kBxHeaderSize) return false;

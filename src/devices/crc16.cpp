@@ -12,7 +12,8 @@ constexpr std::array<uint16_t, 256> make_table() {
   std::array<uint16_t, 256> t{};
   for (unsigned i = 0; i < 256; ++i) {
     uint16_t c = static_cast<uint16_t>(i);
-    for (int k = 0; k < 8; ++k) c = (c & 1u) ? static_cast<uint16_t>((c >> 1) ^ 0xA001u) : static_cast<uint16_t>(c >> 1);
+    for (int k = 0; k < 8; ++k)
+      c = (c & 1u) ? static_cast<uint16_t>((c >> 1) ^ 0xA001u) : static_cast<uint16_t>(c >> 1);
     t[i] = c;
   }
   return t;

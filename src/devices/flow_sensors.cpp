@@ -17,8 +17,7 @@ bool positive_finite(double x) { return std::isfinite(x) && x > 0.0; }
 std::string FlowSensorConfig::validate() const {
   if (port.empty()) return "port: must not be empty";
   if (!is_supported_baud(baud)) return "baud: " + std::to_string(baud) + " is not a supported rate";
-  if (!positive_finite(format.scale_to_m3_per_s))
-    return "scale: the unit scale to m^3/s must be finite and > 0";
+  if (!positive_finite(format.scale_to_m3_per_s)) return "scale: the unit scale to m^3/s must be finite and > 0";
   if (format.regex.empty() && format.field_index < 0) return "field_index: must be >= 0";
   if (format.separator == '\n' || format.separator == '\r') return "separator: must not be a line end";
   if (!positive_finite(timeout)) return "timeout: must be finite and > 0";
@@ -120,7 +119,7 @@ void FlowSensor::run() {
 
 std::string FlowSensor::stream() {
   LineSplitter lines(cfg_.max_line_length);
-  lines.skip_first_line();  // opened mid-stream: the first line may be a tail ("3.4" of "123.4")
+  lines.skip_first_line();                  // opened mid-stream: the first line may be a tail ("3.4" of "123.4")
   SteadyTime last_ok = SteadyClock::now();  // silence clock starts at open
   uint64_t discarded_seen = 0;
   uint8_t buf[512];

@@ -76,8 +76,7 @@ const RegexCache& compiled(const std::string& pattern) {
 }
 
 /// Selects the number text of a flow line; false with err on failure.
-bool select_field(const std::string& line, const FlowLineFormat& fmt, std::string* field,
-                  std::string* err) {
+bool select_field(const std::string& line, const FlowLineFormat& fmt, std::string* field, std::string* err) {
   if (!fmt.regex.empty()) {
     const RegexCache& c = compiled(fmt.regex);
     if (!c.valid) {
@@ -117,8 +116,8 @@ bool select_field(const std::string& line, const FlowLineFormat& fmt, std::strin
     }
   }
   if (static_cast<size_t>(fmt.field_index) >= fields.size()) {
-    set_err(err, "line has " + std::to_string(fields.size()) + " fields, field " +
-                     std::to_string(fmt.field_index) + " requested");
+    set_err(err, "line has " + std::to_string(fields.size()) + " fields, field " + std::to_string(fmt.field_index) +
+                     " requested");
     return false;
   }
   *field = fields[static_cast<size_t>(fmt.field_index)];
@@ -144,15 +143,12 @@ int hex_value(char c) {
   return -1;
 }
 
-std::string with_checksum(const std::string& payload) {
-  return payload + "*" + hex2(valve_checksum(payload)) + "\n";
-}
+std::string with_checksum(const std::string& payload) { return payload + "*" + hex2(valve_checksum(payload)) + "\n"; }
 
 std::string duties_line(char type, const std::array<double, 3>& duty) {
   std::string p(1, type);
   for (double d : duty) {
-    if (!std::isfinite(d))
-      throw std::invalid_argument(std::string("valve duty is not finite (") + type + " line)");
+    if (!std::isfinite(d)) throw std::invalid_argument(std::string("valve duty is not finite (") + type + " line)");
     const double c = d <= 0.0 ? 0.0 : (d >= 1.0 ? 1.0 : d);
     p += "," + duty_text(c);
   }
@@ -161,8 +157,7 @@ std::string duties_line(char type, const std::array<double, 3>& duty) {
 
 /// Checks framing and checksum of a valve line; on success `*type` is the leading letter and
 /// `*fields` the comma-separated fields after it.
-bool check_frame(const std::string& raw, char* type, std::vector<std::string>* fields,
-                 std::string* err) {
+bool check_frame(const std::string& raw, char* type, std::vector<std::string>* fields, std::string* err) {
   const std::string line = strip_terminator(raw);
   if (line.empty()) {
     set_err(err, "empty valve line");
@@ -192,8 +187,7 @@ bool check_frame(const std::string& raw, char* type, std::vector<std::string>* f
   const std::string payload = line.substr(0, star);
   const uint8_t want = valve_checksum(payload);
   if (static_cast<uint8_t>(hi * 16 + lo) != want) {
-    set_err(err, "valve line checksum mismatch (received " + line.substr(star + 1) +
-                     ", computed " + hex2(want) + ")");
+    set_err(err, "valve line checksum mismatch (received " + line.substr(star + 1) + ", computed " + hex2(want) + ")");
     return false;
   }
   if (payload.size() < 2 || payload[1] != ',') {
@@ -212,8 +206,7 @@ bool check_frame(const std::string& raw, char* type, std::vector<std::string>* f
   return true;
 }
 
-bool parse_duties(const std::vector<std::string>& fields, std::array<double, 3>* duty,
-                  std::string* err) {
+bool parse_duties(const std::vector<std::string>& fields, std::array<double, 3>* duty, std::string* err) {
   if (fields.size() != 3) {
     set_err(err, "expected 3 duties, got " + std::to_string(fields.size()));
     return false;
@@ -245,8 +238,7 @@ bool parse_duties(const std::vector<std::string>& fields, std::array<double, 3>*
 // (a) Flow sensors
 // ---------------------------------------------------------------------------------------------
 
-bool parse_flow_line(const std::string& raw, const FlowLineFormat& fmt, double* flow_m3s,
-                     std::string* err) {
+bool parse_flow_line(const std::string& raw, const FlowLineFormat& fmt, double* flow_m3s, std::string* err) {
   if (!(std::isfinite(fmt.scale_to_m3_per_s) && fmt.scale_to_m3_per_s > 0.0)) {
     set_err(err, "scale_to_m3_per_s must be finite and > 0 (state the sensor's unit)");
     return false;
@@ -322,9 +314,7 @@ bool parse_valve_ack(const std::string& line, std::array<double, 3>* echoed, std
   return true;
 }
 
-bool parse_valve_ack(const std::string& line, std::string* err) {
-  return parse_valve_ack(line, nullptr, err);
-}
+bool parse_valve_ack(const std::string& line, std::string* err) { return parse_valve_ack(line, nullptr, err); }
 
 bool parse_valve_command(const std::string& line, std::array<double, 3>* duty, std::string* err) {
   char type = 0;

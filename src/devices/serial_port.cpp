@@ -173,8 +173,7 @@ bool SerialPort::write_all(const void* data, size_t n, double timeout_s, std::st
   return true;
 }
 
-SerialPort::ReadStatus SerialPort::read_some(uint8_t* buf, size_t cap, double timeout_s, size_t* n,
-                                             std::string* err) {
+SerialPort::ReadStatus SerialPort::read_some(uint8_t* buf, size_t cap, double timeout_s, size_t* n, std::string* err) {
   *n = 0;
   if (fd_ < 0) {
     set_err(err, "port not open");

@@ -100,15 +100,13 @@ ValveDriver::Result SerialValveBoard::apply(const Duty& duty, Duty* applied, std
 bool CommandGate::set_command(const Duty& duty, SteadyTime now) {
   bool finite = true;
   for (double d : duty) finite = finite && std::isfinite(d);
-  for (int i = 0; i < 3; ++i)
-    duty_[i] = finite ? (duty[i] <= 0.0 ? 0.0 : (duty[i] >= 1.0 ? 1.0 : duty[i])) : 0.0;
+  for (int i = 0; i < 3; ++i) duty_[i] = finite ? (duty[i] <= 0.0 ? 0.0 : (duty[i] >= 1.0 ? 1.0 : duty[i])) : 0.0;
   stamp_ = now;
   have_ = true;
   return finite;
 }
 
-Duty CommandGate::duty(SteadyTime now, bool devices_ok, const std::string& devices_reason,
-                       std::string* reason) const {
+Duty CommandGate::duty(SteadyTime now, bool devices_ok, const std::string& devices_reason, std::string* reason) const {
   const Duty zero{};
   if (!have_) {
     *reason = "no command received yet";
@@ -143,8 +141,12 @@ std::string ValveLoopConfig::validate() const {
 
 ValveLoop::ValveLoop(std::unique_ptr<ValveDriver> driver, const ValveLoopConfig& config, HealthFn health,
                      AppliedCallback on_applied, LogCallback log)
-    : driver_(std::move(driver)), cfg_(config), health_(std::move(health)), on_applied_(std::move(on_applied)),
-      log_(std::move(log)), gate_(config.command_timeout) {
+    : driver_(std::move(driver)),
+      cfg_(config),
+      health_(std::move(health)),
+      on_applied_(std::move(on_applied)),
+      log_(std::move(log)),
+      gate_(config.command_timeout) {
   if (!driver_) throw std::invalid_argument("valves: no valve driver");
   const std::string err = cfg_.validate();
   if (!err.empty()) throw std::invalid_argument("valves: " + err);
@@ -294,8 +296,14 @@ void ValveLoop::run() {
           status_.state = LinkState::kRunning;
           status_.message = "acknowledging";
           break;
-        case ValveDriver::Result::kNoReply: ++status_.no_reply; status_.last_error = err; break;
-        case ValveDriver::Result::kRejected: ++status_.rejected; status_.last_error = err; break;
+        case ValveDriver::Result::kNoReply:
+          ++status_.no_reply;
+          status_.last_error = err;
+          break;
+        case ValveDriver::Result::kRejected:
+          ++status_.rejected;
+          status_.last_error = err;
+          break;
         case ValveDriver::Result::kHangup: ++status_.hangups; break;
       }
     }

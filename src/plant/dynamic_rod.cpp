@@ -40,23 +40,17 @@ std::string DynamicRodParameters::validate() const {
   if (!finite_pos(r.length)) return bad("model.rod.length", "must be positive and finite", r.length);
   if (!r.stiffness.allFinite() || (r.stiffness.array() <= 0.0).any())
     return bad_vec("model.rod.stiffness", "must be positive and finite", r.stiffness);
-  if (!r.precurvature.allFinite())
-    return bad_vec("model.rod.precurvature", "must be finite", r.precurvature);
+  if (!r.precurvature.allFinite()) return bad_vec("model.rod.precurvature", "must be finite", r.precurvature);
   if (!finite_nonneg(r.linear_density))
     return bad("model.rod.linear_density", "must be non-negative and finite", r.linear_density);
-  if (!finite_nonneg(model.tip_mass))
-    return bad("model.tip_mass", "must be non-negative and finite", model.tip_mass);
+  if (!finite_nonneg(model.tip_mass)) return bad("model.tip_mass", "must be non-negative and finite", model.tip_mass);
   if (!model.gravity.allFinite()) return bad_vec("model.gravity", "must be finite", model.gravity);
-  if (!finite_pos(shear_stiffness))
-    return bad("shear_stiffness", "must be positive and finite", shear_stiffness);
-  if (!finite_pos(axial_stiffness))
-    return bad("axial_stiffness", "must be positive and finite", axial_stiffness);
+  if (!finite_pos(shear_stiffness)) return bad("shear_stiffness", "must be positive and finite", shear_stiffness);
+  if (!finite_pos(axial_stiffness)) return bad("axial_stiffness", "must be positive and finite", axial_stiffness);
   if (!finite_nonneg(kelvin_voigt_time))
     return bad("kelvin_voigt_time", "must be non-negative and finite", kelvin_voigt_time);
-  if (!finite_nonneg(linear_drag))
-    return bad("linear_drag", "must be non-negative and finite", linear_drag);
-  if (!finite_nonneg(quadratic_drag))
-    return bad("quadratic_drag", "must be non-negative and finite", quadratic_drag);
+  if (!finite_nonneg(linear_drag)) return bad("linear_drag", "must be non-negative and finite", linear_drag);
+  if (!finite_nonneg(quadratic_drag)) return bad("quadratic_drag", "must be non-negative and finite", quadratic_drag);
   if (!finite_nonneg(tip_drag)) return bad("tip_drag", "must be non-negative and finite", tip_drag);
   if (!finite_nonneg(tip_quadratic_drag))
     return bad("tip_quadratic_drag", "must be non-negative and finite", tip_quadratic_drag);
@@ -65,11 +59,9 @@ std::string DynamicRodParameters::validate() const {
   if (!tip_inertia.allFinite() || (tip_inertia.array() < 0.0).any())
     return bad_vec("tip_inertia", "must be non-negative and finite", tip_inertia);
   if (!finite_nonneg(rotational_inertia_per_length))
-    return bad("rotational_inertia_per_length", "must be non-negative and finite",
-               rotational_inertia_per_length);
+    return bad("rotational_inertia_per_length", "must be non-negative and finite", rotational_inertia_per_length);
   if (nodes < 2 || nodes > 2000) return bad("nodes", "must be in [2, 2000]", nodes);
-  if (!std::isfinite(alpha) || alpha < -0.5 || alpha > 0.0)
-    return bad("alpha", "must be in [-0.5, 0]", alpha);
+  if (!std::isfinite(alpha) || alpha < -0.5 || alpha > 0.0) return bad("alpha", "must be in [-0.5, 0]", alpha);
   if (!finite_pos(tolerance)) return bad("tolerance", "must be positive and finite", tolerance);
   if (max_iterations < 1) return bad("max_iterations", "must be at least 1", max_iterations);
   if (max_substep_halvings < 0 || max_substep_halvings > 10)
@@ -130,8 +122,7 @@ void DynamicRod::rhs(const Vec24& y, int slot, Vec24& dy, Mat12X* rec) const {
   const Vec3 q = y.segment<3>(18);
   const Vec3 w = y.segment<3>(21);
   const Vec12 zh = zh_.col(slot);
-  const Vec3 vh = zh.segment<3>(0), uh = zh.segment<3>(3), qh = zh.segment<3>(6),
-             wh = zh.segment<3>(9);
+  const Vec3 vh = zh.segment<3>(0), uh = zh.segment<3>(3), qh = zh.segment<3>(6), wh = zh.segment<3>(9);
   const double c0 = coef_.c0;
   // Constitutive law with Kelvin–Voigt damping, solved for the strains (diagonal).
   const Vec3 v = inv_se_.cwiseProduct(R.transpose() * n + kse_vstar_ - b_se_.cwiseProduct(vh));
@@ -166,8 +157,7 @@ void DynamicRod::rhs(const Vec24& y, int slot, Vec24& dy, Mat12X* rec) const {
   }
 }
 
-Vec6 DynamicRod::pass(const Vec6& x, const rod::TipWrench& wr, Mat12X* rec,
-                                  std::vector<Vec24>* nodes) {
+Vec6 DynamicRod::pass(const Vec6& x, const rod::TipWrench& wr, Mat12X* rec, std::vector<Vec24>* nodes) {
   ++last_evaluations_;
   // Base boundary condition: p(0) = 0, R(0) = I, q(0) = ω(0) = 0; n(0), m(0) are the unknowns.
   Vec24 y = Vec24::Zero();
@@ -212,24 +202,20 @@ Vec6 DynamicRod::pass(const Vec6& x, const rod::TipWrench& wr, Mat12X* rec,
   const double mt = params_.model.tip_mass;
   const Vec3& Jt = params_.tip_inertia;
   // n(L) = R f_b + m_t g − m_t R(ω̂q + q_t) − R c_t(q) q
-  const Vec3 f_body = wr.force - mt * (w.cross(q) + qt) -
-                      (params_.tip_drag + params_.tip_quadratic_drag * q.norm()) * q;
+  const Vec3 f_body =
+      wr.force - mt * (w.cross(q) + qt) - (params_.tip_drag + params_.tip_quadratic_drag * q.norm()) * q;
   // m(L) = R l_b − R(ω̂ J_t ω + J_t ω_t) − R c_ω ω
-  const Vec3 l_body = wr.moment - w.cross(Jt.cwiseProduct(w)) - Jt.cwiseProduct(wt) -
-                      params_.tip_angular_drag * w;
+  const Vec3 l_body = wr.moment - w.cross(Jt.cwiseProduct(w)) - Jt.cwiseProduct(wt) - params_.tip_angular_drag * w;
   Vec6 r;
   r.head<3>() = n - R * f_body - mt * params_.model.gravity;
   r.tail<3>() = (m - R * l_body) / length_;
   // Size of the largest terms that cancel in r (sets the round-off floor of the residual).
   residual_scale_ = n.norm() + mt * (qt.norm() + w.norm() * q.norm()) + wr.force.norm() +
-                    (m.norm() + Jt.norm() * (wt.norm() + w.squaredNorm()) + wr.moment.norm()) /
-                        length_;
+                    (m.norm() + Jt.norm() * (wt.norm() + w.squaredNorm()) + wr.moment.norm()) / length_;
   if (rec) {
     auto col = rec->col(tip);
-    col.segment<3>(0) = inv_se_.cwiseProduct(R.transpose() * n + kse_vstar_ -
-                                             b_se_.cwiseProduct(zh.segment<3>(0)));
-    col.segment<3>(3) = inv_bt_.cwiseProduct(R.transpose() * m + kbt_ustar_ -
-                                             b_bt_.cwiseProduct(zh.segment<3>(3)));
+    col.segment<3>(0) = inv_se_.cwiseProduct(R.transpose() * n + kse_vstar_ - b_se_.cwiseProduct(zh.segment<3>(0)));
+    col.segment<3>(3) = inv_bt_.cwiseProduct(R.transpose() * m + kbt_ustar_ - b_bt_.cwiseProduct(zh.segment<3>(3)));
     col.segment<3>(6) = q;
     col.segment<3>(9) = w;
   }
@@ -255,8 +241,8 @@ bool DynamicRod::refresh_jacobian(const Vec6& x, const Vec6& r, const rod::TipWr
   return jac_valid_;
 }
 
-bool DynamicRod::newton(Vec6* x, const rod::TipWrench& w, bool full_newton,
-                        const Vec6* alternatives, int n_alternatives) {
+bool DynamicRod::newton(Vec6* x, const rod::TipWrench& w, bool full_newton, const Vec6* alternatives,
+                        int n_alternatives) {
   Vec6 r = pass(*x, w, &rec_, &nodes_solve_);
   double rn = r.norm();
   double scale = residual_scale_;
@@ -297,8 +283,8 @@ bool DynamicRod::newton(Vec6* x, const rod::TipWrench& w, bool full_newton,
   while (rn > tol) {
     if (iterations >= params_.max_iterations) {
       std::ostringstream os;
-      os << "Newton did not converge in " << params_.max_iterations
-         << " iterations (|residual| = " << rn << " N, tolerance " << tol << " N)";
+      os << "Newton did not converge in " << params_.max_iterations << " iterations (|residual| = " << rn
+         << " N, tolerance " << tol << " N)";
       last_error_ = os.str();
       return false;
     }
@@ -318,8 +304,7 @@ bool DynamicRod::newton(Vec6* x, const rod::TipWrench& w, bool full_newton,
       xt = *x + lambda * dx;
       rt = pass(xt, w, &rec_trial_, &nodes_trial_);
       if (rt.allFinite() &&
-          (rt.norm() < (1.0 - 1e-4 * lambda) * rn ||
-           lu_.solve(rt).norm() <= (1.0 - 0.25 * lambda) * dx_norm)) {
+          (rt.norm() < (1.0 - 1e-4 * lambda) * rn || lu_.solve(rt).norm() <= (1.0 - 0.25 * lambda) * dx_norm)) {
         accepted = true;
         break;
       }
@@ -572,9 +557,7 @@ void DynamicRod::set_gravity(const Vec3& g) {
   params_.model.gravity = g;
 }
 
-Mat3 DynamicRod::tip_rotation() const {
-  return so3::orthonormalize(Eigen::Map<const Mat3>(nodes_.back().data() + 3));
-}
+Mat3 DynamicRod::tip_rotation() const { return so3::orthonormalize(Eigen::Map<const Mat3>(nodes_.back().data() + 3)); }
 
 Vec3 DynamicRod::tip_position() const { return nodes_.back().segment<3>(0); }
 

@@ -32,7 +32,9 @@ Plant::Plant(const PlantParameters& p, unsigned seed)
     : p_(p),
       jets_(p.jets),
       hydraulics_(p.valves),
-      tracker_(p.sensor_noise ? p.tracker : TrackerNoise{0, 0, 0, 0, p.tracker.dropout_rate, p.tracker.dropout_duration}, seed),
+      tracker_(
+          p.sensor_noise ? p.tracker : TrackerNoise{0, 0, 0, 0, p.tracker.dropout_rate, p.tracker.dropout_duration},
+          seed),
       flow_sensors_(p.sensor_noise ? p.flow : FlowNoise{0, 0}, seed + 7919u),
       R_tracker_base_(base_orientation(p.base_tilt)) {
   const std::string err = p_.validate();

@@ -105,7 +105,8 @@ struct CvodeWorkspace::Impl {
     N_VEnableFusedOps_Serial(e->y, SUNTRUE);  // fused linear combinations (clones inherit)
     e->mem = CVodeCreate(bdf ? CV_BDF : CV_ADAMS, ctx);
     bool ok = e->mem && CVodeInit(e->mem, rhs_cb, s0, e->y) == CV_SUCCESS &&
-              CVodeSetUserData(e->mem, e) == CV_SUCCESS && CVodeSetErrHandlerFn(e->mem, silent, nullptr) == CV_SUCCESS &&
+              CVodeSetUserData(e->mem, e) == CV_SUCCESS &&
+              CVodeSetErrHandlerFn(e->mem, silent, nullptr) == CV_SUCCESS &&
               CVodeSStolerances(e->mem, 1e-6, 1e-6) == CV_SUCCESS;
     if (ok && bdf) {
       e->A = SUNDenseMatrix(n, n, ctx);

@@ -89,7 +89,7 @@ double ShootingSolver::error_t(const Mat3& R_tip, const Load& load, const Eval& 
     f = -1.0 / (q - 1.0);  // exact − fine ≈ (fine − coarse)/(2^p − 1)
   } else {
     other.steps = 2 * N;
-    f = q / (q - 1.0);     // exact − coarse ≈ (fine − coarse)·2^p/(2^p − 1)
+    f = q / (q - 1.0);  // exact − coarse ≈ (fine − coarse)·2^p/(2^p − 1)
   }
   using Ode = RodOde<0, T>;
   Ode ode;
@@ -109,12 +109,11 @@ double ShootingSolver::error_t(const Mat3& R_tip, const Load& load, const Eval& 
 }  // namespace hydrojet
 
 /// Explicit instantiation of one variant's kernels (in a kernel_*.cpp).
-#define HYDROJET_ROD_KERNELS(C, W, P)                                                                      \
-  namespace hydrojet {                                                                                     \
-  namespace rod {                                                                                          \
-  template ShootingSolver::Eval ShootingSolver::evaluate_t<RodTerms<C, W, P>>(const Mat3&, const Load&,   \
-                                                                               int*) const;              \
-  template bool ShootingSolver::compliance_t<RodTerms<C, W, P>>(Mat6*) const;                              \
-  template double ShootingSolver::error_t<RodTerms<C, W, P>>(const Mat3&, const Load&, const Eval&) const; \
-  }                                                                                                        \
+#define HYDROJET_ROD_KERNELS(C, W, P)                                                                                \
+  namespace hydrojet {                                                                                               \
+  namespace rod {                                                                                                    \
+  template ShootingSolver::Eval ShootingSolver::evaluate_t<RodTerms<C, W, P>>(const Mat3&, const Load&, int*) const; \
+  template bool ShootingSolver::compliance_t<RodTerms<C, W, P>>(Mat6*) const;                                        \
+  template double ShootingSolver::error_t<RodTerms<C, W, P>>(const Mat3&, const Load&, const Eval&) const;           \
+  }                                                                                                                  \
   }

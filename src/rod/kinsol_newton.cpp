@@ -49,7 +49,8 @@ KinsolWorkspace::KinsolWorkspace() : impl_(new Impl) {
   m.mem = KINCreate(m.ctx);
   m.A = SUNDenseMatrix(3, 3, m.ctx);
   m.LS = SUNLinSol_Dense(m.u, m.A, m.ctx);
-  const bool ok = m.mem && KINInit(m.mem, kin_func, m.u) == KIN_SUCCESS && KINSetUserData(m.mem, impl_) == KIN_SUCCESS &&
+  const bool ok = m.mem && KINInit(m.mem, kin_func, m.u) == KIN_SUCCESS &&
+                  KINSetUserData(m.mem, impl_) == KIN_SUCCESS &&
                   KINSetErrHandlerFn(m.mem, kin_silent, nullptr) == KIN_SUCCESS &&
                   KINSetLinearSolver(m.mem, m.LS, m.A) == KIN_SUCCESS && KINSetJacFn(m.mem, kin_jac) == KIN_SUCCESS &&
                   KINSetMaxSetupCalls(m.mem, 1) == KIN_SUCCESS && KINSetScaledStepTol(m.mem, 1e-15) == KIN_SUCCESS;
@@ -134,7 +135,8 @@ bool ShootingSolver::newton_kinsol(Mat3* R_tip, const Load& load, RodSolution* s
   *R_tip = so3::orthonormalize(c.R_ref * so3::exp(Vec3(x[0], x[1], x[2])));
   sol->residual = e.r.norm();
   if (sol->residual <= settings_.residual_tolerance) return true;
-  sol->message = flag >= 0 ? "KINSOL stopped above the residual tolerance" : "KINSOL failed (flag " + std::to_string(flag) + ")";
+  sol->message =
+      flag >= 0 ? "KINSOL stopped above the residual tolerance" : "KINSOL failed (flag " + std::to_string(flag) + ")";
   return false;
 }
 

@@ -29,12 +29,12 @@ namespace rod {
 struct ShootingSolver::MsEval {
   Eigen::VectorXd F;
   Eigen::MatrixXd J;
-  Eigen::MatrixXd Fw;                ///< ∂F/∂w (compliance only)
+  Eigen::MatrixXd Fw;                             ///< ∂F/∂w (compliance only)
   Eigen::Matrix<double, 3, Eigen::Dynamic> dP_X;  ///< ∂(Σ Δp)/∂X (compliance only)
-  Eigen::Matrix<double, 3, 6> dP_w;  ///< ∂(Σ Δp)/∂w (compliance only)
-  Mat3 R0 = Mat3::Identity();        ///< R⁻(0)
-  Vec3 sum_dp = Vec3::Zero();        ///< Σ Δp_k = p(0) − p(L), integration frame
-  double det_scale = 1.0;            ///< det of the node block of J (J's det / this = det ∂r/∂x)
+  Eigen::Matrix<double, 3, 6> dP_w;               ///< ∂(Σ Δp)/∂w (compliance only)
+  Mat3 R0 = Mat3::Identity();                     ///< R⁻(0)
+  Vec3 sum_dp = Vec3::Zero();                     ///< Σ Δp_k = p(0) − p(L), integration frame
+  double det_scale = 1.0;                         ///< det of the node block of J (J's det / this = det ∂r/∂x)
   bool ok = false;
 };
 
@@ -261,7 +261,8 @@ bool ShootingSolver::ms_newton(Nodes* x, const Load& load, RodSolution* sol, dou
     for (int k = 0; k < 12; ++k, alpha *= 0.5) {
       const Nodes t = apply(*x, step, alpha);
       MsEval et;
-      if (ms_assemble<false>(t, load, &et, &sol->rhs_evaluations) && et.F.norm() < (1.0 - 1e-4 * alpha) * sol->residual) {
+      if (ms_assemble<false>(t, load, &et, &sol->rhs_evaluations) &&
+          et.F.norm() < (1.0 - 1e-4 * alpha) * sol->residual) {
         *x = t;
         e = std::move(et);
         accepted = true;
@@ -302,8 +303,9 @@ bool ShootingSolver::ms_solve(const Load& target, int M, RodSolution* sol) {
   Load from = zero;
   bool warm = false;
   if (have_solution_) {
-    start = !multiple_ ? ms_nodes_from_tip(R_tip_, load_, M)
-                       : nodes_.segments == M ? nodes_ : ms_resample(nodes_, load_, M);
+    start = !multiple_             ? ms_nodes_from_tip(R_tip_, load_, M)
+            : nodes_.segments == M ? nodes_
+                                   : ms_resample(nodes_, load_, M);
     from = load_;
     warm = start.R.size() == static_cast<size_t>(M + 1);
     for (const Mat3& R : start.R) warm = warm && R.allFinite();
@@ -378,7 +380,8 @@ bool ShootingSolver::ms_solve(const Load& target, int M, RodSolution* sol) {
     const RodSolution s_direct = *sol;
     if (!continuation(from, start, p_from)) {
       // The path breaks down at a fold: keep the far direct result (the snap) and report it.
-      const bool crossed = std::isfinite(det_) && det_ != 0.0 && det_direct != 0.0 && (det_direct > 0.0) != (det_ > 0.0);
+      const bool crossed =
+          std::isfinite(det_) && det_ != 0.0 && det_direct != 0.0 && (det_direct > 0.0) != (det_ > 0.0);
       x = x_direct;
       det = det_direct;
       *sol = s_direct;

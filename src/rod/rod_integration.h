@@ -87,8 +87,8 @@ void augmented_jacobian(const void* o, double s, const double* yp, double* J) {
 
 /// CVODE on the augmented state.
 template <class Ode>
-IntegrationStats cvode_augmented(CvodeWorkspace& ws, const IntegratorSettings& is, const Ode& ode, double s0,
-                                 double s1, typename Ode::State* y, const char** error) {
+IntegrationStats cvode_augmented(CvodeWorkspace& ws, const IntegratorSettings& is, const Ode& ode, double s0, double s1,
+                                 typename Ode::State* y, const char** error) {
   OdeFunctions f = ode_functions(ode);
   if (is.type == IntegratorType::kCvodeBdf) f.jac = &augmented_jacobian<Ode>;
   return ws.integrate(is, f, s0, s1, y->data(), nullptr, error);
@@ -166,8 +166,7 @@ IntegrationStats integrate_rod(const IntegratorSettings& is, CvodeWorkspace* ws,
   switch (is.type) {
     case IntegratorType::kRk4:
     case IntegratorType::kRk8:
-    case IntegratorType::kDopri5:
-      return integrate(is, ode, s0, s1, *y);
+    case IntegratorType::kDopri5: return integrate(is, ode, s0, s1, *y);
     case IntegratorType::kCvodeAdams:
     case IntegratorType::kCvodeBdf:
       if constexpr (Ode::kDirections > 0) {

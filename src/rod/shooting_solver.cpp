@@ -76,18 +76,16 @@ const char* ShootingSolver::variant_name() const { return kernels_->name; }
 // One compiled right-hand side per combination of terms; the scene's combination is chosen here,
 // once, so the integration loop runs without branches on the model's terms.
 void ShootingSolver::select_kernels() {
-#define HJ_KERNEL(C, W, P, NAME) \
-  Kernels{&ShootingSolver::evaluate_t<RodTerms<C, W, P>>, &ShootingSolver::compliance_t<RodTerms<C, W, P>>, \
-          &ShootingSolver::error_t<RodTerms<C, W, P>>, NAME}
+#define HJ_KERNEL(C, W, P, NAME)                                                                      \
+  Kernels {                                                                                           \
+    &ShootingSolver::evaluate_t<RodTerms<C, W, P>>, &ShootingSolver::compliance_t<RodTerms<C, W, P>>, \
+        &ShootingSolver::error_t<RodTerms<C, W, P>>, NAME                                             \
+  }
   static const Kernels table[8] = {
-      HJ_KERNEL(false, false, false, "kirchhoff"),
-      HJ_KERNEL(false, false, true, "kirchhoff+precurved"),
-      HJ_KERNEL(false, true, false, "kirchhoff+weight"),
-      HJ_KERNEL(false, true, true, "kirchhoff+weight+precurved"),
-      HJ_KERNEL(true, false, false, "cosserat"),
-      HJ_KERNEL(true, false, true, "cosserat+precurved"),
-      HJ_KERNEL(true, true, false, "cosserat+weight"),
-      HJ_KERNEL(true, true, true, "cosserat+weight+precurved"),
+      HJ_KERNEL(false, false, false, "kirchhoff"),       HJ_KERNEL(false, false, true, "kirchhoff+precurved"),
+      HJ_KERNEL(false, true, false, "kirchhoff+weight"), HJ_KERNEL(false, true, true, "kirchhoff+weight+precurved"),
+      HJ_KERNEL(true, false, false, "cosserat"),         HJ_KERNEL(true, false, true, "cosserat+precurved"),
+      HJ_KERNEL(true, true, false, "cosserat+weight"),   HJ_KERNEL(true, true, true, "cosserat+weight+precurved"),
   };
   static const Kernels general = HJ_KERNEL(true, true, true, "general");
 #undef HJ_KERNEL
@@ -364,8 +362,8 @@ RodSolution ShootingSolver::solve(const TipWrench& wrench) {
     sol.error_estimate = (this->*kernels_->error)(R, target, e);
     const double allowed = settings_.accuracy_tolerance * model_.rod.length;
     if (!(sol.error_estimate <= allowed)) {
-      sol.message = internal::accuracy_refusal(sol.error_estimate, settings_.integrator.type, settings_.integrator.steps,
-                                               1, allowed);
+      sol.message = internal::accuracy_refusal(sol.error_estimate, settings_.integrator.type,
+                                               settings_.integrator.steps, 1, allowed);
       sol.residual = e.r.norm();
       sol.tip_rotation = so3::orthonormalize(e.R0.transpose() * R);
       sol.tip_position = -e.R0.transpose() * e.p0;
@@ -414,7 +412,8 @@ std::vector<Vec3> ShootingSolver::shape(int segments) const {
   const int M = multiple_ ? nodes_.segments : 1;
   for (int k = 1; k < M; ++k) br.push_back(L * k / M);
   std::sort(br.begin(), br.end(), std::greater<double>());
-  br.erase(std::unique(br.begin(), br.end(), [L](double a, double b) { return std::abs(a - b) <= 1e-14 * L; }), br.end());
+  br.erase(std::unique(br.begin(), br.end(), [L](double a, double b) { return std::abs(a - b) <= 1e-14 * L; }),
+           br.end());
   std::vector<Vec3> from_tip{Vec3::Zero()};
   for (size_t i = 0; i + 1 < br.size(); ++i) {
     const double s0 = br[i], s1 = br[i + 1];

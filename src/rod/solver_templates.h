@@ -26,7 +26,8 @@ void ShootingSolver::setup_ode(Ode* ode, const Mat3& R_tip, const Load& load) co
 template <class Ode>
 IntegrationStats ShootingSolver::integrate_ode(const Ode& ode, double s0, double s1, typename Ode::State* y,
                                                const IntegratorSettings& is) const {
-  CvodeWorkspace* ws = is.type == IntegratorType::kCvodeAdams || is.type == IntegratorType::kCvodeBdf ? &scratch_.cvode() : nullptr;
+  CvodeWorkspace* ws =
+      is.type == IntegratorType::kCvodeAdams || is.type == IntegratorType::kCvodeBdf ? &scratch_.cvode() : nullptr;
   return internal::integrate_rod(is, ws, ode, s0, s1, y, &scratch_.last_error);
 }
 

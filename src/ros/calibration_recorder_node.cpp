@@ -38,15 +38,15 @@ namespace {
 struct RecorderOptions {
   std::string scene, bag, out, result_file, report_file;
   std::string fit = "ux,uy,E,G,da,db,dg";
-  std::string calibrate_args;          ///< extra calibrate options, space separated
+  std::string calibrate_args;  ///< extra calibrate options, space separated
   int samples = 40;
   int seed = 1;
-  double rate = 100.0;                 ///< command rate [Hz]
-  double hold_time = 4.0;              ///< per combination [s]
-  double start_hold = 2.0;             ///< jets off at the start [s] (also a zero-force sample)
-  double max_jet_force_fraction = 0.9; ///< q_i ≤ fraction · max_force_i of the scene
-  double max_net_force = 0.12;         ///< |A q| ≤ this [N]: stays clear of follower-load flutter
-  double min_net_force = 0.0;          ///< |A q| ≥ this [N]
+  double rate = 100.0;                  ///< command rate [Hz]
+  double hold_time = 4.0;               ///< per combination [s]
+  double start_hold = 2.0;              ///< jets off at the start [s] (also a zero-force sample)
+  double max_jet_force_fraction = 0.9;  ///< q_i ≤ fraction · max_force_i of the scene
+  double max_net_force = 0.12;          ///< |A q| ≤ this [N]: stays clear of follower-load flutter
+  double min_net_force = 0.0;           ///< |A q| ≥ this [N]
   bool calibrate = true;
   bool exit_when_done = true;
   actuation::FlowRegulatorParameters flow;
@@ -111,10 +111,12 @@ class Recorder {
     result_pub_ = nh.advertise<std_msgs::String>("calibration/result", 1, true);
     jet_sub_ = nh.subscribe("jets/state", 100, &Recorder::jets, this, ros::TransportHints().tcpNoDelay());
     tip_sub_ = nh.subscribe<geometry_msgs::PoseStamped>(
-        "tracker/tip_pose", 100, [this](const geometry_msgs::PoseStamped::ConstPtr& m) { pose(m, "tracker/tip_pose", &have_tip_); },
+        "tracker/tip_pose", 100,
+        [this](const geometry_msgs::PoseStamped::ConstPtr& m) { pose(m, "tracker/tip_pose", &have_tip_); },
         ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
     base_sub_ = nh.subscribe<geometry_msgs::PoseStamped>(
-        "tracker/base_pose", 100, [this](const geometry_msgs::PoseStamped::ConstPtr& m) { pose(m, "tracker/base_pose", &have_base_); },
+        "tracker/base_pose", 100,
+        [this](const geometry_msgs::PoseStamped::ConstPtr& m) { pose(m, "tracker/base_pose", &have_base_); },
         ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
     timer_ = nh.createTimer(ros::Duration(1.0 / o_.rate), &Recorder::tick, this);
     ROS_INFO("calibration recorder: %d jet-force combinations, %.1f s each, |net force| <= %.3f N, bag %s", o_.samples,
@@ -225,7 +227,8 @@ class Recorder {
         if (!line.empty()) json = line;  // the last line is calibrate's JSON object
       if (status == 2) json = error_json(err.str());
       if (!o_.report_file.empty()) write_atomically(o_.report_file, report + err.str());
-      ROS_INFO("calibration recorder: calibrate exited %d; %s", status, status == 0 ? o_.out.c_str() : "see the report");
+      ROS_INFO("calibration recorder: calibrate exited %d; %s", status,
+               status == 0 ? o_.out.c_str() : "see the report");
     }
     if (!o_.result_file.empty()) write_atomically(o_.result_file, json + "\n");
     std_msgs::String msg;

@@ -35,8 +35,8 @@ geometry_msgs::Vector3 to_msg(const Eigen::Vector3d& v) {
 }
 
 bool finite_pose(const geometry_msgs::Pose& p) {
-  for (double v : {p.position.x, p.position.y, p.position.z, p.orientation.w, p.orientation.x,
-                   p.orientation.y, p.orientation.z})
+  for (double v :
+       {p.position.x, p.position.y, p.position.z, p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z})
     if (!std::isfinite(v)) return false;
   const double n2 = p.orientation.w * p.orientation.w + p.orientation.x * p.orientation.x +
                     p.orientation.y * p.orientation.y + p.orientation.z * p.orientation.z;
@@ -69,13 +69,14 @@ class ControllerNode {
     initial.kp = c.kp, initial.kd = c.kd, initial.feedforward = c.feedforward, initial.damping = c.damping;
     initial.max_force = c.max_force, initial.max_force_rate = c.max_force_rate;
     reconfigure_->updateConfig(initial);
-    reconfigure_->setCallback([this](hydrojet_control::ControllerConfig& cfg, uint32_t level) { reconfigure(cfg, level); });
+    reconfigure_->setCallback(
+        [this](hydrojet_control::ControllerConfig& cfg, uint32_t level) { reconfigure(cfg, level); });
 
     diagnostics_.setHardwareID("hydrojet_controller");
     diagnostics_.add("controller", this, &ControllerNode::diagnose);
     timer_ = nh.createTimer(ros::Duration(1.0 / opts_.rate), &ControllerNode::tick, this);
-    ROS_INFO("controller: scene %s, %s loop, %.0f Hz%s", opts_.scene.c_str(),
-             control::to_string(opts_.controller.mode), opts_.rate, opts_.autostart ? ", autostart" : "");
+    ROS_INFO("controller: scene %s, %s loop, %.0f Hz%s", opts_.scene.c_str(), control::to_string(opts_.controller.mode),
+             opts_.rate, opts_.autostart ? ", autostart" : "");
   }
 
  private:

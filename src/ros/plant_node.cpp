@@ -23,17 +23,17 @@ namespace {
 struct PlantNodeOptions {
   std::string scene, plant_file;
   int seed = 1;
-  double rate = 100.0;                  ///< sensor sample rate [Hz]
-  bool lockstep = true;                 ///< own /clock, wait for each command
-  double command_wait = 0.2;            ///< lockstep: wall time to wait for a command [s]
-  double duration = 0.0;                ///< stop after this much simulated time [s] (0 = forever)
+  double rate = 100.0;        ///< sensor sample rate [Hz]
+  bool lockstep = true;       ///< own /clock, wait for each command
+  double command_wait = 0.2;  ///< lockstep: wall time to wait for a command [s]
+  double duration = 0.0;      ///< stop after this much simulated time [s] (0 = forever)
   std::string tracker_frame = "tracker";
   // Fault injection (simulated time [s]; < 0 = off)
   double tracker_dropout_at = -1.0, tracker_dropout_duration = 1.0;
-  double flow_fault_at = -1.0;          ///< from then on jet 1 reads NaN and jet 2 negative
+  double flow_fault_at = -1.0;  ///< from then on jet 1 reads NaN and jet 2 negative
   double stuck_open_at = -1.0;
-  int stuck_open_jet = 2;               ///< 1-based
-  double stuck_duty = 1.0;              ///< the stuck valve's opening [0, 1]
+  int stuck_open_jet = 2;   ///< 1-based
+  double stuck_duty = 1.0;  ///< the stuck valve's opening [0, 1]
 };
 
 PlantNodeOptions read_options(const ros::NodeHandle& pnh) {
@@ -143,7 +143,8 @@ class PlantNode {
 
   void publish_sensors(double t) {
     const ros::Time stamp(now(t));
-    if (o_.stuck_open_at >= 0 && t >= o_.stuck_open_at) plant_->hydraulics()[o_.stuck_open_jet - 1].set_stuck(o_.stuck_duty);
+    if (o_.stuck_open_at >= 0 && t >= o_.stuck_open_at)
+      plant_->hydraulics()[o_.stuck_open_jet - 1].set_stuck(o_.stuck_duty);
     const plant::TrackerSample ts = plant_->tracker_sample();
     if (ts.valid) {  // a missing sensor publishes nothing: stale data is never republished
       geometry_msgs::PoseStamped tip, base;

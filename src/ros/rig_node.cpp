@@ -65,16 +65,24 @@ class RigNode {
       : cfg_(read_config(pnh)),
         nozzle_(config::load_scene(cfg_.scene).nozzle),
         diag_(nh, pnh),
-        tracker_min_hz_(0.8 * cfg_.tracker.rate), tracker_max_hz_(1.1 * cfg_.tracker.rate),
-        flow_min_hz_(0.8 * cfg_.flow_rate), flow_max_hz_(1.1 * cfg_.flow_rate),
-        jets_min_hz_(0.8 * cfg_.flow_rate), jets_max_hz_(std::max(1.1 * cfg_.flow_rate, cfg_.flow_publish_rate * 1.1)),
-        valve_min_hz_(0.8 * cfg_.valve_loop.rate), valve_max_hz_(1000.0),
-        tip_freq_(diagnostic_updater::FrequencyStatusParam(&tracker_min_hz_, &tracker_max_hz_, 0.1, 10), "tracker/tip_pose rate"),
-        base_freq_(diagnostic_updater::FrequencyStatusParam(&tracker_min_hz_, &tracker_max_hz_, 0.1, 10), "tracker/base_pose rate"),
+        tracker_min_hz_(0.8 * cfg_.tracker.rate),
+        tracker_max_hz_(1.1 * cfg_.tracker.rate),
+        flow_min_hz_(0.8 * cfg_.flow_rate),
+        flow_max_hz_(1.1 * cfg_.flow_rate),
+        jets_min_hz_(0.8 * cfg_.flow_rate),
+        jets_max_hz_(std::max(1.1 * cfg_.flow_rate, cfg_.flow_publish_rate * 1.1)),
+        valve_min_hz_(0.8 * cfg_.valve_loop.rate),
+        valve_max_hz_(1000.0),
+        tip_freq_(diagnostic_updater::FrequencyStatusParam(&tracker_min_hz_, &tracker_max_hz_, 0.1, 10),
+                  "tracker/tip_pose rate"),
+        base_freq_(diagnostic_updater::FrequencyStatusParam(&tracker_min_hz_, &tracker_max_hz_, 0.1, 10),
+                   "tracker/base_pose rate"),
         jets_freq_(diagnostic_updater::FrequencyStatusParam(&jets_min_hz_, &jets_max_hz_, 0.1, 10), "jets/state rate"),
-        valve_freq_(diagnostic_updater::FrequencyStatusParam(&valve_min_hz_, &valve_max_hz_, 0.1, 10), "valve acknowledgement rate"),
+        valve_freq_(diagnostic_updater::FrequencyStatusParam(&valve_min_hz_, &valve_max_hz_, 0.1, 10),
+                    "valve acknowledgement rate"),
         flows_(cfg_.flow[0].timeout, cfg_.invalidate_on_reject) {
-    if (!actuation::validate(nozzle_).empty()) throw std::runtime_error("scene " + cfg_.scene + ": " + actuation::validate(nozzle_));
+    if (!actuation::validate(nozzle_).empty())
+      throw std::runtime_error("scene " + cfg_.scene + ": " + actuation::validate(nozzle_));
     for (int i = 0; i < 3; ++i)
       flow_freq_[i].reset(new diagnostic_updater::FrequencyStatus(
           diagnostic_updater::FrequencyStatusParam(&flow_min_hz_, &flow_max_hz_, 0.1, 10),
@@ -106,9 +114,11 @@ class RigNode {
       else
         ROS_WARN("rig: %s", m.c_str());
     };
-    tracker_.reset(new devices::AuroraClient(cfg_.tracker, [this](const devices::AuroraSample& s) { onTracker(s); }, log));
+    tracker_.reset(new devices::AuroraClient(
+        cfg_.tracker, [this](const devices::AuroraSample& s) { onTracker(s); }, log));
     for (size_t i = 0; i < 3; ++i)
-      flow_[i].reset(new devices::FlowSensor(cfg_.flow[i], [this, i](const devices::FlowReading& r) { onFlow(i, r); }, log));
+      flow_[i].reset(new devices::FlowSensor(
+          cfg_.flow[i], [this, i](const devices::FlowReading& r) { onFlow(i, r); }, log));
     valves_.reset(new devices::ValveLoop(
         std::unique_ptr<devices::ValveDriver>(new devices::SerialValveBoard(cfg_.valves)), cfg_.valve_loop,
         [this](std::string* why) { return devicesHealthy(SteadyClock::now(), why); },
@@ -121,10 +131,11 @@ class RigNode {
     valves_->start();
     tracker_->start();
     for (auto& f : flow_) f->start();
-    ROS_INFO("rig: tracker %s (tip %02X, base %02X, %.0f Hz), flow %s %s %s, valves %s; valves closed until "
-             "every device is healthy and commands arrive",
-             cfg_.tracker.port.c_str(), cfg_.tracker.tip_handle, cfg_.tracker.base_handle, cfg_.tracker.rate,
-             cfg_.flow[0].port.c_str(), cfg_.flow[1].port.c_str(), cfg_.flow[2].port.c_str(), cfg_.valves.port.c_str());
+    ROS_INFO(
+        "rig: tracker %s (tip %02X, base %02X, %.0f Hz), flow %s %s %s, valves %s; valves closed until "
+        "every device is healthy and commands arrive",
+        cfg_.tracker.port.c_str(), cfg_.tracker.tip_handle, cfg_.tracker.base_handle, cfg_.tracker.rate,
+        cfg_.flow[0].port.c_str(), cfg_.flow[1].port.c_str(), cfg_.flow[2].port.c_str(), cfg_.valves.port.c_str());
   }
 
   ~RigNode() {
@@ -251,11 +262,13 @@ class RigNode {
     for (size_t i = 0; i < 3; ++i) {
       const devices::FlowSensorStatus f = flow_[i]->status();
       if (!f.healthy(now, cfg_.flow[i].timeout)) {
-        *why = cfg_.flow[i].name + " (" + cfg_.flow[i].port + "): " +
-               (f.state == devices::LinkState::kRunning || f.state == devices::LinkState::kConnecting
-                    ? (f.ever_accepted ? fmt("no valid reading for %.2f s", devices::seconds_between(f.last_accepted, now))
-                                       : std::string("no valid reading yet") + (f.last_error.empty() ? "" : " (" + f.last_error + ")"))
-                    : f.message);
+        *why =
+            cfg_.flow[i].name + " (" + cfg_.flow[i].port + "): " +
+            (f.state == devices::LinkState::kRunning || f.state == devices::LinkState::kConnecting
+                 ? (f.ever_accepted
+                        ? fmt("no valid reading for %.2f s", devices::seconds_between(f.last_accepted, now))
+                        : std::string("no valid reading yet") + (f.last_error.empty() ? "" : " (" + f.last_error + ")"))
+                 : f.message);
         return false;
       }
     }
@@ -327,7 +340,10 @@ class RigNode {
     else if (f.state == devices::LinkState::kDisconnected)
       s.summary(DiagnosticStatus::ERROR, name + ": " + f.message);
     else
-      s.summary(DiagnosticStatus::ERROR, name + ": no valid reading" + (f.ever_accepted ? fmt(" for %.2f s", devices::seconds_between(f.last_accepted, now)) : std::string(" yet")));
+      s.summary(DiagnosticStatus::ERROR,
+                name + ": no valid reading" +
+                    (f.ever_accepted ? fmt(" for %.2f s", devices::seconds_between(f.last_accepted, now))
+                                     : std::string(" yet")));
     s.add("state", devices::to_string(f.state));
     s.add("last_error", f.last_error);
     s.add("flow_m3_per_s", f.last_flow);

@@ -44,7 +44,8 @@ std_msgs::ColorRGBA color(double r, double g, double b, double a = 1.0) {
 }
 
 /// A cylinder from a to b (rviz cylinders are along their local z).
-void cylinder_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double diameter, visualization_msgs::Marker* m) {
+void cylinder_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double diameter,
+                      visualization_msgs::Marker* m) {
   m->type = visualization_msgs::Marker::CYLINDER;
   const Eigen::Vector3d d = b - a;
   const double len = d.norm();
@@ -63,10 +64,10 @@ class ViewNode {
     const config::Scene scene = config::load_scene(scene_path);
     if (!scene.has_jets) throw std::runtime_error("jets: the scene has no jets section");
     jets_ = actuation::JetMap(scene.jets).planar();
-    pnh.param("rod_diameter", rod_diameter_, 0.008);        // [m] (paper §6.2: 8 mm outer)
-    pnh.param("capsule_length", capsule_length_, 0.028);    // [m] (§6.1: 28 mm)
+    pnh.param("rod_diameter", rod_diameter_, 0.008);           // [m] (paper §6.2: 8 mm outer)
+    pnh.param("capsule_length", capsule_length_, 0.028);       // [m] (§6.1: 28 mm)
     pnh.param("capsule_diameter", capsule_diameter_, 0.0098);  // [m] (§6.1: 9.8 mm)
-    pnh.param("force_scale", force_scale_, 0.15);           // arrow length per jet force [m/N]
+    pnh.param("force_scale", force_scale_, 0.15);              // arrow length per jet force [m/N]
     pnh.param<std::string>("world_frame", world_frame_, "world");
     pnh.param<std::string>("tracker_frame", tracker_frame_, "tracker");
     pnh.param<std::string>("base_frame", base_frame_, "base");
@@ -105,7 +106,9 @@ class ViewNode {
     if (reset) delete_all();
   }
 
-  void jetState(const hydrojet_control::JetState::ConstPtr& m) { jet_force_ = Eigen::Vector3d(m->force[0], m->force[1], m->force[2]); }
+  void jetState(const hydrojet_control::JetState::ConstPtr& m) {
+    jet_force_ = Eigen::Vector3d(m->force[0], m->force[1], m->force[2]);
+  }
 
   void rod(const hydrojet_control::RodState::ConstPtr& m) {
     if (m->backbone.size() < 2) return;

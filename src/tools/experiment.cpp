@@ -64,15 +64,24 @@ int main(int argc, char** argv) {
       }
       return argv[++i];
     };
-    if (a == "--scene0") scene0 = next();
-    else if (a == "--scene30") scene30 = next();
-    else if (a == "--plant") plant_file = next();
-    else if (a == "--controller") controller_file = next();
-    else if (a == "--out") out = next();
-    else if (a == "--quick") quick = true;
-    else if (a == "--seeds") seeds = std::atoi(next().c_str());
-    else if (a == "--duration") duration = std::atof(next().c_str());
-    else if (a == "--threads") threads = std::atoi(next().c_str());
+    if (a == "--scene0")
+      scene0 = next();
+    else if (a == "--scene30")
+      scene30 = next();
+    else if (a == "--plant")
+      plant_file = next();
+    else if (a == "--controller")
+      controller_file = next();
+    else if (a == "--out")
+      out = next();
+    else if (a == "--quick")
+      quick = true;
+    else if (a == "--seeds")
+      seeds = std::atoi(next().c_str());
+    else if (a == "--duration")
+      duration = std::atof(next().c_str());
+    else if (a == "--threads")
+      threads = std::atoi(next().c_str());
     else {
       std::cerr << "experiment: " << a << ": unknown argument\n";
       usage();
@@ -142,24 +151,28 @@ int main(int argc, char** argv) {
 
   mkdir(out.c_str(), 0755);
   std::ofstream summary(out + "/summary.csv");
-  summary << "mode,tilt_deg,seed,completed,aborted_at_s,rms_rad,median_rad,q1_rad,q3_rad,max_rad,rms_pitch_yaw_rad,reason\n";
+  summary << "mode,tilt_deg,seed,completed,aborted_at_s,rms_rad,median_rad,q1_rad,q3_rad,max_rad,rms_pitch_yaw_rad,"
+             "reason\n";
   double sim_s = 0.0, wall_s = 0.0;
   std::string runs = "[";
   for (size_t j = 0; j < jobs.size(); ++j) {
     const Job& job = jobs[j];
     const sim::RunResult& r = job.result;
-    const std::string name = std::string(control::to_string(job.mode)) + "_" + std::to_string(job.tilt_deg) + "deg_seed" + std::to_string(job.seed);
+    const std::string name = std::string(control::to_string(job.mode)) + "_" + std::to_string(job.tilt_deg) +
+                             "deg_seed" + std::to_string(job.seed);
     write_run_csv(out + "/run_" + name + ".csv", r);
-    summary << control::to_string(job.mode) << "," << job.tilt_deg << "," << job.seed << "," << (r.completed ? 1 : 0) << ","
-            << (r.aborted_at >= 0 ? std::to_string(r.aborted_at) : "") << "," << r.rms << "," << r.median << "," << r.q1
-            << "," << r.q3 << "," << r.max << "," << r.rms_pitch_yaw << ",\"" << r.reason << "\"\n";
+    summary << control::to_string(job.mode) << "," << job.tilt_deg << "," << job.seed << "," << (r.completed ? 1 : 0)
+            << "," << (r.aborted_at >= 0 ? std::to_string(r.aborted_at) : "") << "," << r.rms << "," << r.median << ","
+            << r.q1 << "," << r.q3 << "," << r.max << "," << r.rms_pitch_yaw << ",\"" << r.reason << "\"\n";
     sim_s += r.simulated_seconds;
     wall_s += r.wall_seconds;
     util::JsonObject o;
     o.add("mode", control::to_string(job.mode)).add("tilt_deg", job.tilt_deg).add("seed", static_cast<int>(job.seed));
     o.add("rms_rad", r.rms).add("completed", r.completed);
-    if (r.aborted_at >= 0) o.add("aborted_at_s", r.aborted_at);
-    else o.add_null("aborted_at_s");
+    if (r.aborted_at >= 0)
+      o.add("aborted_at_s", r.aborted_at);
+    else
+      o.add_null("aborted_at_s");
     runs += (j ? ", " : "") + o.str();
   }
   runs += "]";
@@ -170,8 +183,10 @@ int main(int argc, char** argv) {
   for (const Job& job : jobs) {
     const sim::RunResult& r = job.result;
     char outcome[160];
-    if (r.completed) std::snprintf(outcome, sizeof(outcome), "completed");
-    else std::snprintf(outcome, sizeof(outcome), "aborted at %.1f s: %s", r.aborted_at, r.reason.c_str());
+    if (r.completed)
+      std::snprintf(outcome, sizeof(outcome), "completed");
+    else
+      std::snprintf(outcome, sizeof(outcome), "aborted at %.1f s: %s", r.aborted_at, r.reason.c_str());
     std::printf("%-8s %3d°  %-6u %-10.4f %-10.4f %-10.4f %-10.4f %s\n", control::to_string(job.mode), job.tilt_deg,
                 job.seed, r.rms, r.median, r.q3 - r.q1, r.max, outcome);
   }

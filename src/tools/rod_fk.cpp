@@ -130,7 +130,8 @@ std::vector<hydrojet::rod::TipWrench> read_batch(const std::string& src) {
     while (ss >> t) tok.push_back(t);
     if (tok.empty() || tok[0][0] == '#') continue;
     const std::string where = "--batch line " + std::to_string(lineno);
-    if (tok.size() != 6) throw BadInput{where + ": expected 6 numbers fx fy fz mx my mz, got " + std::to_string(tok.size())};
+    if (tok.size() != 6)
+      throw BadInput{where + ": expected 6 numbers fx fy fz mx my mz, got " + std::to_string(tok.size())};
     hydrojet::rod::TipWrench w;
     for (int k = 0; k < 3; ++k) w.force[k] = parse_number(tok[k], where);
     for (int k = 0; k < 3; ++k) w.moment[k] = parse_number(tok[3 + k], where);
@@ -149,7 +150,8 @@ int main(int argc, char** argv) {
     opt = parse_args(argc, argv);
     scene = hydrojet::config::load_scene(opt.scene);
     if (!opt.integrator.empty() && !hydrojet::rod::parse_integrator(opt.integrator, &scene.solver.integrator.type))
-      throw BadInput{"--integrator: unknown integrator '" + opt.integrator + "' (" + hydrojet::rod::integrator_names() + ")"};
+      throw BadInput{"--integrator: unknown integrator '" + opt.integrator + "' (" + hydrojet::rod::integrator_names() +
+                     ")"};
     if (opt.steps) scene.solver.integrator.steps = opt.steps;
     if (opt.tol > 0.0) scene.solver.integrator.tolerance = opt.tol;
     if (opt.have_jets) {

@@ -79,7 +79,8 @@ TEST(CalibrationPlant, RecoversPlantZeta) {
   const Row rows[] = {
       {"ux", tr.precurvature.x(), fr.precurvature.x(), number_field(sd, "ux"), 0.03},
       {"uy", tr.precurvature.y(), fr.precurvature.y(), number_field(sd, "uy"), 0.03},
-      {"EI", tr.stiffness.x(), fr.stiffness.x(), fr.stiffness.x() * number_field(sd, "E") / E, 0.005 * tr.stiffness.x()},
+      {"EI", tr.stiffness.x(), fr.stiffness.x(), fr.stiffness.x() * number_field(sd, "E") / E,
+       0.005 * tr.stiffness.x()},
       {"GJ", tr.stiffness.z(), fr.stiffness.z(), fr.stiffness.z() * number_field(sd, "G") / G, 0.05 * tr.stiffness.z()},
       {"da", truth.jets.misalignment[0], fitted.jets.misalignment[0], number_field(sd, "da"), 0.003},
       {"db", truth.jets.misalignment[1], fitted.jets.misalignment[1], number_field(sd, "db"), 0.003},

@@ -24,8 +24,8 @@ struct Exit {
 /// running, then killed) and stderr.
 Exit run_node(const std::string& name, double seconds) {
   const std::string err = "/tmp/hydrojet_" + name + ".err";
-  const std::string cmd = "timeout -s INT " + std::to_string(seconds) + " " +
-                          std::string(HYDROJET_BIN_DIR) + "/controller_node __name:=" + name + " 2> " + err + " > /dev/null";
+  const std::string cmd = "timeout -s INT " + std::to_string(seconds) + " " + std::string(HYDROJET_BIN_DIR) +
+                          "/controller_node __name:=" + name + " 2> " + err + " > /dev/null";
   const int st = std::system(cmd.c_str());
   std::ifstream f(err);
   std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
@@ -73,8 +73,9 @@ TEST(ControllerParams, BadParametersAreRejectedByName) {
   EXPECT_NE(e.err.find("~scene: missing"), std::string::npos) << e.err;
   // A scene with an unknown key names it.
   const std::string bad_scene = "/tmp/hydrojet_bad_scene.yaml";
-  std::ofstream(bad_scene) << "rod: {length: 0.09, lenght: 1, bending_stiffness: [1e-3, 1e-3], torsional_stiffness: 1e-3}\n"
-                              "tip: {mass: 0}\ngravity: [0, 0, 0]\n";
+  std::ofstream(bad_scene)
+      << "rod: {length: 0.09, lenght: 1, bending_stiffness: [1e-3, 1e-3], torsional_stiffness: 1e-3}\n"
+         "tip: {mass: 0}\ngravity: [0, 0, 0]\n";
   set_good(nh, "bad_scene_key");
   nh.setParam("/bad_scene_key/scene", bad_scene);
   const Exit e2 = run_node("bad_scene_key", 20.0);
@@ -96,8 +97,8 @@ TEST(ControllerParams, GoodParametersRunWithJetsAtZero) {
   spinner.start();
   const Exit e = run_node("good", 4.0);
   EXPECT_EQ(e.status, -1) << "node exited early: " << e.err;  // still running when timed out
-  EXPECT_GT(n, 50);                                            // ~100 Hz for a few seconds
-  EXPECT_TRUE(all_zero);                                       // idle: jets off
+  EXPECT_GT(n, 50);                                           // ~100 Hz for a few seconds
+  EXPECT_TRUE(all_zero);                                      // idle: jets off
 }
 
 int main(int argc, char** argv) {

@@ -26,17 +26,18 @@ TEST(ControllerStale, TrackerSilenceZeroesJets) {
   ros::NodeHandle nh;
   Recorder r;
   ros::Time cut;  // when the tracker stops
-  ros::Subscriber cs = nh.subscribe<hydrojet_control::JetCommand>("jets/command", 100, [&](const hydrojet_control::JetCommand::ConstPtr& m) {
-    r.cmd = *m;
-    r.have_cmd = true;
-    r.cmd_time = ros::Time::now();
-    const bool zero = m->valve_command[0] == 0 && m->valve_command[1] == 0 && m->valve_command[2] == 0;
-    if (!cut.isZero() && zero && r.first_zero_after_cut.isZero()) r.first_zero_after_cut = ros::Time::now();
-  });
-  ros::Subscriber ss = nh.subscribe<hydrojet_control::ControllerStatus>("controller/status", 100,
-      [&](const hydrojet_control::ControllerStatus::ConstPtr& m) { r.status = *m; });
-  ros::Subscriber ds = nh.subscribe<diagnostic_msgs::DiagnosticArray>("/diagnostics", 100,
-      [&](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
+  ros::Subscriber cs = nh.subscribe<hydrojet_control::JetCommand>(
+      "jets/command", 100, [&](const hydrojet_control::JetCommand::ConstPtr& m) {
+        r.cmd = *m;
+        r.have_cmd = true;
+        r.cmd_time = ros::Time::now();
+        const bool zero = m->valve_command[0] == 0 && m->valve_command[1] == 0 && m->valve_command[2] == 0;
+        if (!cut.isZero() && zero && r.first_zero_after_cut.isZero()) r.first_zero_after_cut = ros::Time::now();
+      });
+  ros::Subscriber ss = nh.subscribe<hydrojet_control::ControllerStatus>(
+      "controller/status", 100, [&](const hydrojet_control::ControllerStatus::ConstPtr& m) { r.status = *m; });
+  ros::Subscriber ds = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+      "/diagnostics", 100, [&](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
         for (const auto& s : m->status)
           if (s.level == diagnostic_msgs::DiagnosticStatus::ERROR && s.message.find("tracker") != std::string::npos)
             r.diag_error = true;

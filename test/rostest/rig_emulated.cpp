@@ -90,28 +90,34 @@ TEST(RigEmulated, PoseToControllerCommandToBoardTrackerLossClosesValves) {
   std::string tracker_error, valves_error;
   ros::Subscriber s1 = nh.subscribe<hydrojet_control::ControllerStatus>(
       "controller/status", 100, [&](const hydrojet_control::ControllerStatus::ConstPtr& m) { status = *m; });
-  ros::Subscriber s2 = nh.subscribe<geometry_msgs::PoseStamped>("tracker/tip_pose", 100, [&](const geometry_msgs::PoseStamped::ConstPtr& m) {
-    ++tip_poses;
-    last_tip = ros::WallTime::now();
-    EXPECT_EQ(m->header.frame_id, "tracker");
-    EXPECT_NEAR(m->pose.position.z, -0.150, 1e-5);  // the emulator's tip [mm -> m]
-  });
-  ros::Subscriber s3 = nh.subscribe<std_msgs::Float64>("tracker/tip_rms", 100, [&](const std_msgs::Float64::ConstPtr& m) {
-    ++rms_msgs;
-    EXPECT_NEAR(m->data, 0.30e-3, 1e-8);
-  });
-  ros::Subscriber s4 = nh.subscribe<hydrojet_control::JetState>("jets/state", 100, [&](const hydrojet_control::JetState::ConstPtr& m) {
-    jets = *m;
-    ++jet_msgs;
-    jets_all_valid += m->flow_valid[0] && m->flow_valid[1] && m->flow_valid[2];
-  });
-  ros::Subscriber s5 = nh.subscribe<diagnostic_msgs::DiagnosticArray>("/diagnostics", 100, [&](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
-    for (const auto& s : m->status) {
-      if (s.level != diagnostic_msgs::DiagnosticStatus::ERROR) continue;
-      if (s.name.find("tracker") != std::string::npos && s.message.find("tracker") != std::string::npos) tracker_error = s.message;
-      if (s.name.find("valves") != std::string::npos && s.message.find("tracker") != std::string::npos) valves_error = s.message;
-    }
-  });
+  ros::Subscriber s2 = nh.subscribe<geometry_msgs::PoseStamped>(
+      "tracker/tip_pose", 100, [&](const geometry_msgs::PoseStamped::ConstPtr& m) {
+        ++tip_poses;
+        last_tip = ros::WallTime::now();
+        EXPECT_EQ(m->header.frame_id, "tracker");
+        EXPECT_NEAR(m->pose.position.z, -0.150, 1e-5);  // the emulator's tip [mm -> m]
+      });
+  ros::Subscriber s3 =
+      nh.subscribe<std_msgs::Float64>("tracker/tip_rms", 100, [&](const std_msgs::Float64::ConstPtr& m) {
+        ++rms_msgs;
+        EXPECT_NEAR(m->data, 0.30e-3, 1e-8);
+      });
+  ros::Subscriber s4 =
+      nh.subscribe<hydrojet_control::JetState>("jets/state", 100, [&](const hydrojet_control::JetState::ConstPtr& m) {
+        jets = *m;
+        ++jet_msgs;
+        jets_all_valid += m->flow_valid[0] && m->flow_valid[1] && m->flow_valid[2];
+      });
+  ros::Subscriber s5 = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+      "/diagnostics", 100, [&](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
+        for (const auto& s : m->status) {
+          if (s.level != diagnostic_msgs::DiagnosticStatus::ERROR) continue;
+          if (s.name.find("tracker") != std::string::npos && s.message.find("tracker") != std::string::npos)
+            tracker_error = s.message;
+          if (s.name.find("valves") != std::string::npos && s.message.find("tracker") != std::string::npos)
+            valves_error = s.message;
+        }
+      });
 
   // The devices appear (rig_node is already retrying every second).
   const std::string state = dir + "/valves.json";
@@ -119,21 +125,26 @@ TEST(RigEmulated, PoseToControllerCommandToBoardTrackerLossClosesValves) {
   Emulator flow("flow_emulator.py", {"--sensor", dir + "/flow1", "--sensor", dir + "/flow2", "--sensor", dir + "/flow3",
                                      "--valve-state", state});
   // The tip is tilted 0.15 rad from the base, so the controller (path starting at ϑ = 0) drives the jets.
-  auto tracker = std::make_unique<Emulator>("aurora_emulator.py", std::vector<std::string>{
-      "--symlink", dir + "/aurora", "--strict-baud", "--tip-tilt", "0.15", "--events-file", dir + "/aurora.events"});
+  auto tracker = std::make_unique<Emulator>(
+      "aurora_emulator.py", std::vector<std::string>{"--symlink", dir + "/aurora", "--strict-baud", "--tip-tilt",
+                                                     "0.15", "--events-file", dir + "/aurora.events"});
   ASSERT_TRUE(valves.started() && flow.started() && tracker->started());
 
   // 1. A pose reaches the controller: it runs (autostart needs tracker and flow data) and measures.
-  ASSERT_TRUE(spin_until([&] { return status.state == "running" && std::fabs(status.measured_direction.z) > 0.5; }, 40.0))
+  ASSERT_TRUE(
+      spin_until([&] { return status.state == "running" && std::fabs(status.measured_direction.z) > 0.5; }, 40.0))
       << "controller state '" << status.state << "' reason '" << status.reason << "', tip poses " << tip_poses
       << ", jet states " << jet_msgs;
   EXPECT_NEAR(std::acos(status.measured_direction.z), 0.15, 0.01);  // the emulator's tilt, through the whole chain
 
   // 2. A command reaches the valve emulator (and the board applies it).
-  ASSERT_TRUE(spin_until([&] {
-    const BoardState b = read_board(state);
-    return b.ok && b.nonzero_commands > 0 && std::max({b.duty[0], b.duty[1], b.duty[2]}) > 0.01;
-  }, 15.0)) << "controller '" << status.state << "' " << status.reason;
+  ASSERT_TRUE(spin_until(
+      [&] {
+        const BoardState b = read_board(state);
+        return b.ok && b.nonzero_commands > 0 && std::max({b.duty[0], b.duty[1], b.duty[2]}) > 0.01;
+      },
+      15.0))
+      << "controller '" << status.state << "' " << status.reason;
   ASSERT_EQ(status.state, "running") << status.reason;
 
   // The loop keeps running on the driver's data for 3 s (no stale-data or flow-fault abort: poses,
@@ -164,9 +175,10 @@ TEST(RigEmulated, PoseToControllerCommandToBoardTrackerLossClosesValves) {
   spin_until([] { return false; }, 1.0);
   EXPECT_TRUE(closed(read_board(state)));  // and they stay closed
   EXPECT_LT((last_tip - cut).toSec(), 0.1) << "a tip pose was published after the tracker died";
-  ROS_INFO("rig_emulated: tip poses %.1f Hz, jet states %.1f Hz, valve acks %.1f Hz over %.1f s; valves closed "
-           "%.3f s after the tracker died; '%s'",
-           tip_hz, jets_hz, ack_hz, window, latency, valves_error.c_str());
+  ROS_INFO(
+      "rig_emulated: tip poses %.1f Hz, jet states %.1f Hz, valve acks %.1f Hz over %.1f s; valves closed "
+      "%.3f s after the tracker died; '%s'",
+      tip_hz, jets_hz, ack_hz, window, latency, valves_error.c_str());
 }
 
 int main(int argc, char** argv) {

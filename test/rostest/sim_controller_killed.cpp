@@ -14,17 +14,18 @@ TEST(SimControllerKilled, PlantClosesValvesOnCommandTimeout) {
   ros::Publisher cmd = nh.advertise<hydrojet_control::JetCommand>("jets/command", 10);
   const double stop_at = 2.0;
   double now = 0.0;
-  ros::Subscriber clock = nh.subscribe<rosgraph_msgs::Clock>("/clock", 100, [&](const rosgraph_msgs::Clock::ConstPtr& c) {
-    now = c->clock.toSec();
-    if (now > 0.0 && now <= stop_at) {  // the "controller": answer every step until it dies
-      hydrojet_control::JetCommand m;
-      m.header.stamp = c->clock;
-      m.valve_command = {0.6, 0.6, 0.6};
-      cmd.publish(m);
-    }
-  });
-  ros::Subscriber js = nh.subscribe<hydrojet_control::JetState>("jets/state", 1000,
-      [&](const hydrojet_control::JetState::ConstPtr& m) { states.push_back(*m); });
+  ros::Subscriber clock =
+      nh.subscribe<rosgraph_msgs::Clock>("/clock", 100, [&](const rosgraph_msgs::Clock::ConstPtr& c) {
+        now = c->clock.toSec();
+        if (now > 0.0 && now <= stop_at) {  // the "controller": answer every step until it dies
+          hydrojet_control::JetCommand m;
+          m.header.stamp = c->clock;
+          m.valve_command = {0.6, 0.6, 0.6};
+          cmd.publish(m);
+        }
+      });
+  ros::Subscriber js = nh.subscribe<hydrojet_control::JetState>(
+      "jets/state", 1000, [&](const hydrojet_control::JetState::ConstPtr& m) { states.push_back(*m); });
   const ros::WallTime until = ros::WallTime::now() + ros::WallDuration(120.0);
   while (ros::ok() && ros::WallTime::now() < until && now < stop_at + 1.0) {
     ros::spinOnce();

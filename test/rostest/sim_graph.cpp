@@ -19,8 +19,8 @@ namespace {
 struct Log {
   std::vector<hydrojet_control::ControllerStatus> status;
   std::vector<hydrojet_control::JetCommand> commands;
-  double last_tracker = -1.0;           ///< sim time of the last tracker sample before the dropout
-  double dropout_from = -1.0;           ///< first gap > 1.5 sample periods in the tracker stream
+  double last_tracker = -1.0;  ///< sim time of the last tracker sample before the dropout
+  double dropout_from = -1.0;  ///< first gap > 1.5 sample periods in the tracker stream
   std::vector<std::string> diag_errors;
 };
 
@@ -31,18 +31,20 @@ bool zero(const hydrojet_control::JetCommand& c) {
 /// Spins until the controller reports finished/aborted (or the wall-clock limit).
 void run(Log& log, double wall_limit) {
   ros::NodeHandle nh;
-  ros::Subscriber s1 = nh.subscribe<hydrojet_control::ControllerStatus>("controller/status", 10000,
+  ros::Subscriber s1 = nh.subscribe<hydrojet_control::ControllerStatus>(
+      "controller/status", 10000,
       [&](const hydrojet_control::ControllerStatus::ConstPtr& m) { log.status.push_back(*m); });
-  ros::Subscriber s2 = nh.subscribe<hydrojet_control::JetCommand>("jets/command", 10000,
-      [&](const hydrojet_control::JetCommand::ConstPtr& m) { log.commands.push_back(*m); });
-  ros::Subscriber s3 = nh.subscribe<geometry_msgs::PoseStamped>("tracker/tip_pose", 10000,
-      [&](const geometry_msgs::PoseStamped::ConstPtr& m) {
+  ros::Subscriber s2 = nh.subscribe<hydrojet_control::JetCommand>(
+      "jets/command", 10000, [&](const hydrojet_control::JetCommand::ConstPtr& m) { log.commands.push_back(*m); });
+  ros::Subscriber s3 = nh.subscribe<geometry_msgs::PoseStamped>(
+      "tracker/tip_pose", 10000, [&](const geometry_msgs::PoseStamped::ConstPtr& m) {
         const double t = m->header.stamp.toSec();
-        if (log.dropout_from < 0 && log.last_tracker >= 0 && t - log.last_tracker > 0.015) log.dropout_from = log.last_tracker;
+        if (log.dropout_from < 0 && log.last_tracker >= 0 && t - log.last_tracker > 0.015)
+          log.dropout_from = log.last_tracker;
         log.last_tracker = t;
       });
-  ros::Subscriber s4 = nh.subscribe<diagnostic_msgs::DiagnosticArray>("/diagnostics", 1000,
-      [&](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
+  ros::Subscriber s4 = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+      "/diagnostics", 1000, [&](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
         for (const auto& s : m->status)
           if (s.level == diagnostic_msgs::DiagnosticStatus::ERROR) log.diag_errors.push_back(s.message);
       });
@@ -118,7 +120,8 @@ TEST(SimGraph, Scenario) {
     EXPECT_NE(ab->reason.find("tracker"), std::string::npos) << ab->reason;
     ASSERT_GE(log.dropout_from, 0.0) << "no dropout seen in the tracker stream";
     // Stale after 3 sample periods: the jets are zero by the 4th control cycle after the last sample.
-    EXPECT_LE(first_zero - log.dropout_from, 4 * 0.01 + 1e-6) << "last sample " << log.dropout_from << ", zero at " << first_zero;
+    EXPECT_LE(first_zero - log.dropout_from, 4 * 0.01 + 1e-6)
+        << "last sample " << log.dropout_from << ", zero at " << first_zero;
     EXPECT_GT(first_zero - log.dropout_from, 0.0);
   } else if (scenario == "flow_fault") {
     EXPECT_NE(ab->reason.find("flow: jet 1 reading invalid"), std::string::npos) << ab->reason;

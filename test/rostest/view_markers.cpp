@@ -29,8 +29,8 @@ bool finite(const visualization_msgs::Marker& m) {
 TEST(ViewMarkers, KnownRodState) {
   ros::NodeHandle nh;
   std::vector<visualization_msgs::MarkerArray> got;
-  ros::Subscriber sub = nh.subscribe<visualization_msgs::MarkerArray>("view/markers", 10,
-      [&](const visualization_msgs::MarkerArray::ConstPtr& m) { got.push_back(*m); });
+  ros::Subscriber sub = nh.subscribe<visualization_msgs::MarkerArray>(
+      "view/markers", 10, [&](const visualization_msgs::MarkerArray::ConstPtr& m) { got.push_back(*m); });
   ros::Publisher rod = nh.advertise<hydrojet_control::RodState>("rod/state", 2);
   ros::Publisher st = nh.advertise<hydrojet_control::ControllerStatus>("controller/status", 2);
   ros::Publisher js = nh.advertise<hydrojet_control::JetState>("jets/state", 2);
@@ -115,7 +115,8 @@ TEST(ViewMarkers, KnownRodState) {
   double len[3] = {0, 0, 0};
   for (const auto& m : arr.markers)
     if (m.ns == "jets")
-      len[m.id] = std::hypot(std::hypot(m.points[1].x - m.points[0].x, m.points[1].y - m.points[0].y), m.points[1].z - m.points[0].z);
+      len[m.id] = std::hypot(std::hypot(m.points[1].x - m.points[0].x, m.points[1].y - m.points[0].y),
+                             m.points[1].z - m.points[0].z);
   EXPECT_GT(len[2], len[0]);
   EXPECT_GT(len[0], len[1]);
   // tip_model sits at the arc's tip, in the base frame.

@@ -53,13 +53,11 @@ struct AllocationResult {
 /// Solves eq. (20) exactly. A: 1..6 rows × 3; w_des: A.rows() entries; q_min ≤ q_max [N];
 /// lambda ≥ 0 [1, relative to A's units]; tolerance ≥ 0: relative reachability tolerance (see
 /// AllocationResult::reachable).
-AllocationResult allocate(const AllocMatrix& A, const AllocVector& w_des,
-                          const Eigen::Vector3d& q_min, const Eigen::Vector3d& q_max, double lambda,
-                          double tolerance = 1e-9);
+AllocationResult allocate(const AllocMatrix& A, const AllocVector& w_des, const Eigen::Vector3d& q_min,
+                          const Eigen::Vector3d& q_max, double lambda, double tolerance = 1e-9);
 
 /// Objective of eq. (20): ‖A q − w_des‖² + λ‖q‖².
-double allocation_objective(const AllocMatrix& A, const AllocVector& w_des,
-                            const Eigen::Vector3d& q, double lambda);
+double allocation_objective(const AllocMatrix& A, const AllocVector& w_des, const Eigen::Vector3d& q, double lambda);
 
 }  // namespace actuation
 }  // namespace hydrojet

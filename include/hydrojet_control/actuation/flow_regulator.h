@@ -71,8 +71,7 @@ class FlowRegulatorBank {
 
   /// Valve commands [1] for desired / measured flows [m^3/s] after dt [s]. A jet with bad input
   /// gets 0 (see FlowRegulator::update); the others are unaffected.
-  Eigen::Vector3d update(const Eigen::Vector3d& q_des_flow, const Eigen::Vector3d& q_meas_flow,
-                         double dt);
+  Eigen::Vector3d update(const Eigen::Vector3d& q_des_flow, const Eigen::Vector3d& q_meas_flow, double dt);
   void reset();
   bool ok() const;
   /// First error among the jets, prefixed with "jet i: ", or empty.

@@ -41,50 +41,50 @@ Bounds default_bounds(const ZetaVector& start);
 enum class Loss { kNone, kHuber, kCauchy };
 
 struct CalibrationOptions {
-  ParamMask fit = all_params();     ///< parameters to estimate; the others stay at the start
-  Loss loss = Loss::kNone;          ///< robust loss on the per-sample angle (Huber / Cauchy)
-  double loss_scale = 0.02;         ///< [rad] where the robust loss starts to bend (≈1.1°)
-  bool has_bounds = false;          ///< false: default_bounds(start)
+  ParamMask fit = all_params();  ///< parameters to estimate; the others stay at the start
+  Loss loss = Loss::kNone;       ///< robust loss on the per-sample angle (Huber / Cauchy)
+  double loss_scale = 0.02;      ///< [rad] where the robust loss starts to bend (≈1.1°)
+  bool has_bounds = false;       ///< false: default_bounds(start)
   Bounds bounds;
-  int max_iterations = 100;         ///< Levenberg–Marquardt iterations
+  int max_iterations = 100;  ///< Levenberg–Marquardt iterations
   int num_threads = 1;
   /// A fitted parameter whose standard deviation exceeds its resolution is reported as not
   /// identifiable by the data: u_x, u_y 0.5 1/m (≈2.6° of unloaded tip tilt over 9 cm);
   /// E, G 20 % (relative); δα, δβ, δγ 0.05 rad (≈2.9°).
   ZetaVector resolution = (ZetaVector() << 0.5, 0.5, 0.2, 0.2, 0.05, 0.05, 0.05).finished();
-  double max_correlation = 0.98;    ///< |ρ| above this: warn that only a combination is determined
+  double max_correlation = 0.98;  ///< |ρ| above this: warn that only a combination is determined
 };
 
 struct CalibrationResult {
-  bool converged = false;           ///< Ceres converged and every final rod solve converged
-  std::string message;              ///< Ceres' termination message or the failure
+  bool converged = false;  ///< Ceres converged and every final rod solve converged
+  std::string message;     ///< Ceres' termination message or the failure
   ZetaVector start = ZetaVector::Zero();
   ZetaVector zeta = ZetaVector::Zero();  ///< the estimate (= start for parameters not fitted)
   ParamMask fitted{};
   Bounds bounds;
-  double start_rms_rad = 0.0;       ///< RMS of the per-sample angle at the start [rad]
-  double rms_rad = 0.0;             ///< RMS of the per-sample angle at the estimate [rad]
-  std::vector<double> sample_error_rad;  ///< |r_i| per sample at the estimate [rad]
+  double start_rms_rad = 0.0;              ///< RMS of the per-sample angle at the start [rad]
+  double rms_rad = 0.0;                    ///< RMS of the per-sample angle at the estimate [rad]
+  std::vector<double> sample_error_rad;    ///< |r_i| per sample at the estimate [rad]
   std::vector<Eigen::Vector3d> residuals;  ///< r_i per sample [rad]
-  double sigma_rad = 0.0;           ///< σ̂ = sqrt(Σ|r_i|²/(3N − p)), per-axis noise estimate [rad]
+  double sigma_rad = 0.0;                  ///< σ̂ = sqrt(Σ|r_i|²/(3N − p)), per-axis noise estimate [rad]
   bool covariance_ok = false;
   ZetaVector stddev = ZetaVector::Constant(std::nan(""));  ///< physical units; NaN when unknown/not fitted
   Eigen::Matrix<double, kNumParams, kNumParams> correlation =
       Eigen::Matrix<double, kNumParams, kNumParams>::Constant(std::nan(""));
-  ParamMask identifiable{};         ///< fitted and std ≤ resolution (and not in a null space)
+  ParamMask identifiable{};  ///< fitted and std ≤ resolution (and not in a null space)
   ParamMask at_bound{};
   std::vector<std::string> warnings;
-  int iterations = 0;               ///< Levenberg–Marquardt iterations
-  int rod_solves = 0;               ///< static rod solves during the fit
-  int failed_solves = 0;            ///< of which did not converge
-  double time_s = 0.0;              ///< wall time of the fit and the covariance [s]
+  int iterations = 0;     ///< Levenberg–Marquardt iterations
+  int rod_solves = 0;     ///< static rod solves during the fit
+  int failed_solves = 0;  ///< of which did not converge
+  double time_s = 0.0;    ///< wall time of the fit and the covariance [s]
 };
 
 /// Fits ζ to the samples starting from the scene's values. The scene must have a jets section
 /// (SceneError("jets") otherwise); the samples are checked with validate_samples (DataError).
 /// Throws std::invalid_argument for unusable options (start outside the bounds, bad cross-section).
-CalibrationResult calibrate(const config::Scene& scene, const CrossSection& cs,
-                            const std::vector<Sample>& samples, const CalibrationOptions& options);
+CalibrationResult calibrate(const config::Scene& scene, const CrossSection& cs, const std::vector<Sample>& samples,
+                            const CalibrationOptions& options);
 
 /// The static model's tip orientation (tip in base) for jet forces q [N] in the scene (jet map of
 /// eq. 24 with the scene's misalignments). *ok (if given) says whether the rod solve converged.

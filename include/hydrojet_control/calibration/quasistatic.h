@@ -13,8 +13,8 @@
 // windows form an interval; each interval gives one sample: the means over its last window that
 // ends end_guard before the interval does (the most settled part, clear of the next step). When
 // consecutive intervals' samples have the same jet forces within max_force_drift (a noise spike
-// or a slow creep split one hold), only the later, more settled one is kept. Defaults suit 100 Hz data with the Aurora's ~0.3° and the flow sensors'
-// ~3 mL/min noise (see README "Calibration").
+// or a slow creep split one hold), only the later, more settled one is kept. Defaults suit 100 Hz data with the
+// Aurora's ~0.3° and the flow sensors' ~3 mL/min noise (see README "Calibration").
 #pragma once
 
 #include <string>
@@ -43,27 +43,27 @@ struct PoseRecord {
 };
 
 struct QuasistaticOptions {
-  double window = 0.5;            ///< averaging window [s]
-  double max_force_std = 0.005;   ///< [N] per jet, within the window
-  double max_force_drift = 0.003; ///< [N] per jet, second-half mean − first-half mean
-  double max_angle_std = 0.02;    ///< [rad] RMS angle about the window's mean orientation (≈1.15°)
-  double max_angle_drift = 0.01;  ///< [rad] between the two halves' mean orientations (≈0.57°)
-  double max_pair_dt = 0.006;     ///< [s] largest stamp difference paired (tip↔base, pose↔jets)
-  int min_points = 5;             ///< fewest paired points in a window
+  double window = 0.5;             ///< averaging window [s]
+  double max_force_std = 0.005;    ///< [N] per jet, within the window
+  double max_force_drift = 0.003;  ///< [N] per jet, second-half mean − first-half mean
+  double max_angle_std = 0.02;     ///< [rad] RMS angle about the window's mean orientation (≈1.15°)
+  double max_angle_drift = 0.01;   ///< [rad] between the two halves' mean orientations (≈0.57°)
+  double max_pair_dt = 0.006;      ///< [s] largest stamp difference paired (tip↔base, pose↔jets)
+  int min_points = 5;              ///< fewest paired points in a window
   /// [s] the sample's window ends this long before the interval's last quasistatic window (which
   /// may already contain the start of the next step); shorter intervals give no sample.
   double end_guard = 0.1;
-  std::string validate() const;   ///< empty when usable, else "<field>: <what>"
+  std::string validate() const;  ///< empty when usable, else "<field>: <what>"
 };
 
 struct Extraction {
-  std::vector<Sample> samples;        ///< one per quasistatic interval, origin "bag t=<end> s"
-  std::vector<double> sample_time;    ///< end time of each sample's window [s]
-  int paired_points = 0;              ///< time points with tip, base and jet data
-  int skipped_points = 0;             ///< unpaired or invalid (flagged / non-finite) records
-  int windows = 0;                    ///< windows tested
+  std::vector<Sample> samples;      ///< one per quasistatic interval, origin "bag t=<end> s"
+  std::vector<double> sample_time;  ///< end time of each sample's window [s]
+  int paired_points = 0;            ///< time points with tip, base and jet data
+  int skipped_points = 0;           ///< unpaired or invalid (flagged / non-finite) records
+  int windows = 0;                  ///< windows tested
   int quasistatic_windows = 0;
-  int merged_intervals = 0;           ///< intervals dropped as repeats of the one before
+  int merged_intervals = 0;  ///< intervals dropped as repeats of the one before
 };
 
 /// Extracts one static sample per quasistatic interval. Records need not be sorted.

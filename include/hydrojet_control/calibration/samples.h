@@ -16,7 +16,7 @@ namespace calibration {
 /// One static equilibrium: jet forces q [N] and the measured orientation of the tip frame in the
 /// base frame.
 struct Sample {
-  Eigen::Vector3d jet_force = Eigen::Vector3d::Zero();            ///< q1, q2, q3 [N]
+  Eigen::Vector3d jet_force = Eigen::Vector3d::Zero();                  ///< q1, q2, q3 [N]
   Eigen::Quaterniond tip_orientation = Eigen::Quaterniond::Identity();  ///< unit, tip in base
   std::string origin;  ///< where it came from, for messages: "line 7", "bag t=12.40 s"
 };

@@ -35,11 +35,11 @@ inline ParamMask all_params() { return {true, true, true, true, true, true, true
 /// Cross-section of the body: a hollow cylinder (paper §6.2: outer 8 mm, inner 6 mm).
 ///   I = π(D⁴ − d⁴)/64,  EI_x = EI_y = E·I,  GJ = G·J with J = 2I.
 struct CrossSection {
-  double outer_diameter = 0.008;  ///< D [m]
-  double inner_diameter = 0.006;  ///< d [m], 0 ≤ d < D
-  double second_moment() const;   ///< I [m^4]
+  double outer_diameter = 0.008;                                 ///< D [m]
+  double inner_diameter = 0.006;                                 ///< d [m], 0 ≤ d < D
+  double second_moment() const;                                  ///< I [m^4]
   double polar_moment() const { return 2.0 * second_moment(); }  ///< J [m^4]
-  std::string validate() const;   ///< empty when usable, else a message naming the field
+  std::string validate() const;                                  ///< empty when usable, else a message naming the field
 };
 
 /// The diameters a scene file states (rod.outer_diameter / rod.inner_diameter, present when the

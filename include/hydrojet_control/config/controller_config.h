@@ -24,10 +24,10 @@ class ParamError : public KeyError {
 };
 
 struct ControllerOptions {
-  std::string scene;                  ///< scene YAML path (required by the node, optional for tools)
-  double rate = 100.0;                ///< control rate [Hz]
-  bool autostart = false;             ///< start the path as soon as data arrive
-  std::string base_frame = "base";    ///< frame of the rod model (REP 105-style name)
+  std::string scene;                ///< scene YAML path (required by the node, optional for tools)
+  double rate = 100.0;              ///< control rate [Hz]
+  bool autostart = false;           ///< start the path as soon as data arrive
+  std::string base_frame = "base";  ///< frame of the rod model (REP 105-style name)
   control::ControllerParams controller;
   actuation::FlowRegulatorParameters flow;
 };

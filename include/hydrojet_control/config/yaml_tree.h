@@ -85,9 +85,7 @@ class YamlTree {
   double positive(const std::string& path) { return check_positive(path, number(path)); }
   double positive(const std::string& path, double fallback) { return absent(path) ? fallback : positive(path); }
   double nonnegative(const std::string& path) { return check_nonnegative(path, number(path)); }
-  double nonnegative(const std::string& path, double fallback) {
-    return absent(path) ? fallback : nonnegative(path);
-  }
+  double nonnegative(const std::string& path, double fallback) { return absent(path) ? fallback : nonnegative(path); }
 
   /// An integer (written as one: 3, not 3.5) in [lo, hi].
   int integer(const std::string& path, int fallback, int lo = INT_MIN, int hi = INT_MAX) {
@@ -211,7 +209,8 @@ class YamlTree {
       if (!path.empty() && !read) fail(path, "unknown key");
       return;
     }
-    for (const auto& kv : n) visit(kv.second, path.empty() ? kv.first.as<std::string>() : path + sep_ + kv.first.as<std::string>());
+    for (const auto& kv : n)
+      visit(kv.second, path.empty() ? kv.first.as<std::string>() : path + sep_ + kv.first.as<std::string>());
   }
 
   YAML::Node root_;

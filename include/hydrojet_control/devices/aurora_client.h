@@ -43,20 +43,20 @@ namespace hydrojet {
 namespace devices {
 
 struct AuroraConfig {
-  std::string port;                   ///< serial device path (e.g. /dev/serial/by-id/...)
-  int baud = 115200;                  ///< tracking baud rate, set by COMM (9600 ... 921600)
-  uint8_t tip_handle = 0x0A;          ///< port handle of the tip (capsule) sensor
-  uint8_t base_handle = 0x0B;         ///< port handle of the base (holder) sensor
-  double rate = 40.0;                 ///< BX requests per second [Hz] (the Aurora measures at 40 Hz)
-  double reply_timeout = 0.05;        ///< BX reply [s]
-  double command_timeout = 3.0;       ///< ASCII replies during set-up (INIT, PINIT are slow) [s]
-  double reset_timeout = 5.0;         ///< RESET reply after a BREAK on a real port [s]
-  double timeout = 0.25;              ///< no valid BX frame (device silent) / no valid pose of a
-                                      ///< handle (sensor unhealthy) for this long [s]
-  double reconnect_period = 1.0;      ///< wait between connection attempts [s]
+  std::string port;               ///< serial device path (e.g. /dev/serial/by-id/...)
+  int baud = 115200;              ///< tracking baud rate, set by COMM (9600 ... 921600)
+  uint8_t tip_handle = 0x0A;      ///< port handle of the tip (capsule) sensor
+  uint8_t base_handle = 0x0B;     ///< port handle of the base (holder) sensor
+  double rate = 40.0;             ///< BX requests per second [Hz] (the Aurora measures at 40 Hz)
+  double reply_timeout = 0.05;    ///< BX reply [s]
+  double command_timeout = 3.0;   ///< ASCII replies during set-up (INIT, PINIT are slow) [s]
+  double reset_timeout = 5.0;     ///< RESET reply after a BREAK on a real port [s]
+  double timeout = 0.25;          ///< no valid BX frame (device silent) / no valid pose of a
+                                  ///< handle (sensor unhealthy) for this long [s]
+  double reconnect_period = 1.0;  ///< wait between connection attempts [s]
   uint32_t out_of_volume_mask = kDefaultOutOfVolumeMask;  ///< port-status bits meaning "out of volume"
-  char tracking_priority = 'D';       ///< PENA priority: S static, D dynamic, B button box
-  std::string bx_options = "0001";    ///< BX reply option (0001: transformation data)
+  char tracking_priority = 'D';                           ///< PENA priority: S static, D dynamic, B button box
+  std::string bx_options = "0001";                        ///< BX reply option (0001: transformation data)
 
   /// Empty when usable, else "<field>: <what>".
   std::string validate() const;
@@ -67,9 +67,9 @@ std::string aurora_comm_params(int baud);
 
 /// One delivered tracker measurement (a BX reply with at least one handle whose frame changed).
 struct AuroraSample {
-  SteadyTime received;      ///< when the reply was complete
-  HandlePose tip, base;     ///< kMissing with frame 0 when the handle was not in the reply
-  bool tip_new = false;     ///< tip frame number changed since the last delivered tip
+  SteadyTime received;   ///< when the reply was complete
+  HandlePose tip, base;  ///< kMissing with frame 0 when the handle was not in the reply
+  bool tip_new = false;  ///< tip frame number changed since the last delivered tip
   bool base_new = false;
   uint16_t system_status = 0;
 };
@@ -78,30 +78,30 @@ struct AuroraSample {
 struct HandleStats {
   HandlePose::Status last_status = HandlePose::kMissing;
   uint64_t valid = 0, missing = 0, out_of_volume = 0, disabled = 0;
-  double last_rms_m = 0.0;     ///< RMS error of the last valid pose [m]
-  SteadyTime last_valid{};     ///< epoch when never
+  double last_rms_m = 0.0;  ///< RMS error of the last valid pose [m]
+  SteadyTime last_valid{};  ///< epoch when never
   bool ever_valid = false;
 };
 
 struct AuroraStatus {
   LinkState state = LinkState::kStopped;
-  std::string message;       ///< what the client is doing or, after a fault, why it failed
-  std::string last_error;    ///< the last fault (kept after recovery)
-  bool tracking = false;     ///< TSTART acknowledged and BX loop running
-  SteadyTime last_frame{};   ///< last CRC-valid BX frame
+  std::string message;      ///< what the client is doing or, after a fault, why it failed
+  std::string last_error;   ///< the last fault (kept after recovery)
+  bool tracking = false;    ///< TSTART acknowledged and BX loop running
+  SteadyTime last_frame{};  ///< last CRC-valid BX frame
   bool ever_frame = false;
   HandleStats tip, base;
-  uint64_t frames = 0;             ///< CRC-valid BX frames
-  uint64_t duplicate_frames = 0;   ///< frames with no new frame number (not delivered)
-  uint64_t crc_errors = 0;         ///< BX header/body CRC errors + ASCII reply CRC errors
+  uint64_t frames = 0;            ///< CRC-valid BX frames
+  uint64_t duplicate_frames = 0;  ///< frames with no new frame number (not delivered)
+  uint64_t crc_errors = 0;        ///< BX header/body CRC errors + ASCII reply CRC errors
   uint64_t garbage_bytes = 0;
   uint64_t format_errors = 0;
   uint64_t truncated_frames = 0;
-  uint64_t reply_timeouts = 0;     ///< BX requests without a valid reply in time
-  uint64_t device_errors = 0;      ///< ERRORxx replies
-  uint64_t sessions = 0;           ///< successful TSTARTs
+  uint64_t reply_timeouts = 0;  ///< BX requests without a valid reply in time
+  uint64_t device_errors = 0;   ///< ERRORxx replies
+  uint64_t sessions = 0;        ///< successful TSTARTs
   uint64_t connect_failures = 0;
-  bool reset_by_break = false;     ///< last reset answered the BREAK (false: NUL fallback)
+  bool reset_by_break = false;  ///< last reset answered the BREAK (false: NUL fallback)
 
   /// True when tracking and a valid frame arrived within `timeout` of `now`.
   bool healthy(SteadyTime now, double timeout) const;
@@ -132,11 +132,10 @@ class AuroraClient {
   bool connect(std::string* err);
   bool reset_device(std::string* err);
   /// Sends NAME:params and reads the ASCII reply (CRC checked; ERRORxx decoded into *err).
-  bool command(const std::string& name, const std::string& params, std::string* reply,
-               std::string* err, double timeout);
+  bool command(const std::string& name, const std::string& params, std::string* reply, std::string* err,
+               double timeout);
   bool read_ascii_line(std::string* line, double timeout, std::string* err);
-  bool handle_list(const std::string& option, std::vector<std::pair<uint8_t, uint16_t>>* out,
-                   std::string* err);
+  bool handle_list(const std::string& option, std::vector<std::pair<uint8_t, uint16_t>>* out, std::string* err);
   /// Tracking loop; returns with *err set on a fault, or when stopping.
   void track(std::string* err);
   enum class BxResult { kFrame, kNoFrame, kDeviceError, kHangup };

@@ -76,8 +76,7 @@ std::vector<std::pair<uint8_t, uint16_t>> parse_phsr(const std::string& text);
 
 /// Non-throwing variant of parse_phsr(): returns false and sets `*err` (if non-null) on malformed
 /// text; `*out` is only written on success.
-bool parse_phsr(const std::string& text, std::vector<std::pair<uint8_t, uint16_t>>* out,
-                std::string* err);
+bool parse_phsr(const std::string& text, std::vector<std::pair<uint8_t, uint16_t>>* out, std::string* err);
 
 // ---------------------------------------------------------------------------------------------
 // BX binary tracking reply
@@ -151,8 +150,7 @@ struct BxFrame {
 /// and its quaternion norm is within 1e-2 of 1 (then renormalised). Port-status bits in
 /// `out_of_volume_mask` turn kValid / kMissing into kOutOfVolume.
 /// @return false (with `*err` set if non-null; `*out` unspecified) on any violation.
-bool decode_bx_body(const uint8_t* body, size_t n, uint32_t out_of_volume_mask, BxFrame* out,
-                    std::string* err);
+bool decode_bx_body(const uint8_t* body, size_t n, uint32_t out_of_volume_mask, BxFrame* out, std::string* err);
 
 /// Encodes a complete BX reply (header, body, both CRCs) from `frame`, converting [m] back to [mm]
 /// as float32. Status mapping: kValid -> 0x01 with transform; kMissing -> 0x02; kDisabled -> 0x04

@@ -28,11 +28,11 @@ struct FlowSensorConfig {
   std::string name = "flow sensor";  ///< for messages ("flow sensor 1")
   std::string port;                  ///< serial device path
   int baud = 9600;
-  FlowLineFormat format;             ///< how to read the number; scale_to_m3_per_s > 0 required
-  double timeout = 0.25;             ///< no accepted reading for this long: unhealthy, reconnect [s]
-  double reconnect_period = 1.0;     ///< wait between connection attempts [s]
-  size_t max_line_length = 128;      ///< longer lines are garbage [characters]
-  std::string start_command;         ///< optional text sent after opening (e.g. to start streaming)
+  FlowLineFormat format;          ///< how to read the number; scale_to_m3_per_s > 0 required
+  double timeout = 0.25;          ///< no accepted reading for this long: unhealthy, reconnect [s]
+  double reconnect_period = 1.0;  ///< wait between connection attempts [s]
+  size_t max_line_length = 128;   ///< longer lines are garbage [characters]
+  std::string start_command;      ///< optional text sent after opening (e.g. to start streaming)
 
   /// Empty when usable, else "<field>: <what>" (also checks the format on a probe line).
   std::string validate() const;
@@ -49,12 +49,12 @@ struct FlowReading {
 struct FlowSensorStatus {
   LinkState state = LinkState::kStopped;
   std::string message;
-  std::string last_error;          ///< last fault or rejected line (kept after recovery)
+  std::string last_error;  ///< last fault or rejected line (kept after recovery)
   SteadyTime last_accepted{};
   bool ever_accepted = false;
-  double last_flow = 0.0;          ///< [m^3/s]
+  double last_flow = 0.0;  ///< [m^3/s]
   uint64_t lines = 0, accepted = 0, rejected = 0;
-  uint64_t discarded = 0;          ///< over-long lines / lines with NUL bytes
+  uint64_t discarded = 0;  ///< over-long lines / lines with NUL bytes
   uint64_t connects = 0, connect_failures = 0;
 
   /// True when an accepted reading arrived within `timeout` of `now`.

@@ -58,8 +58,7 @@ struct FlowLineFormat {
 /// is finite ("non-finite flow") and not negative ("negative flow"; -0 is accepted as 0).
 /// @return false with `*err` set (if non-null) on any violation; `*flow_m3s` is only written on
 /// success.
-bool parse_flow_line(const std::string& line, const FlowLineFormat& fmt, double* flow_m3s,
-                     std::string* err);
+bool parse_flow_line(const std::string& line, const FlowLineFormat& fmt, double* flow_m3s, std::string* err);
 
 // ---------------------------------------------------------------------------------------------
 // (b) Valve board

@@ -34,12 +34,12 @@ struct RigConfig {
   std::string tracker_frame = "tracker";  ///< frame of the poses (the field generator)
   std::string tip_frame = "tip_sensor";   ///< tf child frames
   std::string base_frame = "base_sensor";
-  double reconnect_period = 1.0;          ///< [s], every device
+  double reconnect_period = 1.0;  ///< [s], every device
   AuroraConfig tracker;
-  std::array<FlowSensorConfig, 3> flow;   ///< jets 1, 2, 3
-  double flow_rate = 50.0;                ///< nominal lines per second per sensor (diagnostics) [Hz]
-  double flow_publish_rate = 100.0;       ///< jets/state checks per second [Hz]
-  bool invalidate_on_reject = true;       ///< a rejected line makes that jet invalid until the next good one
+  std::array<FlowSensorConfig, 3> flow;  ///< jets 1, 2, 3
+  double flow_rate = 50.0;               ///< nominal lines per second per sensor (diagnostics) [Hz]
+  double flow_publish_rate = 100.0;      ///< jets/state checks per second [Hz]
+  bool invalidate_on_reject = true;      ///< a rejected line makes that jet invalid until the next good one
   SerialValveBoardConfig valves;
   ValveLoopConfig valve_loop;
 };
@@ -174,7 +174,8 @@ inline RigConfig parse_rig_config(const YAML::Node& root) {
     FlowSensorConfig& f = c.flow[i];
     f.name = "flow sensor " + std::to_string(i + 1);
     f.port = p.text(key, "");
-    if (f.port.empty()) throw RigConfigError(key + ": missing (serial device of jet " + std::to_string(i + 1) + "'s flow sensor)");
+    if (f.port.empty())
+      throw RigConfigError(key + ": missing (serial device of jet " + std::to_string(i + 1) + "'s flow sensor)");
     f.baud = flow_baud;
     f.format = fmt;
     f.timeout = flow_timeout;
@@ -211,7 +212,8 @@ inline RigConfig parse_rig_config(const YAML::Node& root) {
   for (int j = 1; j < 5; ++j)
     for (int i = 0; i < j; ++i)
       if (ports[i] == ports[j])
-        throw RigConfigError(std::string(keys[j]) + ": '" + ports[j] + "' is already " + keys[i] + " (one device per port)");
+        throw RigConfigError(std::string(keys[j]) + ": '" + ports[j] + "' is already " + keys[i] +
+                             " (one device per port)");
   p.reject_unknown();
   return c;
 }

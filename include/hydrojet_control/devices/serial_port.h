@@ -23,9 +23,7 @@ inline SteadyClock::duration seconds(double s) {
   return std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(s));
 }
 /// Seconds between two steady-clock instants (b - a).
-inline double seconds_between(SteadyTime a, SteadyTime b) {
-  return std::chrono::duration<double>(b - a).count();
-}
+inline double seconds_between(SteadyTime a, SteadyTime b) { return std::chrono::duration<double>(b - a).count(); }
 
 /// True for the line speeds a termios port can be set to here (9600 ... 921600, and 1228739, the
 /// NDI rate that only exists on some adapters, is not one of them).

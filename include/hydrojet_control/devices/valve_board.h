@@ -103,16 +103,16 @@ struct ValveLoopConfig {
 
 struct ValveStatus {
   LinkState state = LinkState::kStopped;
-  bool healthy = false;          ///< open, and the last command was acknowledged
+  bool healthy = false;  ///< open, and the last command was acknowledged
   std::string message;
   std::string last_error;
-  Duty acknowledged{};           ///< duty last acknowledged by the board
+  Duty acknowledged{};  ///< duty last acknowledged by the board
   bool ever_acknowledged = false;
   SteadyTime last_ack{};
-  bool gate_open = false;        ///< the last command sent was the controller's (not forced zero)
-  std::string gate_reason;       ///< why the last command sent was forced to zero
+  bool gate_open = false;   ///< the last command sent was the controller's (not forced zero)
+  std::string gate_reason;  ///< why the last command sent was forced to zero
   uint64_t sent = 0, acknowledged_count = 0, no_reply = 0, rejected = 0, hangups = 0;
-  uint64_t bad_commands = 0;     ///< non-finite controller commands (replaced by zero)
+  uint64_t bad_commands = 0;  ///< non-finite controller commands (replaced by zero)
   uint64_t connects = 0, connect_failures = 0;
 };
 

@@ -66,9 +66,9 @@ namespace hydrojet {
 namespace plant {
 
 using rod::Mat3;
+using rod::Mat6;
 using rod::Vec3;
 using rod::Vec6;
-using rod::Mat6;
 
 /// Parameters of the dynamic rod. SI units. The RodModel supplies L, EI_x, EI_y, GJ, ũ, ρA (used
 /// for both the body weight and the body's translational inertia), m_t and g, exactly as in the
@@ -78,29 +78,29 @@ using rod::Mat6;
 /// slaved to the capsule, whose mass and tip_inertia carry the dynamics. A small positive ρA (e.g.
 /// 1e-3 kg/m) adds the body's own (higher) modes; either way the per-step problem is well posed.
 struct DynamicRodParameters {
-  rod::RodModel model;                   ///< statics: geometry, stiffness, ũ, ρA, m_t, gravity
-  double shear_stiffness = 1e5;          ///< GA [N]; stiff by default (≈1e6·EI/L² for HydroJet)
-  double axial_stiffness = 1e5;          ///< EA [N]; stiff by default (nearly inextensible)
+  rod::RodModel model;           ///< statics: geometry, stiffness, ũ, ρA, m_t, gravity
+  double shear_stiffness = 1e5;  ///< GA [N]; stiff by default (≈1e6·EI/L² for HydroJet)
+  double axial_stiffness = 1e5;  ///< EA [N]; stiff by default (nearly inextensible)
   /// τ_kv [s]: B_se = τ_kv K_se, B_bt = τ_kv K_bt. Mode damping ratio ζ ≈ τ_kv ω/2: with 0.01 s
   /// the HydroJet's first mode (≈5 Hz) has ζ ≈ 0.15 (see the flutter note above for large forces).
   double kelvin_voigt_time = 0.01;
-  double linear_drag = 0.0;              ///< c_lin, body drag [N s/m per m of rod] (body frame)
-  double quadratic_drag = 0.0;           ///< c_quad, body drag [N s²/m² per m]: force −c_quad|q|q
-  double tip_drag = 0.0;                 ///< c_t, capsule linear drag [N s/m]
-  double tip_quadratic_drag = 0.0;       ///< capsule quadratic drag [N s²/m²]: force −c|q|q
-  double tip_angular_drag = 0.0;         ///< c_ω, capsule rotational drag [N m s/rad]
+  double linear_drag = 0.0;         ///< c_lin, body drag [N s/m per m of rod] (body frame)
+  double quadratic_drag = 0.0;      ///< c_quad, body drag [N s²/m² per m]: force −c_quad|q|q
+  double tip_drag = 0.0;            ///< c_t, capsule linear drag [N s/m]
+  double tip_quadratic_drag = 0.0;  ///< capsule quadratic drag [N s²/m²]: force −c|q|q
+  double tip_angular_drag = 0.0;    ///< c_ω, capsule rotational drag [N m s/rad]
   /// J_t, capsule inertia about its centre, tip frame, diagonal [kg m²]. Default: a 2.58 g
   /// cylinder of radius ≈7 mm and length ≈15 mm (an estimate; the paper does not give it).
   Vec3 tip_inertia = Vec3(8e-8, 8e-8, 6e-8);
   /// ρI [kg m]: body rotational inertia per length; ρJ = ρI·diag(1, 1, 2). 0 = none.
   double rotational_inertia_per_length = 0.0;
-  int nodes = 21;                        ///< N spatial nodes (N − 1 RK4 steps), 2 ≤ N ≤ 2000
-  double alpha = -0.2;                   ///< BDF-α parameter in [−0.5, 0] (Till: −0.2)
+  int nodes = 21;       ///< N spatial nodes (N − 1 RK4 steps), 2 ≤ N ≤ 2000
+  double alpha = -0.2;  ///< BDF-α parameter in [−0.5, 0] (Till: −0.2)
   /// Newton stops when |residual| ≤ tolerance·F0, F0 = max(EI, GJ)/L² [N] (the residual is the tip
   /// force error [N] and the tip moment error / L), or at its round-off floor (1e-13 of the size of
   /// its terms) if that is larger.
   double tolerance = 1e-9;
-  int max_iterations = 15;               ///< Newton iterations per attempt
+  int max_iterations = 15;  ///< Newton iterations per attempt
   /// When a step's boundary-value problem does not converge, step() retries the interval as 2, 4,
   /// ..., 2^max_substep_halvings equal substeps (same wrench) before reporting failure. 0..10.
   int max_substep_halvings = 4;
@@ -128,24 +128,24 @@ class DynamicRod {
   /// the boundary-value problem did not converge; the state is then unchanged.
   bool step(const rod::TipWrench& w, double dt);
 
-  Mat3 tip_rotation() const;            ///< R(L), tip frame in the base frame (orthonormalised)
-  Vec3 tip_position() const;            ///< p(L) [m], base frame
-  Vec3 tip_velocity() const;            ///< R(L) q(L) [m/s], base frame
-  Vec3 tip_angular_velocity() const;    ///< R(L) ω(L) [rad/s], base frame
-  std::vector<Vec3> backbone() const;   ///< the N node positions [m], base to tip, base frame
-  Vec3 base_force() const;              ///< n(0) [N], base frame: force the rod exerts on the mount
-  Vec3 base_moment() const;             ///< m(0) [N m], base frame: moment on the mount
+  Mat3 tip_rotation() const;           ///< R(L), tip frame in the base frame (orthonormalised)
+  Vec3 tip_position() const;           ///< p(L) [m], base frame
+  Vec3 tip_velocity() const;           ///< R(L) q(L) [m/s], base frame
+  Vec3 tip_angular_velocity() const;   ///< R(L) ω(L) [rad/s], base frame
+  std::vector<Vec3> backbone() const;  ///< the N node positions [m], base to tip, base frame
+  Vec3 base_force() const;             ///< n(0) [N], base frame: force the rod exerts on the mount
+  Vec3 base_moment() const;            ///< m(0) [N m], base frame: moment on the mount
 
   /// Sets g [m/s²] in the base frame (a tilted base); takes effect from the next step. A
   /// non-finite vector is ignored and reported through last_error().
   void set_gravity(const Vec3& g);
   Vec3 gravity() const { return params_.model.gravity; }
 
-  int last_iterations() const { return last_iterations_; }  ///< Newton iterations, last call
-  int last_substeps() const { return last_substeps_; }      ///< substeps the last step() used
-  int last_evaluations() const { return last_evaluations_; } ///< shooting passes, last solve
-  std::string last_error() const { return last_error_; }    ///< empty after a success
-  double time() const { return time_; }                      ///< [s] since the last reset
+  int last_iterations() const { return last_iterations_; }    ///< Newton iterations, last call
+  int last_substeps() const { return last_substeps_; }        ///< substeps the last step() used
+  int last_evaluations() const { return last_evaluations_; }  ///< shooting passes, last solve
+  std::string last_error() const { return last_error_; }      ///< empty after a success
+  double time() const { return time_; }                       ///< [s] since the last reset
   const DynamicRodParameters& parameters() const { return params_; }
 
  private:
@@ -166,8 +166,8 @@ class DynamicRod {
   /// residual. Records z at every slot into `rec` and node states into `nodes` when non-null.
   Vec6 pass(const Vec6& x, const rod::TipWrench& w, Mat12X* rec, std::vector<Vec24>* nodes);
   bool refresh_jacobian(const Vec6& x, const Vec6& r, const rod::TipWrench& w);
-  bool newton(Vec6* x, const rod::TipWrench& w, bool full_newton,
-              const Vec6* alternatives = nullptr, int n_alternatives = 0);
+  bool newton(Vec6* x, const rod::TipWrench& w, bool full_newton, const Vec6* alternatives = nullptr,
+              int n_alternatives = 0);
   /// One implicit time step of size dt; commits the state only on success.
   bool advance(const rod::TipWrench& w, double dt);
   void set_coefficients(const Coefficients& c);
@@ -180,7 +180,7 @@ class DynamicRod {
   Vec3 k_se_, k_bt_, kse_vstar_, kbt_ustar_, b_se_, b_bt_, inv_se_, inv_bt_, rho_j_;
   double rho_a_ = 0.0;
   Vec3 dist_weight_ = Vec3::Zero();  // ρA g [N/m], base frame, for the current solve
-  double residual_scale_ = 0.0;       // magnitude of the terms in the last residual [N]
+  double residual_scale_ = 0.0;      // magnitude of the terms in the last residual [N]
   bool drag_active_ = false;
   Coefficients coef_;
 
@@ -191,7 +191,7 @@ class DynamicRod {
   std::vector<Vec24> nodes_, nodes_solve_, nodes_trial_;
   Mat12X snap_z1_, snap_z2_, snap_zt1_;  // state snapshot for the substepping fallback
   std::vector<Vec24> snap_nodes_;
-  bool at_rest_history_ = true;  // z1 == z2, zt1 == 0: valid for any dt
+  bool at_rest_history_ = true;            // z1 == z2, zt1 == 0: valid for any dt
   double dt_prev_ = 0.0, dt_prev2_ = 0.0;  // the last two step sizes [s] (0: at rest, any)
 
   // Base unknowns [n(0); m(0)/L] now, one and two steps back (warm start).

@@ -18,18 +18,18 @@ namespace hydrojet {
 namespace plant {
 
 struct PlantParameters {
-  DynamicRodParameters rod;              ///< the true rod (its model.gravity is set from base_tilt)
-  actuation::JetGeometry jets;           ///< the true jet misalignments
+  DynamicRodParameters rod;     ///< the true rod (its model.gravity is set from base_tilt)
+  actuation::JetGeometry jets;  ///< the true jet misalignments
   actuation::NozzleParameters nozzle;
   std::array<ValveParameters, 3> valves;
   TrackerNoise tracker;
   FlowNoise flow;
-  bool sensor_noise = true;              ///< false: exact sensors (no noise, quantisation, latency)
-  double base_tilt = 0.0;                ///< base turned about its own x-axis [rad] (§7: 0 or 30°)
-  double gravity = 9.81;                 ///< [m/s^2]
+  bool sensor_noise = true;  ///< false: exact sensors (no noise, quantisation, latency)
+  double base_tilt = 0.0;    ///< base turned about its own x-axis [rad] (§7: 0 or 30°)
+  double gravity = 9.81;     ///< [m/s^2]
   Eigen::Vector3d base_position = Eigen::Vector3d(0.0, 0.0, 0.25);  ///< base origin in the tracker frame [m]
-  double internal_dt = 0.002;            ///< rod time step [s]
-  double command_timeout = 0.05;         ///< valves close when no command arrives for this long [s]
+  double internal_dt = 0.002;                                       ///< rod time step [s]
+  double command_timeout = 0.05;  ///< valves close when no command arrives for this long [s]
   std::string validate() const;
 };
 
@@ -58,8 +58,8 @@ class Plant {
   Eigen::Matrix3d tip_rotation() const { return rod_->tip_rotation(); }  ///< truth, base frame
   Eigen::Vector3d tip_position() const { return rod_->tip_position(); }  ///< truth, base frame [m]
   std::vector<Eigen::Vector3d> backbone() const { return rod_->backbone(); }
-  Eigen::Vector3d flows() const { return hydraulics_.flows(); }          ///< truth [m^3/s]
-  Eigen::Vector3d jet_forces() const;                                    ///< truth [N]
+  Eigen::Vector3d flows() const { return hydraulics_.flows(); }  ///< truth [m^3/s]
+  Eigen::Vector3d jet_forces() const;                            ///< truth [N]
   Eigen::Vector3d valve_command() const { return duty_; }
   bool valves_closed_by_timeout() const { return timed_out_; }
   const std::string& error() const { return error_; }

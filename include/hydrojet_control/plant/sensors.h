@@ -36,7 +36,7 @@ struct TrackerNoise {
 };
 
 struct FlowNoise {
-  double sigma = 5e-8;     ///< [m^3/s] (~3 mL/min)
+  double sigma = 5e-8;        ///< [m^3/s] (~3 mL/min)
   double quantum = 1.667e-9;  ///< [m^3/s] (0.1 mL/min display resolution)
   std::string validate() const;
 };

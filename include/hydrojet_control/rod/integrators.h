@@ -32,9 +32,9 @@ inline bool is_adaptive(IntegratorType t) { return t != IntegratorType::kRk4 && 
 
 struct IntegratorSettings {
   IntegratorType type = IntegratorType::kRk8;
-  int steps = 4;           ///< equal steps over the rod for rk4 / rk8
-  double tolerance = 1e-9; ///< relative and absolute local error tolerance for adaptive methods
-  int max_steps = 100000;  ///< adaptive methods give up (and report failure) past this many steps
+  int steps = 4;            ///< equal steps over the rod for rk4 / rk8
+  double tolerance = 1e-9;  ///< relative and absolute local error tolerance for adaptive methods
+  int max_steps = 100000;   ///< adaptive methods give up (and report failure) past this many steps
   /// CVODE methods only: carry the sensitivities with CVODES' forward sensitivity analysis instead
   /// of integrating them as part of the state. Measured slower on every scene here (docs/
   /// work_precision.md), so off by default.
@@ -46,7 +46,7 @@ struct IntegrationStats {
   int rhs_evaluations = 0;
   int steps = 0;
   int rejected_steps = 0;
-  bool ok = true;  ///< false when an adaptive method hit max_steps or the state became non-finite
+  bool ok = true;                   ///< false when an adaptive method hit max_steps or the state became non-finite
   int sensitivity_evaluations = 0;  ///< CVODES sensitivity right-hand sides (all directions at once)
   int jacobian_evaluations = 0;     ///< CVODE BDF Jacobian evaluations
 };
@@ -177,17 +177,16 @@ template <class F, class Vec>
   f(s + C::c8 * h, t, k8);
   t = y + h * (C::a91 * k1 + C::a94 * k4 + C::a95 * k5 + C::a96 * k6 + C::a97 * k7 + C::a98 * k8);
   f(s + C::c9 * h, t, k9);
-  t = y + h * (C::a101 * k1 + C::a104 * k4 + C::a105 * k5 + C::a106 * k6 + C::a107 * k7 +
-               C::a108 * k8 + C::a109 * k9);
+  t = y + h * (C::a101 * k1 + C::a104 * k4 + C::a105 * k5 + C::a106 * k6 + C::a107 * k7 + C::a108 * k8 + C::a109 * k9);
   f(s + C::c10 * h, t, k10);
-  t = y + h * (C::a111 * k1 + C::a114 * k4 + C::a115 * k5 + C::a116 * k6 + C::a117 * k7 +
-               C::a118 * k8 + C::a119 * k9 + C::a1110 * k10);
+  t = y + h * (C::a111 * k1 + C::a114 * k4 + C::a115 * k5 + C::a116 * k6 + C::a117 * k7 + C::a118 * k8 + C::a119 * k9 +
+               C::a1110 * k10);
   f(s + C::c11 * h, t, k11);
-  t = y + h * (C::a121 * k1 + C::a124 * k4 + C::a125 * k5 + C::a126 * k6 + C::a127 * k7 +
-               C::a128 * k8 + C::a129 * k9 + C::a1210 * k10 + C::a1211 * k11);
+  t = y + h * (C::a121 * k1 + C::a124 * k4 + C::a125 * k5 + C::a126 * k6 + C::a127 * k7 + C::a128 * k8 + C::a129 * k9 +
+               C::a1210 * k10 + C::a1211 * k11);
   f(s + h, t, k12);
-  y += h * (C::b1 * k1 + C::b6 * k6 + C::b7 * k7 + C::b8 * k8 + C::b9 * k9 + C::b10 * k10 +
-            C::b11 * k11 + C::b12 * k12);
+  y +=
+      h * (C::b1 * k1 + C::b6 * k6 + C::b7 * k7 + C::b8 * k8 + C::b9 * k9 + C::b10 * k10 + C::b11 * k11 + C::b12 * k12);
 }
 
 /// Fixed-step 8th-order integration with n equal steps.
@@ -226,20 +225,18 @@ IntegrationStats integrate_dopri5(F& f, double s0, double s1, double tol, int ma
     f(s + 0.3 * h, t, k3);
     t = y + h * (44.0 / 45.0 * k1 - 56.0 / 15.0 * k2 + 32.0 / 9.0 * k3);
     f(s + 0.8 * h, t, k4);
-    t = y + h * (19372.0 / 6561.0 * k1 - 25360.0 / 2187.0 * k2 + 64448.0 / 6561.0 * k3 -
-                 212.0 / 729.0 * k4);
+    t = y + h * (19372.0 / 6561.0 * k1 - 25360.0 / 2187.0 * k2 + 64448.0 / 6561.0 * k3 - 212.0 / 729.0 * k4);
     f(s + 8.0 / 9.0 * h, t, k5);
-    t = y + h * (9017.0 / 3168.0 * k1 - 355.0 / 33.0 * k2 + 46732.0 / 5247.0 * k3 +
-                 49.0 / 176.0 * k4 - 5103.0 / 18656.0 * k5);
+    t = y + h * (9017.0 / 3168.0 * k1 - 355.0 / 33.0 * k2 + 46732.0 / 5247.0 * k3 + 49.0 / 176.0 * k4 -
+                 5103.0 / 18656.0 * k5);
     f(s + h, t, k6);
-    y5 = y + h * (35.0 / 384.0 * k1 + 500.0 / 1113.0 * k3 + 125.0 / 192.0 * k4 -
-                  2187.0 / 6784.0 * k5 + 11.0 / 84.0 * k6);
+    y5 = y +
+         h * (35.0 / 384.0 * k1 + 500.0 / 1113.0 * k3 + 125.0 / 192.0 * k4 - 2187.0 / 6784.0 * k5 + 11.0 / 84.0 * k6);
     f(s + h, y5, k7);
     st.rhs_evaluations += 6;
-    err = h * (71.0 / 57600.0 * k1 - 71.0 / 16695.0 * k3 + 71.0 / 1920.0 * k4 -
-               17253.0 / 339200.0 * k5 + 22.0 / 525.0 * k6 - 1.0 / 40.0 * k7);
-    const double e = std::sqrt(
-        (err.array() / (tol + tol * y.array().abs().max(y5.array().abs()))).square().mean());
+    err = h * (71.0 / 57600.0 * k1 - 71.0 / 16695.0 * k3 + 71.0 / 1920.0 * k4 - 17253.0 / 339200.0 * k5 +
+               22.0 / 525.0 * k6 - 1.0 / 40.0 * k7);
+    const double e = std::sqrt((err.array() / (tol + tol * y.array().abs().max(y5.array().abs()))).square().mean());
     if (!std::isfinite(e)) {
       st.ok = false;
       return st;
@@ -264,12 +261,9 @@ IntegrationStats integrate_dopri5(F& f, double s0, double s1, double tol, int ma
 template <class F, class Vec>
 IntegrationStats integrate(const IntegratorSettings& settings, F& f, double s0, double s1, Vec& y) {
   switch (settings.type) {
-    case IntegratorType::kRk4:
-      return integrate_rk4(f, s0, s1, settings.steps, y);
-    case IntegratorType::kRk8:
-      return integrate_rk8(f, s0, s1, settings.steps, y);
-    case IntegratorType::kDopri5:
-      return integrate_dopri5(f, s0, s1, settings.tolerance, settings.max_steps, y);
+    case IntegratorType::kRk4: return integrate_rk4(f, s0, s1, settings.steps, y);
+    case IntegratorType::kRk8: return integrate_rk8(f, s0, s1, settings.steps, y);
+    case IntegratorType::kDopri5: return integrate_dopri5(f, s0, s1, settings.tolerance, settings.max_steps, y);
     default: {
       IntegrationStats st;
       st.ok = false;

@@ -53,13 +53,13 @@ enum class RodKind {
 /// Material and geometry of the rod. Uniform along s; stiffness_at()/precurvature_at() are the
 /// seam for K(s) and ũ(s) (their s-derivatives enter eq. 14 as K' and ũ').
 struct RodParameters {
-  double length = 0.09;                      ///< L [m]
+  double length = 0.09;                              ///< L [m]
   Vec3 stiffness = Vec3(6.01e-4, 6.01e-4, 2.23e-4);  ///< diag(E·Ix, E·Iy, G·J) [N m^2]
-  Vec3 precurvature = Vec3::Zero();          ///< ũ in the body frame [1/m]
-  double linear_density = 0.0;               ///< ρA [kg/m]; 0 = massless body
-  RodKind kind = RodKind::kKirchhoff;        ///< Kirchhoff (default) or Cosserat
-  double shear_stiffness = 0.0;              ///< GA [N] (kCosserat only; must then be > 0)
-  double axial_stiffness = 0.0;              ///< EA [N] (kCosserat only; must then be > 0)
+  Vec3 precurvature = Vec3::Zero();                  ///< ũ in the body frame [1/m]
+  double linear_density = 0.0;                       ///< ρA [kg/m]; 0 = massless body
+  RodKind kind = RodKind::kKirchhoff;                ///< Kirchhoff (default) or Cosserat
+  double shear_stiffness = 0.0;                      ///< GA [N] (kCosserat only; must then be > 0)
+  double axial_stiffness = 0.0;                      ///< EA [N] (kCosserat only; must then be > 0)
 
   Vec3 stiffness_at(double /*s*/) const { return stiffness; }
   Vec3 precurvature_at(double /*s*/) const { return precurvature; }
@@ -73,8 +73,8 @@ struct RodParameters {
 /// Everything the static model needs besides the actuation wrench.
 struct RodModel {
   RodParameters rod;
-  double tip_mass = 0.0;              ///< m_t [kg]
-  Vec3 gravity = Vec3::Zero();        ///< g in the base frame [m/s^2]
+  double tip_mass = 0.0;        ///< m_t [kg]
+  Vec3 gravity = Vec3::Zero();  ///< g in the base frame [m/s^2]
 };
 
 /// Follower wrench at the tip, expressed in the tip frame (w_a of eq. 16).
@@ -91,9 +91,9 @@ struct TipWrench {
 /// Compile-time switches of the right-hand side: which terms of the model are computed.
 template <bool Cosserat, bool DistributedLoad, bool Precurved>
 struct RodTerms {
-  static constexpr bool kCosserat = Cosserat;              ///< shear/extension strains v
+  static constexpr bool kCosserat = Cosserat;                ///< shear/extension strains v
   static constexpr bool kDistributedLoad = DistributedLoad;  ///< n(s) varies (ρA·g ≠ 0)
-  static constexpr bool kPrecurved = Precurved;            ///< ũ ≠ 0
+  static constexpr bool kPrecurved = Precurved;              ///< ũ ≠ 0
 };
 using KirchhoffGeneral = RodTerms<false, true, true>;  ///< every Kirchhoff term
 using CosseratGeneral = RodTerms<true, true, true>;    ///< every term (Kirchhoff: K_se⁻¹ = 0)
@@ -140,13 +140,13 @@ struct RodOde {
   using Terms = T;
 
   // Fixed for one integration.
-  Vec3 k_diag;       ///< diag(K)
-  Vec3 k_inv;        ///< diag(K⁻¹)
-  Vec3 u_tilde;      ///< ũ
-  Vec3 n_tip;        ///< n(L), base frame [N]
-  Vec3 w_dist;       ///< ρA g, base frame [N/m]
-  double length = 0; ///< L [m]
-  Vec3 kse_inv = Vec3::Zero();  ///< diag(K_se⁻¹) [1/N] (Cosserat terms; 0 = Kirchhoff limit)
+  Vec3 k_diag;                                   ///< diag(K)
+  Vec3 k_inv;                                    ///< diag(K⁻¹)
+  Vec3 u_tilde;                                  ///< ũ
+  Vec3 n_tip;                                    ///< n(L), base frame [N]
+  Vec3 w_dist;                                   ///< ρA g, base frame [N/m]
+  double length = 0;                             ///< L [m]
+  Vec3 kse_inv = Vec3::Zero();                   ///< diag(K_se⁻¹) [1/N] (Cosserat terms; 0 = Kirchhoff limit)
   Eigen::Matrix<double, 3, (D > 0 ? D : 1)> dn;  ///< δn_d per direction (base frame)
 
   /// n(s) in the base frame.
@@ -178,7 +178,7 @@ struct RodOde {
     dR.col(2) = R.col(0) * u.y() - R.col(1) * u.x();
     if constexpr (T::kCosserat) {
       const Vec3 v = Vec3::UnitZ() + kse_inv.cwiseProduct(Qb);
-      dy.template segment<3>(0) = R * v;           // p' = R v
+      dy.template segment<3>(0) = R * v;  // p' = R v
       dy.template segment<3>(12) = -k_inv.cwiseProduct(u.cross(Ku) + v.cross(Qb));
       for (int d = 0; d < D; ++d) {
         const int o = kBase + kPerDir * d;
@@ -192,7 +192,7 @@ struct RodOde {
         dy.template segment<3>(o + 6) = R * (eta.cross(v) + dv);  // R (η × v + δv)
       }
     } else {
-      dy.template segment<3>(0) = R.col(2);        // eq. (6): p' = R e_z
+      dy.template segment<3>(0) = R.col(2);  // eq. (6): p' = R e_z
       const Vec3 ez_x_Qb(-Qb.y(), Qb.x(), 0.0);
       dy.template segment<3>(12) = -k_inv.cwiseProduct(u.cross(Ku) + ez_x_Qb);
       for (int d = 0; d < D; ++d) {
@@ -234,8 +234,7 @@ struct RodOde {
     dRp.col(1) = dR.col(2) * u.x() - dR.col(0) * u.z() + R.col(2) * du.x() - R.col(0) * du.z();
     dRp.col(2) = dR.col(0) * u.y() - dR.col(1) * u.x() + R.col(0) * du.y() - R.col(1) * du.x();
     for (int c = 0; c < 3; ++c) out.template segment<3>(3 + 3 * c) = dRp.col(c);
-    out.template segment<3>(12) =
-        -k_inv.cwiseProduct(du.cross(Ku) + u.cross(Kdu) + dv.cross(Qb) + v.cross(dQb));
+    out.template segment<3>(12) = -k_inv.cwiseProduct(du.cross(Ku) + u.cross(Kdu) + dv.cross(Qb) + v.cross(dQb));
   }
 };
 

@@ -58,15 +58,15 @@ struct ShootingSettings {
 /// below ShootingSettings::residual_tolerance.
 struct RodSolution {
   bool converged = false;
-  int iterations = 0;           ///< Newton iterations (all attempts, continuation included)
-  double residual = 0.0;        ///< |log R(0)| [rad] of the returned state
-  Mat3 tip_rotation = Mat3::Identity();   ///< tip frame in the base frame
-  Vec3 tip_position = Vec3::Zero();       ///< [m], base frame
-  double jacobian_det = 0.0;    ///< det ∂r/∂x of the shooting Jacobian (sign change = fold)
+  int iterations = 0;                    ///< Newton iterations (all attempts, continuation included)
+  double residual = 0.0;                 ///< |log R(0)| [rad] of the returned state
+  Mat3 tip_rotation = Mat3::Identity();  ///< tip frame in the base frame
+  Vec3 tip_position = Vec3::Zero();      ///< [m], base frame
+  double jacobian_det = 0.0;             ///< det ∂r/∂x of the shooting Jacobian (sign change = fold)
   int rhs_evaluations = 0;
-  int continuation_steps = 0;   ///< 0 when Newton converged without load continuation
-  std::string message;          ///< why it did not converge (empty when it did)
-  int segments = 1;             ///< shooting segments of the returned solution (1 = single shooting)
+  int continuation_steps = 0;  ///< 0 when Newton converged without load continuation
+  std::string message;         ///< why it did not converge (empty when it did)
+  int segments = 1;            ///< shooting segments of the returned solution (1 = single shooting)
   /// Estimated tip-position error of a fixed-step integration [m] (NaN when not estimated: adaptive
   /// integrators, multiple shooting, accuracy_tolerance = 0).
   double error_estimate = std::numeric_limits<double>::quiet_NaN();
@@ -74,7 +74,7 @@ struct RodSolution {
   /// start or unloaded shape → continuation steps → result). Non-zero: the path crossed a fold or
   /// bifurcation; the result may lie on another branch than the start, or be unstable.
   int fold_crossings = 0;
-  std::string warning;          ///< set with fold_crossings (empty otherwise)
+  std::string warning;  ///< set with fold_crossings (empty otherwise)
 };
 
 /// Body compliance and its pieces. Rows: tip body twist (v, ω); columns: body wrench (f_b, l_b).
@@ -119,8 +119,8 @@ class ShootingSolver {
     double gravity_scale = 1.0;
   };
   struct Eval {
-    Vec3 r;      ///< residual log R(0)
-    Mat3 J;      ///< ∂r/∂x
+    Vec3 r;  ///< residual log R(0)
+    Mat3 J;  ///< ∂r/∂x
     Mat3 R0;
     Vec3 p0;
     Eigen::Matrix<double, 3, 3> deta0;  ///< η(0) per x-direction
@@ -154,7 +154,9 @@ class ShootingSolver {
     const char* last_error = nullptr;
   };
 
-  Eval evaluate(const Mat3& R_tip, const Load& load, int* rhs) const { return (this->*kernels_->evaluate)(R_tip, load, rhs); }
+  Eval evaluate(const Mat3& R_tip, const Load& load, int* rhs) const {
+    return (this->*kernels_->evaluate)(R_tip, load, rhs);
+  }
   template <class T>
   Eval evaluate_t(const Mat3& R_tip, const Load& load, int* rhs) const;
   template <class T>
@@ -193,9 +195,9 @@ class ShootingSolver {
   Load load_;
   Eval eval_;
   RodSolution last_;
-  double det_ = 0.0;       ///< det ∂r/∂x of the stored solution (fold tracking)
+  double det_ = 0.0;             ///< det ∂r/∂x of the stored solution (fold tracking)
   Vec3 tip_pos_ = Vec3::Zero();  ///< tip position of the stored solution (jump detection)
-  bool multiple_ = false;  ///< the stored solution came from multiple shooting (nodes_ holds it)
+  bool multiple_ = false;        ///< the stored solution came from multiple shooting (nodes_ holds it)
   Nodes nodes_;
   mutable double unloaded_det_ = 0.0;  ///< det ∂r/∂x at the unloaded shape (cached per model)
   mutable Vec3 unloaded_tip_ = Vec3::Zero();

@@ -15,21 +15,21 @@ namespace sim {
 
 /// One control cycle as recorded.
 struct RunSample {
-  double t = 0.0;                   ///< path time [s]
-  Eigen::Vector3d desired;          ///< x_des, tip z-axis (base frame)
-  Eigen::Vector3d measured;         ///< from the tracker
-  Eigen::Vector3d tip_position;     ///< true tip position [m], base frame
-  double error_geodesic = 0.0;      ///< [rad]
-  double error_pitch_yaw = 0.0;     ///< [rad]
-  Eigen::Vector3d jet_force;        ///< true jet forces [N]
+  double t = 0.0;                ///< path time [s]
+  Eigen::Vector3d desired;       ///< x_des, tip z-axis (base frame)
+  Eigen::Vector3d measured;      ///< from the tracker
+  Eigen::Vector3d tip_position;  ///< true tip position [m], base frame
+  double error_geodesic = 0.0;   ///< [rad]
+  double error_pitch_yaw = 0.0;  ///< [rad]
+  Eigen::Vector3d jet_force;     ///< true jet forces [N]
 };
 
 struct RunResult {
-  bool completed = false;           ///< reached the end of the path without an abort
-  double aborted_at = -1.0;         ///< path time of the abort [s], < 0 if none
-  std::string reason;               ///< abort reason
+  bool completed = false;                                         ///< reached the end of the path without an abort
+  double aborted_at = -1.0;                                       ///< path time of the abort [s], < 0 if none
+  std::string reason;                                             ///< abort reason
   double rms = 0.0, median = 0.0, q1 = 0.0, q3 = 0.0, max = 0.0;  ///< of error_geodesic [rad]
-  double rms_pitch_yaw = 0.0;       ///< of the paper's metric [rad]
+  double rms_pitch_yaw = 0.0;                                     ///< of the paper's metric [rad]
   double wall_seconds = 0.0;
   double simulated_seconds = 0.0;
   std::vector<RunSample> samples;
