@@ -55,7 +55,7 @@ const std::vector<TipWrench>& path() {
 }
 
 double path_tip_error(const hydrojet::config::Scene& sc) {
-  hydrojet::rod::ShootingSettings ref = sc.solver;
+  hydrojet::rod::ShootingOptions ref = sc.solver;
   ref.integrator.type = hydrojet::rod::IntegratorType::kRk8;
   ref.integrator.steps = 256;
   ref.residual_tolerance = 1e-13;
@@ -99,7 +99,7 @@ void BM_WarmSolveCompliance(benchmark::State& state) {
   state.counters["tip_error_m"] = path_tip_error(sc);
 }
 
-hydrojet::rod::ShootingSettings general(hydrojet::rod::ShootingSettings s) {
+hydrojet::rod::ShootingOptions general(hydrojet::rod::ShootingOptions s) {
   s.specialize_model = false;
   return s;
 }

@@ -142,8 +142,8 @@ struct Reference {
   std::string message;
 };
 
-inline rod::ShootingSettings reference_settings(const Case& c, bool rk8) {
-  rod::ShootingSettings s;
+inline rod::ShootingOptions reference_settings(const Case& c, bool rk8) {
+  rod::ShootingOptions s;
   s.integrator.type = rk8 ? rod::IntegratorType::kRk8 : rod::IntegratorType::kDopri5;
   s.integrator.steps = 256 * std::max(1, c.reference_segments);
   s.integrator.tolerance = 1e-12;

@@ -43,11 +43,11 @@ namespace {
 struct Method {
   std::string name;   ///< line in the plots
   std::string param;  ///< "N=4" or "tol=1e-06"
-  rod::ShootingSettings settings;
+  rod::ShootingOptions settings;
 };
 
-rod::ShootingSettings base_settings() {
-  rod::ShootingSettings s;
+rod::ShootingOptions base_settings() {
+  rod::ShootingOptions s;
   s.accuracy_tolerance = 0.0;  // measure the error, do not refuse under-resolved solves
   s.residual_tolerance = 1e-10;
   return s;
@@ -154,7 +154,7 @@ int stiffness() {
   std::vector<Case> all = work_precision_cases();
   for (const Case& c : extreme_cases()) all.push_back(c);
   for (const Case& c : all) {
-    rod::ShootingSettings st = reference_settings(c, false);
+    rod::ShootingOptions st = reference_settings(c, false);
     st.integrator.tolerance = 1e-10;
     rod::ShootingSolver solver(c.model, st);
     const rod::RodSolution sol = solver.solve(c.wrench);
@@ -164,7 +164,7 @@ int stiffness() {
     }
     // Integrate the state from the tip (R(L) = tip rotation, R(0) = I at the solution).
     rod::RodOde<0, rod::CosseratGeneral> ode;
-    const rod::RodParameters& p = c.model.rod;
+    const rod::ElasticRod& p = c.model.rod;
     ode.k_diag = p.stiffness;
     ode.k_inv = p.stiffness.cwiseInverse();
     ode.u_tilde = p.precurvature;
@@ -224,7 +224,7 @@ int extreme(const std::string& out) {
     const double t0 = now_us();
     const Reference ref = reference(c);
     const double tref = (now_us() - t0) / 1e6;
-    rod::ShootingSolver probe(c.model, rod::ShootingSettings());
+    rod::ShootingSolver probe(c.model, rod::ShootingOptions());
     char agree[32] = "none";
     if (ref.ok) std::snprintf(agree, sizeof agree, "%.0e", ref.agreement);
     char head[200];
@@ -238,7 +238,7 @@ int extreme(const std::string& out) {
         std::printf("   %-18s not run\n", k.name);
         continue;
       }
-      rod::ShootingSettings st;
+      rod::ShootingOptions st;
       st.integrator.type = k.type;
       if (k.steps) st.integrator.steps = k.steps;
       if (k.tol > 0.0) st.integrator.tolerance = k.tol;

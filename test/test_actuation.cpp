@@ -97,13 +97,13 @@ TEST(Thrust, HandComputedValue) {
   // Q = 1e-5 m^3/s, Table 1 areas, ρ = 998 kg/m^3:
   //   1/A_out − 1/A_in = 2604166.667 − 884955.752 = 1719210.914 [1/m^2]
   //   F = 998 · 1e-10 · 1719210.914 = 0.1715772 N
-  const NozzleParameters n;
+  const Nozzle n;
   EXPECT_NEAR(force_from_flow(1e-5, n), 0.1715772, 1e-7);
   EXPECT_NEAR(flow_from_force(0.1715772, n), 1e-5, 1e-11);
 }
 
 TEST(Thrust, RoundTrip) {
-  const NozzleParameters n;
+  const Nozzle n;
   for (double F : {1e-6, 1e-3, 0.05, 0.224, 0.243, 0.244, 1.0}) {
     EXPECT_NEAR(force_from_flow(flow_from_force(F, n), n), F, 1e-14 * F) << F;
   }
@@ -115,7 +115,7 @@ TEST(Thrust, RoundTrip) {
 }
 
 TEST(Thrust, NonPositiveInputsGiveZeroAndNaNPropagates) {
-  const NozzleParameters n;
+  const Nozzle n;
   EXPECT_EQ(force_from_flow(0.0, n), 0.0);
   EXPECT_EQ(force_from_flow(-1e-5, n), 0.0);
   EXPECT_EQ(flow_from_force(0.0, n), 0.0);
@@ -125,17 +125,17 @@ TEST(Thrust, NonPositiveInputsGiveZeroAndNaNPropagates) {
 }
 
 TEST(Thrust, ValidationNamesTheBadField) {
-  EXPECT_EQ(validate(NozzleParameters()), "");
-  NozzleParameters n;
+  EXPECT_EQ(validate(Nozzle()), "");
+  Nozzle n;
   n.inlet_area = 0;
   EXPECT_NE(validate(n).find("inlet_area"), std::string::npos);
-  n = NozzleParameters();
+  n = Nozzle();
   n.outlet_area = -1e-7;
   EXPECT_NE(validate(n).find("outlet_area"), std::string::npos);
-  n = NozzleParameters();
+  n = Nozzle();
   n.water_density = NAN;
   EXPECT_NE(validate(n).find("water_density"), std::string::npos);
-  n = NozzleParameters();
+  n = Nozzle();
   n.outlet_area = n.inlet_area;  // no contraction -> no thrust
   EXPECT_NE(validate(n).find("outlet_area"), std::string::npos);
 }
@@ -395,8 +395,8 @@ struct FirstOrderPlant {
   }
 };
 
-FlowRegulatorParameters test_gains(bool anti_windup = true) {
-  FlowRegulatorParameters p;
+FlowRegulatorOptions test_gains(bool anti_windup = true) {
+  FlowRegulatorOptions p;
   p.kp = 2.5e4;  // loop gain kp·G = 0.5
   p.ki = 5e5;    // ki·G = 10 /s
   p.anti_windup = anti_windup;
@@ -408,7 +408,7 @@ FlowRegulatorParameters test_gains(bool anti_windup = true) {
 TEST(FlowRegulator, StepConvergesWithZeroSteadyStateError) {
   const double dt = 0.01;  // 100 Hz, as the paper's flow sensors
   for (double ff : {0.0, 1.0 / 2e-5, 1.0 / 3e-5 /* mismatched feedforward */}) {
-    FlowRegulatorParameters p = test_gains();
+    FlowRegulatorOptions p = test_gains();
     p.feedforward = ff;
     FlowRegulator reg(p);
     FirstOrderPlant plant;
@@ -494,7 +494,7 @@ TEST(FlowRegulator, NonFiniteInputOrBadDtGivesZeroCommand) {
 }
 
 TEST(FlowRegulator, InvalidParametersThrow) {
-  FlowRegulatorParameters p = test_gains();
+  FlowRegulatorOptions p = test_gains();
   p.ki = -1;
   EXPECT_NE(validate(p).find("ki"), std::string::npos);
   EXPECT_THROW(FlowRegulator{p}, std::invalid_argument);

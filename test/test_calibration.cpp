@@ -482,7 +482,7 @@ struct Series {
   std::vector<Eigen::Matrix3d> R;
 };
 
-Series make_series(const std::vector<double>& durations, const actuation::NozzleParameters& nz) {
+Series make_series(const std::vector<double>& durations, const actuation::Nozzle& nz) {
   Series s;
   std::mt19937 rng(12);
   std::normal_distribution<double> n01(0.0, 1.0);
@@ -522,7 +522,7 @@ Series make_series(const std::vector<double>& durations, const actuation::Nozzle
 }
 
 TEST(CalibrationQuasistatic, OneSettledSamplePerHold) {
-  const actuation::NozzleParameters nz;
+  const actuation::Nozzle nz;
   // Four 3 s holds, a 0.4 s blip (never settles: no sample), two more 3 s holds.
   const Series s = make_series({3.0, 3.0, 3.0, 3.0, 0.4, 3.0, 3.0}, nz);
   const Extraction ex = extract_quasistatic(s.jets, s.tip, s.base, nz, QuasistaticOptions());
@@ -544,7 +544,7 @@ TEST(CalibrationQuasistatic, OneSettledSamplePerHold) {
 }
 
 TEST(CalibrationQuasistatic, RingingIsNotQuasistaticAndPairingIsRequired) {
-  const actuation::NozzleParameters nz;
+  const actuation::Nozzle nz;
   const Series s = make_series({3.0, 3.0}, nz);
   const Extraction ex = extract_quasistatic(s.jets, s.tip, s.base, nz, QuasistaticOptions());
   // Each sample's window lies inside its hold (holds end at 3 and 6 s), clear of the next step

@@ -1,10 +1,14 @@
 // The PD resolved-rates controller (Algorithm 1) with the quasi-static rod model as the plant, no
 // ROS: convergence on static targets in closed and open loop, the value of feedback under model
-// mismatch, and every safety trigger.
+// mismatch, every safety trigger, the force limiter, and the options (defaults = config/controller.yaml,
+// ranges of cfg/Controller.cfg).
 #include <gtest/gtest.h>
 
 #include <cmath>
 
+#include <yaml-cpp/yaml.h>
+
+#include "hydrojet_control/config/controller_config.h"
 #include "hydrojet_control/control/controller.h"
 #include "test_helpers.h"
 
@@ -20,8 +24,8 @@ namespace {
 constexpr double kDt = 0.01;             // 100 Hz
 constexpr double kFlowPerDuty = 1.6e-5;  // plant valve: full duty gives 1.6e-5 m^3/s
 
-actuation::FlowRegulatorParameters flow_gains() {
-  actuation::FlowRegulatorParameters p;
+actuation::FlowRegulatorOptions flow_gains() {
+  actuation::FlowRegulatorOptions p;
   p.feedforward = 1.0 / kFlowPerDuty;
   p.kp = 0.3 / kFlowPerDuty;
   p.ki = 5.0 / kFlowPerDuty;
@@ -33,7 +37,7 @@ actuation::FlowRegulatorParameters flow_gains() {
 struct StaticPlant {
   rod::ShootingSolver rod;
   actuation::JetMap jets;
-  actuation::NozzleParameters nozzle;
+  actuation::Nozzle nozzle;
   Vec3 flows = Vec3::Zero();
   control::Mat3 tip = control::Mat3::Identity();
   int stuck_jet = -1;       ///< fault injection: this jet's flow is stuck_flow whatever the valve
@@ -65,8 +69,16 @@ struct StaticPlant {
   }
 };
 
-control::ControllerParams static_target(double theta, double phi) {
-  control::ControllerParams p;
+/// The gains these tests were tuned with (K_p 4/s, K_d 0.2; config/controller.yaml has 3/s, 0).
+control::ControllerOptions tuned_gains() {
+  control::ControllerOptions p;
+  p.kp = 4.0;
+  p.kd = 0.2;
+  return p;
+}
+
+control::ControllerOptions static_target(double theta, double phi) {
+  control::ControllerOptions p = tuned_gains();
   p.path.theta_start = p.path.theta_end = theta;
   p.path.phi_start = p.path.phi_end = phi;
   p.path.duration = 1000.0;
@@ -93,7 +105,7 @@ TEST(Controller, ConvergesOnStaticTargetsClosedAndOpenLoop) {
     const config::Scene sc = test::scene(name);
     for (control::LoopMode mode : {control::LoopMode::kClosed, control::LoopMode::kOpen}) {
       for (const auto& target : {std::make_pair(0.4, 0.5), std::make_pair(0.9, 2.5), std::make_pair(0.2, -2.0)}) {
-        control::ControllerParams p = static_target(target.first, target.second);
+        control::ControllerOptions p = static_target(target.first, target.second);
         p.mode = mode;
         Controller c(config::make_controller_model(sc, flow_gains()), p);
         StaticPlant plant(sc, sc.model);
@@ -117,7 +129,7 @@ TEST(Controller, FeedbackRemovesModelMismatch) {
   truth.rod.precurvature *= 0.0;
   double err[2];
   for (int m = 0; m < 2; ++m) {
-    control::ControllerParams p = static_target(0.7, 1.0);
+    control::ControllerOptions p = static_target(0.7, 1.0);
     p.mode = m == 0 ? control::LoopMode::kClosed : control::LoopMode::kOpen;
     Controller c(config::make_controller_model(sc, flow_gains()), p);
     StaticPlant plant(sc, truth);
@@ -133,7 +145,7 @@ TEST(Controller, FeedbackRemovesModelMismatch) {
 // The spiral of eq. (28), shortened: the closed loop follows it with a small error.
 TEST(Controller, FollowsShortenedSpiral) {
   const config::Scene sc = test::scene("hydrojet_30deg");
-  control::ControllerParams p;
+  control::ControllerOptions p = tuned_gains();
   p.path.duration = 60.0;
   p.path.theta_end = 1.04;
   p.path.phi_end = 14.0;
@@ -162,8 +174,8 @@ struct SafetyRig {
   config::Scene sc = test::scene("hydrojet_0deg");
   Controller c;
   StaticPlant plant;
-  explicit SafetyRig(control::ControllerParams p = static_target(0.5, 0.0),
-                     rod::ShootingSettings solver = test::scene("hydrojet_0deg").solver)
+  explicit SafetyRig(control::ControllerOptions p = static_target(0.5, 0.0),
+                     rod::ShootingOptions solver = test::scene("hydrojet_0deg").solver)
       : c(
             [&] {
               auto m = config::make_controller_model(sc, flow_gains());
@@ -254,11 +266,11 @@ TEST(ControllerSafety, StaleNanOrNegativeFlowAborts) {
 }
 
 TEST(ControllerSafety, SolverFailingTwiceInARowAborts) {
-  rod::ShootingSettings weak = test::scene("hydrojet_0deg").solver;
+  rod::ShootingOptions weak = test::scene("hydrojet_0deg").solver;
   SafetyRig r(static_target(0.5, 0.0), weak);
   // Now cripple the controller's solver: one Newton step, no continuation, and a large jump of
   // the measured flows that it cannot follow in one step.
-  control::ControllerModel m = config::make_controller_model(r.sc, flow_gains());
+  control::RobotModel m = config::make_controller_model(r.sc, flow_gains());
   m.solver.max_iterations = 1;
   m.solver.max_continuation_steps = 0;
   Controller c(m, static_target(0.5, 0.0));
@@ -275,7 +287,7 @@ TEST(ControllerSafety, SolverFailingTwiceInARowAborts) {
 }
 
 TEST(ControllerSafety, LowStabilityMarginAborts) {
-  control::ControllerParams p = static_target(0.5, 0.0);
+  control::ControllerOptions p = static_target(0.5, 0.0);
   const config::Scene sc = test::scene("hydrojet_0deg");
   Controller c(config::make_controller_model(sc, flow_gains()), p);
   StaticPlant plant(sc, sc.model);
@@ -292,15 +304,15 @@ TEST(ControllerSafety, OscillationBeyondHalfRadianAborts) {
   expect_aborted(r.step(in), "oscillation");
 }
 
-TEST(ControllerParams, ValidationNamesTheField) {
-  control::ControllerParams p;
+TEST(ControllerOptions, ValidationNamesTheField) {
+  control::ControllerOptions p;
   EXPECT_EQ(p.validate(), "");
   p.kp = -1;
   EXPECT_EQ(p.validate().rfind("kp:", 0), 0u) << p.validate();
-  p = control::ControllerParams();
+  p = control::ControllerOptions();
   p.sample_period = std::nan("");
   EXPECT_EQ(p.validate().rfind("sample_period:", 0), 0u);
-  p = control::ControllerParams();
+  p = control::ControllerOptions();
   p.path.duration = 0;
   EXPECT_EQ(p.validate().rfind("path.duration:", 0), 0u);
 }
@@ -311,7 +323,9 @@ TEST(TaskSpace, AnglesDirectionsAndMetrics) {
       const Vec3 d = control::direction(th, ph);
       EXPECT_NEAR(d.norm(), 1.0, 1e-15);
       EXPECT_NEAR(control::bend_angle(d), th, 1e-12);
-      if (th > 0) EXPECT_NEAR(std::remainder(control::azimuth(d) - ph, 2 * M_PI), 0.0, 1e-12);
+      if (th > 0) {
+        EXPECT_NEAR(std::remainder(control::azimuth(d) - ph, 2 * M_PI), 0.0, 1e-12);
+      }
     }
   const Vec3 a = control::direction(0.4, 0.2), b = control::direction(0.9, 1.7);
   const Vec3 r = control::rotation_between(a, b);
@@ -341,9 +355,143 @@ TEST(ControllerSafety, StuckOpenJetIsDetectedFromFlowFeedback) {
     if (out.state == ControllerState::kAborted) break;
   }
   expect_aborted(out, "jet 2 does not follow");
-  const double params_time = control::ControllerParams().flow_fault_time;
+  const double params_time = control::ControllerOptions().flow_fault_time;
   // The excess over the tolerance (3e-6) is at most 3e-6 here, so it cannot trip sooner than
   // flow_fault_time; it trips soon after the loop has pushed jet 2's command away from the stuck flow.
   EXPECT_GE(k * kDt, params_time - 1e-9);
   EXPECT_LE(k * kDt, 2.0);
+}
+
+// The flows must come one per jet (three for the HydroJet's jet map).
+TEST(ControllerSafety, WrongNumberOfFlowReadingsAborts) {
+  SafetyRig r;
+  EXPECT_EQ(r.c.jet_count(), 3);
+  ControllerInputs in = r.plant.inputs(1.0);
+  in.flows = Eigen::Vector2d(1e-6, 1e-6);
+  expect_aborted(r.step(in), "flow: 2 readings for 3 jets");
+}
+
+// --- Force limiter --------------------------------------------------------------------------------
+
+TEST(ForceLimiter, StepIsRateLimitedAlongItsDirection) {
+  control::ForceLimiter lim(0.3, 1.0);  // 0.3 N, 1 N/s
+  lim.reset(Eigen::Vector2d(0.1, 0.0));
+  const Eigen::Vector2d f = lim.limit(Eigen::Vector2d(0.1, 0.2), 0.01);  // wants +0.2 N in y
+  EXPECT_NEAR(f.x(), 0.1, 1e-15);
+  EXPECT_NEAR(f.y(), 0.01, 1e-15);  // 1 N/s · 10 ms
+  EXPECT_EQ(lim.previous(), f);
+  // A small step passes unchanged.
+  EXPECT_NEAR((lim.limit(Eigen::Vector2d(0.1, 0.015), 0.01) - Eigen::Vector2d(0.1, 0.015)).norm(), 0.0, 1e-15);
+  // dt = 0: no change at all.
+  EXPECT_EQ(lim.limit(Eigen::Vector2d(0.2, 0.2), 0.0), Eigen::Vector2d(0.1, 0.015));
+}
+
+TEST(ForceLimiter, MagnitudeIsLimitedAfterTheRate) {
+  control::ForceLimiter lim(0.3, 100.0);
+  // Within the rate, beyond the magnitude: scaled back onto the 0.3 N circle, same direction.
+  const Eigen::Vector2d f = lim.limit(Eigen::Vector2d(0.4, 0.3), 0.01);
+  EXPECT_NEAR(f.norm(), 0.3, 1e-15);
+  EXPECT_NEAR(f.x() / f.y(), 0.4 / 0.3, 1e-12);
+  // New limits apply from the next step; reset() sets the previous command without limiting.
+  lim.set_limits(0.1, 1.0);
+  lim.reset(Eigen::Vector2d(0.5, 0.0));
+  EXPECT_EQ(lim.previous(), Eigen::Vector2d(0.5, 0.0));
+  const Eigen::Vector2d g = lim.limit(Eigen::Vector2d(0.5, 0.0), 0.01);
+  EXPECT_NEAR(g.x(), 0.1, 1e-15);
+  EXPECT_NEAR(g.y(), 0.0, 1e-15);
+  lim.reset();
+  EXPECT_EQ(lim.previous(), Eigen::Vector2d::Zero());
+}
+
+// --- Options ----------------------------------------------------------------------------------
+
+// config/controller.yaml is the source of every default: it names every key, and the
+// default-constructed options hold the same values, field by field (the scene aside).
+TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
+  const std::string path = std::string(HYDROJET_SOURCE_DIR) + "/config/controller.yaml";
+  const YAML::Node yaml = YAML::LoadFile(path);
+  const config::ControllerNodeOptions file = config::load_controller_options(path);
+  const config::ControllerNodeOptions def;
+  auto in_file = [&](const std::string& key) {
+    const size_t slash = key.find('/');
+    return slash == std::string::npos ? bool(yaml[key]) : bool(yaml[key.substr(0, slash)][key.substr(slash + 1)]);
+  };
+  const control::ControllerOptions &f = file.controller, &d = def.controller;
+  const actuation::FlowRegulatorOptions &ff = file.flow_regulator, &fd = def.flow_regulator;
+  const struct {
+    const char* key;
+    double file, def;
+  } numbers[] = {
+      {"rate", file.rate, def.rate},
+      {"gains/kp", f.kp, d.kp},
+      {"gains/kd", f.kd, d.kd},
+      {"gains/feedforward", f.feedforward, d.feedforward},
+      {"gains/damping", f.damping, d.damping},
+      {"limits/max_force", f.max_force, d.max_force},
+      {"limits/max_force_rate", f.max_force_rate, d.max_force_rate},
+      {"allocation_weight", f.allocation_weight, d.allocation_weight},
+      {"integrate_from_measured", double(f.integrate_from_measured), double(d.integrate_from_measured)},
+      {"safety/max_oscillation", f.max_oscillation, d.max_oscillation},
+      {"safety/sample_period", f.sample_period, d.sample_period},
+      {"safety/stale_periods", double(f.stale_periods), double(d.stale_periods)},
+      {"safety/max_solver_failures", double(f.max_solver_failures), double(d.max_solver_failures)},
+      {"safety/min_stability_margin", f.min_stability_margin, d.min_stability_margin},
+      {"safety/unreachable_tolerance", f.unreachable_tolerance, d.unreachable_tolerance},
+      {"safety/flow_fault_tolerance", f.flow_fault_tolerance, d.flow_fault_tolerance},
+      {"safety/flow_fault_time", f.flow_fault_time, d.flow_fault_time},
+      {"path/theta_start", f.path.theta_start, d.path.theta_start},
+      {"path/theta_end", f.path.theta_end, d.path.theta_end},
+      {"path/phi_start", f.path.phi_start, d.path.phi_start},
+      {"path/phi_end", f.path.phi_end, d.path.phi_end},
+      {"path/duration", f.path.duration, d.path.duration},
+      {"flow_regulator/feedforward", ff.feedforward, fd.feedforward},
+      {"flow_regulator/kp", ff.kp, fd.kp},
+      {"flow_regulator/ki", ff.ki, fd.ki},
+      {"flow_regulator/output_min", ff.output_min, fd.output_min},
+      {"flow_regulator/output_max", ff.output_max, fd.output_max},
+  };
+  for (const auto& n : numbers) {
+    EXPECT_TRUE(in_file(n.key)) << n.key << " is not in " << path;
+    EXPECT_EQ(n.file, n.def) << n.key;
+  }
+  for (const char* key : {"mode", "autostart", "base_frame"}) EXPECT_TRUE(in_file(key)) << key;
+  EXPECT_EQ(f.mode, d.mode);
+  EXPECT_EQ(file.autostart, def.autostart);
+  EXPECT_EQ(file.base_frame, def.base_frame);
+  EXPECT_EQ(ff.anti_windup, fd.anti_windup);  // not a key: the regulator's own default
+  // And the file names nothing else (the parser rejects unknown keys, so this is the full list).
+  size_t keys = 0;
+  for (const auto& top : yaml) keys += top.second.IsMap() ? top.second.size() : 1;
+  EXPECT_EQ(keys, sizeof(numbers) / sizeof(numbers[0]) + 3);
+}
+
+// validate() enforces the ranges of cfg/Controller.cfg: the bounds pass, a value just outside
+// either bound is refused naming the key.
+TEST(ControllerOptions, RangesOfControllerCfgAreEnforced) {
+  const struct {
+    const char* key;
+    double lo, hi;
+  } ranges[] = {
+      {"gains/kp", 0.0, 50.0},       {"gains/kd", 0.0, 5.0},          {"gains/feedforward", 0.0, 2.0},
+      {"gains/damping", 1e-4, 10.0}, {"limits/max_force", 0.01, 1.0}, {"limits/max_force_rate", 0.01, 20.0},
+  };
+  auto parse = [](const std::string& key, double v) {
+    const size_t slash = key.find('/');
+    YAML::Node root;
+    root[key.substr(0, slash)][key.substr(slash + 1)] = v;
+    return config::parse_controller_options(root);
+  };
+  for (const auto& r : ranges) {
+    EXPECT_NO_THROW(parse(r.key, r.lo)) << r.key;
+    EXPECT_NO_THROW(parse(r.key, r.hi)) << r.key;
+    for (double v : {r.lo - std::max(1e-6, 1e-3 * r.lo), r.hi * (1 + 1e-6)}) {
+      try {
+        parse(r.key, v);
+        ADD_FAILURE() << r.key << " = " << v << " accepted";
+      } catch (const config::ParamError& e) {
+        EXPECT_EQ(e.key(), r.key) << e.what();
+        EXPECT_NE(std::string(e.what()).find("must lie in"), std::string::npos) << e.what();
+      }
+    }
+  }
 }

@@ -15,7 +15,7 @@
 
 using namespace hydrojet;
 using plant::DynamicRod;
-using plant::DynamicRodParameters;
+using plant::DynamicRodModel;
 using rod::Mat3;
 using rod::Vec3;
 
@@ -24,20 +24,21 @@ namespace {
 constexpr double kL = 0.09, kEI = 6.01e-4, kGJ = 2.23e-4, kTipMass = 0.00258;
 
 /// The HydroJet of Campisano et al. 2021 (Table 1), hanging along +z of the base.
-DynamicRodParameters hydrojet_parameters() {
-  DynamicRodParameters p;
+DynamicRodModel hydrojet_parameters() {
+  DynamicRodModel p;
   p.model.rod.length = kL;
   p.model.rod.stiffness = Vec3(kEI, kEI, kGJ);
   p.model.rod.precurvature = Vec3(0.034, 0.88, 0.0);
   p.model.rod.linear_density = 0.0;
   p.model.tip_mass = kTipMass;
   p.model.gravity = Vec3(0.0, 0.0, 9.81);
+  p.kelvin_voigt_time = 0.01;  // light material damping (ζ ≈ 0.15 for the first mode)
   return p;
 }
 
 /// Straight rod, no gravity, no damping: the cantilever of the free-vibration tests.
-DynamicRodParameters straight_undamped(double rho_a, const Vec3& tip_inertia) {
-  DynamicRodParameters p;
+DynamicRodModel straight_undamped(double rho_a, const Vec3& tip_inertia) {
+  DynamicRodModel p;
   p.model.rod.length = kL;
   p.model.rod.stiffness = Vec3(kEI, kEI, kGJ);
   p.model.rod.precurvature.setZero();
@@ -58,7 +59,7 @@ Vec3 jet_force(double q1, double q2, double q3) {
 
 /// Quasi-static Kirchhoff reference (8th-order RK, 16 steps, tight residual).
 rod::RodSolution kirchhoff(const rod::RodModel& model, const rod::TipWrench& w) {
-  rod::ShootingSettings st;
+  rod::ShootingOptions st;
   st.integrator.type = rod::IntegratorType::kRk8;
   st.integrator.steps = 16;
   st.residual_tolerance = 1e-13;
@@ -73,7 +74,7 @@ double rotation_error(const Mat3& a, const Mat3& b) { return so3::log(a.transpos
 /// GA = EA = 1e5 N; the factor 2 covers the force varying along s). The RK4 grid error with the
 /// default 21 nodes is ≈1e-7 m and ≈1.1e-6 rad on this strongly bent configuration (measured: it
 /// falls 16× per halving of the step, 4th order), so 5e-7 m and 5e-6 rad are used for the grid.
-double position_tolerance(const DynamicRodParameters& p, double n_max) {
+double position_tolerance(const DynamicRodModel& p, double n_max) {
   return 2.0 * p.model.rod.length * n_max / std::min(p.shear_stiffness, p.axial_stiffness) + 5e-7;
 }
 constexpr double kRotationTolerance = 5e-6;
@@ -115,7 +116,7 @@ double mean_period(const Oscillation& o) {
 }  // namespace
 
 TEST(DynamicRodStatic, ResetToStaticMatchesKirchhoffAndStaysPut) {
-  const DynamicRodParameters p = hydrojet_parameters();
+  const DynamicRodModel p = hydrojet_parameters();
   DynamicRod rod(p);
   ASSERT_TRUE(rod.last_error().empty()) << rod.last_error();
   rod::TipWrench w;
@@ -145,8 +146,8 @@ TEST(DynamicRodStatic, ResetToStaticMatchesKirchhoffAndStaysPut) {
 }
 
 TEST(DynamicRodStatic, SettlesToKirchhoffSolutionUnderConstantForce) {
-  DynamicRodParameters p = hydrojet_parameters();
-  p.kelvin_voigt_time = 0.02;  // heavier damping than the default so that it settles in ~2 s
+  DynamicRodModel p = hydrojet_parameters();
+  p.kelvin_voigt_time = 0.02;  // heavier damping than hydrojet_parameters()' so that it settles in ~2 s
   p.tip_drag = 0.05;
   DynamicRod rod(p);
   ASSERT_TRUE(rod.reset_to_static(rod::TipWrench())) << rod.last_error();
@@ -190,7 +191,7 @@ TEST(DynamicRodStatic, SettlesToKirchhoffSolutionUnderConstantForce) {
 TEST(DynamicRodVibration, PeriodMatchesCantileverWithTipMass) {
   const double rho_a = 1e-3;  // exercises the 33/140 ρA L term (0.8 % of m_t)
   const double T_est = 2.0 * M_PI * std::sqrt((kTipMass + 33.0 / 140.0 * rho_a * kL) * kL * kL * kL / (3.0 * kEI));
-  for (const Vec3& Jt : {Vec3(0, 0, 0), DynamicRodParameters().tip_inertia}) {
+  for (const Vec3& Jt : {Vec3(0, 0, 0), DynamicRodModel().tip_inertia}) {
     DynamicRod rod(straight_undamped(rho_a, Jt));
     rod::TipWrench push;
     push.force = Vec3(2.5e-3, 0.0, 0.0);  // ≈1 mm static tip deflection
@@ -254,7 +255,7 @@ TEST(DynamicRodDamping, KelvinVoigtDecayGrowsWithRetardationTime) {
   const double w1 = 2.0 * M_PI / (2.0 * M_PI * std::sqrt(kTipMass * kL * kL * kL / (3.0 * kEI)));
   double previous_decrement = 0.0;
   for (double tau : {0.002, 0.005}) {
-    DynamicRodParameters p = straight_undamped(0.0, Vec3::Zero());
+    DynamicRodModel p = straight_undamped(0.0, Vec3::Zero());
     p.kelvin_voigt_time = tau;
     DynamicRod rod(p);
     rod::TipWrench push;
@@ -276,7 +277,7 @@ TEST(DynamicRodDamping, KelvinVoigtDecayGrowsWithRetardationTime) {
 // A step of the jet force: the HydroJet's tip overshoots, oscillates and settles to the static
 // solution (default damping: τ_kv = 0.01 s).
 TEST(DynamicRodHydroJet, JetForceStepOvershootsAndSettles) {
-  const DynamicRodParameters p = hydrojet_parameters();
+  const DynamicRodModel p = hydrojet_parameters();
   DynamicRod rod(p);
   ASSERT_TRUE(rod.reset_to_static(rod::TipWrench())) << rod.last_error();
   const Vec3 p0 = rod.tip_position();
@@ -318,7 +319,7 @@ TEST(DynamicRodHydroJet, DragAndBodyMassReduceOvershootAndSettle) {
   w.force = jet_force(0.1, 0.05, 0.0);  // ≈0.09 N: well below the flutter threshold (header)
   double overshoot[2];
   for (int with_drag = 0; with_drag < 2; ++with_drag) {
-    DynamicRodParameters p = hydrojet_parameters();
+    DynamicRodModel p = hydrojet_parameters();
     p.model.rod.linear_density = 5e-3;
     p.rotational_inertia_per_length = 1e-8;
     if (with_drag) {
@@ -385,30 +386,30 @@ TEST(DynamicRodInput, RejectsNonFiniteWrenchAndBadStep) {
 TEST(DynamicRodInput, RejectsInvalidParametersNamingThem) {
   struct Case {
     const char* name;
-    void (*edit)(DynamicRodParameters*);
+    void (*edit)(DynamicRodModel*);
   };
   const Case cases[] = {
-      {"shear_stiffness", [](DynamicRodParameters* p) { p->shear_stiffness = -1.0; }},
-      {"axial_stiffness", [](DynamicRodParameters* p) { p->axial_stiffness = 0.0; }},
-      {"kelvin_voigt_time", [](DynamicRodParameters* p) { p->kelvin_voigt_time = std::nan(""); }},
-      {"linear_drag", [](DynamicRodParameters* p) { p->linear_drag = -0.1; }},
-      {"tip_drag", [](DynamicRodParameters* p) { p->tip_drag = -1.0; }},
-      {"tip_angular_drag", [](DynamicRodParameters* p) { p->tip_angular_drag = INFINITY; }},
-      {"tip_inertia", [](DynamicRodParameters* p) { p->tip_inertia.y() = -1e-8; }},
-      {"rotational_inertia_per_length", [](DynamicRodParameters* p) { p->rotational_inertia_per_length = -1.0; }},
-      {"nodes", [](DynamicRodParameters* p) { p->nodes = 1; }},
-      {"max_substep_halvings", [](DynamicRodParameters* p) { p->max_substep_halvings = -1; }},
-      {"tolerance", [](DynamicRodParameters* p) { p->tolerance = 0.0; }},
-      {"alpha", [](DynamicRodParameters* p) { p->alpha = 0.3; }},
-      {"model.rod.length", [](DynamicRodParameters* p) { p->model.rod.length = 0.0; }},
-      {"model.rod.stiffness", [](DynamicRodParameters* p) { p->model.rod.stiffness.z() = 0.0; }},
-      {"model.rod.linear_density", [](DynamicRodParameters* p) { p->model.rod.linear_density = -1e-3; }},
-      {"model.tip_mass", [](DynamicRodParameters* p) { p->model.tip_mass = std::nan(""); }},
-      {"model.gravity", [](DynamicRodParameters* p) { p->model.gravity.x() = std::nan(""); }},
+      {"shear_stiffness", [](DynamicRodModel* p) { p->shear_stiffness = -1.0; }},
+      {"axial_stiffness", [](DynamicRodModel* p) { p->axial_stiffness = 0.0; }},
+      {"kelvin_voigt_time", [](DynamicRodModel* p) { p->kelvin_voigt_time = std::nan(""); }},
+      {"linear_drag", [](DynamicRodModel* p) { p->linear_drag = -0.1; }},
+      {"tip_drag", [](DynamicRodModel* p) { p->tip_drag = -1.0; }},
+      {"tip_angular_drag", [](DynamicRodModel* p) { p->tip_angular_drag = INFINITY; }},
+      {"tip_inertia", [](DynamicRodModel* p) { p->tip_inertia.y() = -1e-8; }},
+      {"rotational_inertia_per_length", [](DynamicRodModel* p) { p->rotational_inertia_per_length = -1.0; }},
+      {"nodes", [](DynamicRodModel* p) { p->nodes = 1; }},
+      {"max_substep_halvings", [](DynamicRodModel* p) { p->max_substep_halvings = -1; }},
+      {"tolerance", [](DynamicRodModel* p) { p->tolerance = 0.0; }},
+      {"alpha", [](DynamicRodModel* p) { p->alpha = 0.3; }},
+      {"model.rod.length", [](DynamicRodModel* p) { p->model.rod.length = 0.0; }},
+      {"model.rod.stiffness", [](DynamicRodModel* p) { p->model.rod.stiffness.z() = 0.0; }},
+      {"model.rod.linear_density", [](DynamicRodModel* p) { p->model.rod.linear_density = -1e-3; }},
+      {"model.tip_mass", [](DynamicRodModel* p) { p->model.tip_mass = std::nan(""); }},
+      {"model.gravity", [](DynamicRodModel* p) { p->model.gravity.x() = std::nan(""); }},
   };
   EXPECT_TRUE(hydrojet_parameters().validate().empty());
   for (const Case& c : cases) {
-    DynamicRodParameters p = hydrojet_parameters();
+    DynamicRodModel p = hydrojet_parameters();
     c.edit(&p);
     const std::string err = p.validate();
     EXPECT_EQ(err.rfind(c.name, 0), 0u) << c.name << ": " << err;

@@ -31,8 +31,8 @@ inline rod::RodModel plain_rod(double L = 0.09, double EI = 6.01e-4, double GJ =
   return m;
 }
 
-inline rod::ShootingSettings rk8(int steps, double residual_tol = 1e-12) {
-  rod::ShootingSettings s;
+inline rod::ShootingOptions rk8(int steps, double residual_tol = 1e-12) {
+  rod::ShootingOptions s;
   s.integrator.type = rod::IntegratorType::kRk8;
   s.integrator.steps = steps;
   s.residual_tolerance = residual_tol;

@@ -57,7 +57,7 @@ int check_case(const std::string& name, bool cvode = true) {
   int converged = 0;
   for (const Config& k : kConfigs) {
     if (!cvode && (k.type == IntegratorType::kCvodeAdams || k.type == IntegratorType::kCvodeBdf)) continue;
-    rod::ShootingSettings s;
+    rod::ShootingOptions s;
     s.integrator.type = k.type;
     if (k.steps) s.integrator.steps = k.steps;
     if (k.tol > 0.0) s.integrator.tolerance = k.tol;
@@ -97,7 +97,7 @@ TEST(Extreme, SoftLongRod) { EXPECT_GE(check_case("soft_long", false), 2); }
 TEST(Extreme, LongRodColdStartsAcrossWorkspace) {
   rod::RodModel m = numerics::scene("hydrojet_30deg").model;
   m.rod.length *= 10.0;
-  rod::ShootingSettings s;
+  rod::ShootingOptions s;
   s.integrator.steps = 64;
   rod::ShootingSolver solver(m, s);
   int multiple = 0;
@@ -179,7 +179,7 @@ TEST(Extreme, ColdStartsAcrossHydroJetWorkspace) {
 // A fixed-step solve that is too coarse for its load says so instead of returning a wrong shape.
 TEST(Extreme, UnderResolvedFixedStepSolveIsRefused) {
   const Case& c = find_case("follower_10x");
-  rod::ShootingSettings s;  // rk8, 4 steps: ~4e-5 m off at 10× the jet force
+  rod::ShootingOptions s;  // rk8, 4 steps: ~4e-5 m off at 10× the jet force
   rod::ShootingSolver solver(c.model, s);
   const rod::RodSolution sol = solver.solve(c.wrench);
   EXPECT_FALSE(sol.converged);

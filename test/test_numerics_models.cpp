@@ -27,8 +27,8 @@ rod::RodModel cosserat(rod::RodModel m, double GA, double EA) {
   return m;
 }
 
-rod::ShootingSettings with(rod::IntegratorType type, double tol, int steps = 4) {
-  rod::ShootingSettings s;
+rod::ShootingOptions with(rod::IntegratorType type, double tol, int steps = 4) {
+  rod::ShootingOptions s;
   s.integrator.type = type;
   s.integrator.tolerance = tol;
   s.integrator.steps = steps;
@@ -134,7 +134,7 @@ TEST(Specialization, VariantsMatchTheGeneralRightHandSide) {
                {cosserat(hj.model, 2.0, 5.0), "cosserat+precurved"},
                {cosserat(weight, 2.0, 5.0), "cosserat+weight+precurved"}};
   for (const Case& c : cases) {
-    rod::ShootingSettings s = test::rk8(8);
+    rod::ShootingOptions s = test::rk8(8);
     rod::ShootingSolver special(c.m, s);
     s.specialize_model = false;
     rod::ShootingSolver general(c.m, s);
@@ -160,7 +160,7 @@ TEST(Cvode, AdamsAndBdfMatchTheReference) {
   const Mat6 Cref = ref.compliance().body;
   for (rod::IntegratorType t : {rod::IntegratorType::kCvodeAdams, rod::IntegratorType::kCvodeBdf}) {
     for (bool cvodes : {false, true}) {
-      rod::ShootingSettings s = with(t, 1e-10);
+      rod::ShootingOptions s = with(t, 1e-10);
       s.integrator.cvodes_sensitivities = cvodes;
       rod::ShootingSolver solver(sc.model, s);
       const std::string what = std::string(rod::integrator_name(t)) + (cvodes ? " (CVODES sensitivities)" : "");
@@ -176,11 +176,11 @@ TEST(Cvode, AdamsAndBdfMatchTheReference) {
         EXPECT_TRUE(solver.solve(force(test::jet_force(0.2 - 0.02 * k, 0.05, 0.1))).converged);
     }
   }
-  rod::ShootingSettings k = sc.solver;
+  rod::ShootingOptions k = sc.solver;
   k.newton = rod::NewtonBackend::kKinsol;
   k.residual_tolerance = 1e-12;
   rod::ShootingSolver kin(sc.model, k);
-  rod::ShootingSettings e = sc.solver;
+  rod::ShootingOptions e = sc.solver;
   e.residual_tolerance = 1e-12;
   rod::ShootingSolver eig(sc.model, e);
   const rod::RodSolution a = kin.solve(w), b = eig.solve(w);
@@ -194,7 +194,7 @@ TEST(MultipleShooting, AgreesWithSingleShooting) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const config::Scene sc = test::scene(name);
     rod::ShootingSolver single(sc.model, test::rk8(16, 1e-12));
-    rod::ShootingSettings ms = test::rk8(16, 1e-12);
+    rod::ShootingOptions ms = test::rk8(16, 1e-12);
     ms.shooting_segments = 4;
     rod::ShootingSolver multi(sc.model, ms);
     for (const Vec3& f : {Vec3(0, 0, 0), test::jet_force(0.243, 0.0, 0.1), test::jet_force(0.0, 0.224, 0.0)}) {

@@ -1,5 +1,5 @@
 // The simulated plant's parts against their own definitions: valve statics and lag, sensor noise
-// statistics, plant configuration errors, the static limit against the quasi-static model, and
+// statistics, plant configuration errors and defaults, the static limit against the quasi-static model, and
 // determinism of a closed-loop run for a seed.
 #include <gtest/gtest.h>
 
@@ -13,7 +13,7 @@
 using namespace hydrojet;
 
 TEST(Valve, DeadZoneLagHysteresisAndSaturation) {
-  plant::ValveParameters p;
+  plant::ValveModel p;
   p.max_flow = 1.6e-5, p.dead_zone = 0.1, p.exponent = 0.8, p.hysteresis = 0.0, p.time_constant = 0.05;
   p.saturation = 1.0;
   plant::Valve v(p);
@@ -98,15 +98,88 @@ TEST(PlantConfig, ErrorsNameTheKey) {
   EXPECT_EQ(key("plant: {flow_sensors: {sigma: low}}"), "plant.flow_sensors.sigma");
   EXPECT_EQ(key("plant: {dynamics: {tip_inertia: [1, 2]}}"), "plant.dynamics.tip_inertia");
   EXPECT_EQ(key("plant: {command_timeout: .nan}"), "plant.command_timeout");
-  // The base tilt is read off the scene's gravity: 30°.
-  EXPECT_NEAR(config::make_plant(sc, "").base_tilt, M_PI / 6, 1e-9);
+  // The base tilt is read off the scene's gravity: 30° (plus the mismatch's offset, here none).
+  EXPECT_NEAR(config::make_plant(sc, "plant: {mismatch: {base_tilt_offset: 0}}").base_tilt, M_PI / 6, 1e-9);
+}
+
+// config/plant.yaml is the source of the plant's defaults: every key it sets equals the field of
+// the default-constructed struct, it sets no key this test does not compare, and a plant built
+// without a plant file is the plant built from it.
+TEST(PlantConfig, DefaultsMatchYaml) {
+  const std::string path = std::string(HYDROJET_SOURCE_DIR) + "/config/plant.yaml";
+  const YAML::Node root = YAML::LoadFile(path);
+  config::YamlTree<config::SceneError> t(root, '.');
+  const plant::ModelMismatch m;
+  const plant::PlantModel p;
+  const std::string M = "plant.mismatch.", D = "plant.dynamics.", T = "plant.tracker.", F = "plant.flow_sensors.";
+  EXPECT_EQ(t.vec3<Eigen::Vector3d>(M + "precurvature_offset"), m.precurvature_offset);
+  EXPECT_EQ(t.number(M + "bending_stiffness_scale"), m.bending_stiffness_scale);
+  EXPECT_EQ(t.number(M + "torsional_stiffness_scale"), m.torsional_stiffness_scale);
+  EXPECT_EQ(t.vec3<Eigen::Vector3d>(M + "misalignment_offset"), m.misalignment_offset);
+  EXPECT_EQ(t.number(M + "tip_mass_scale"), m.tip_mass_scale);
+  EXPECT_EQ(t.number(M + "base_tilt_offset"), m.base_tilt_offset);
+
+  EXPECT_EQ(t.number(D + "shear_stiffness"), p.rod.shear_stiffness);
+  EXPECT_EQ(t.number(D + "axial_stiffness"), p.rod.axial_stiffness);
+  EXPECT_EQ(t.number(D + "kelvin_voigt_time"), p.rod.kelvin_voigt_time);
+  EXPECT_EQ(t.number(D + "linear_drag"), p.rod.linear_drag);
+  EXPECT_EQ(t.number(D + "tip_drag"), p.rod.tip_drag);
+  EXPECT_EQ(t.number(D + "tip_angular_drag"), p.rod.tip_angular_drag);
+  EXPECT_EQ(t.vec3<Eigen::Vector3d>(D + "tip_inertia"), p.rod.tip_inertia);
+  EXPECT_EQ(t.integer(D + "nodes", -1), p.rod.nodes);
+  EXPECT_EQ(t.number(D + "alpha"), p.rod.alpha);
+  EXPECT_EQ(t.number(D + "internal_dt"), p.internal_dt);
+
+  const YAML::Node valves = t.find("plant.valves");
+  t.allow("plant.valves");
+  ASSERT_TRUE(valves.IsSequence());
+  ASSERT_EQ(valves.size(), 3u);
+  for (int i = 0; i < 3; ++i) {
+    SCOPED_TRACE("valve " + std::to_string(i + 1));
+    config::YamlTree<config::SceneError> v(valves[i], '.');
+    const plant::ValveModel& d = p.valves[i];
+    EXPECT_EQ(v.number("max_flow"), d.max_flow);
+    EXPECT_EQ(v.number("dead_zone"), d.dead_zone);
+    EXPECT_EQ(v.number("exponent"), d.exponent);
+    EXPECT_EQ(v.number("hysteresis"), d.hysteresis);
+    EXPECT_EQ(v.number("time_constant"), d.time_constant);
+    EXPECT_EQ(v.number("saturation"), d.saturation);
+    EXPECT_NO_THROW(v.reject_unknown());
+  }
+
+  EXPECT_EQ(t.number(T + "position_sigma"), p.tracker.position_sigma);
+  EXPECT_EQ(t.number(T + "angle_sigma"), p.tracker.angle_sigma);
+  EXPECT_EQ(t.number(T + "position_quantum"), p.tracker.position_quantum);
+  EXPECT_EQ(t.number(T + "latency"), p.tracker.latency);
+  EXPECT_EQ(t.number(T + "dropout_rate"), p.tracker.dropout_rate);
+  EXPECT_EQ(t.number(T + "dropout_duration"), p.tracker.dropout_duration);
+  EXPECT_EQ(t.number(F + "sigma"), p.flow.sigma);
+  EXPECT_EQ(t.number(F + "quantum"), p.flow.quantum);
+  EXPECT_EQ(t.boolean("plant.sensor_noise", !p.sensor_noise), p.sensor_noise);
+  EXPECT_EQ(t.number("plant.command_timeout"), p.command_timeout);
+  EXPECT_EQ(t.vec3<Eigen::Vector3d>("plant.base_position"), p.base_position);
+  EXPECT_NO_THROW(t.reject_unknown());  // nothing in the file left uncompared
+
+  // No plant file = config/plant.yaml.
+  const config::Scene sc = test::scene("hydrojet_30deg");
+  const plant::PlantModel a = config::make_plant(sc, ""), b = config::load_plant(sc, path);
+  EXPECT_EQ(a.base_tilt, b.base_tilt);
+  EXPECT_EQ(a.rod.model.rod.precurvature, b.rod.model.rod.precurvature);
+  EXPECT_EQ(a.rod.model.rod.stiffness, b.rod.model.rod.stiffness);
+  EXPECT_EQ(a.rod.model.tip_mass, b.rod.model.tip_mass);
+  EXPECT_EQ(a.jets.misalignment, b.jets.misalignment);
+  EXPECT_EQ(a.rod.kelvin_voigt_time, b.rod.kelvin_voigt_time);
+  EXPECT_EQ(a.valves[1].dead_zone, b.valves[1].dead_zone);
 }
 
 // With constant valve duties the plant settles to the quasi-static model at its true parameters.
 TEST(Plant, SettlesToTheQuasiStaticModel) {
   const config::Scene sc = test::scene("hydrojet_30deg");
-  plant::PlantParameters p =
-      config::make_plant(sc, "plant: {sensor_noise: false, dynamics: {kelvin_voigt_time: 0.03}}");
+  // No mismatch: the plant is the nominal scene.
+  plant::PlantModel p = config::make_plant(
+      sc,
+      "plant: {sensor_noise: false, dynamics: {kelvin_voigt_time: 0.03}, mismatch: {precurvature_offset: [0, 0, 0], "
+      "bending_stiffness_scale: 1, misalignment_offset: [0, 0, 0], tip_mass_scale: 1, base_tilt_offset: 0}}");
   plant::Plant pl(p, 1);
   const Eigen::Vector3d duty(0.4, 0.2, 0.3);
   for (int k = 1; k <= 600; ++k) {
@@ -125,11 +198,11 @@ TEST(Plant, SettlesToTheQuasiStaticModel) {
 
 TEST(ClosedLoopRun, DeterministicForASeed) {
   const config::Scene sc = test::scene("hydrojet_0deg");
-  const config::ControllerOptions o =
+  const config::ControllerNodeOptions o =
       config::load_controller_options(std::string(HYDROJET_SOURCE_DIR) + "/config/controller.yaml");
-  const control::ControllerModel m = config::make_controller_model(sc, o.flow);
-  const plant::PlantParameters p = config::load_plant(sc, std::string(HYDROJET_SOURCE_DIR) + "/config/plant.yaml");
-  control::ControllerParams c = o.controller;
+  const control::RobotModel m = config::make_controller_model(sc, o.flow_regulator);
+  const plant::PlantModel p = config::load_plant(sc, std::string(HYDROJET_SOURCE_DIR) + "/config/plant.yaml");
+  control::ControllerOptions c = o.controller;
   c.path.duration = 5.0;
   const sim::RunResult a = sim::run_path(m, c, p, 7), b = sim::run_path(m, c, p, 7), d = sim::run_path(m, c, p, 8);
   ASSERT_TRUE(a.completed) << a.reason;

@@ -1,6 +1,6 @@
-// Rig driver core without devices: line splitter, serial port on a pty pair, command gate, flow
-// aggregation, the valve loop with an in-memory backend (what a DAQ backend would implement), and
-// the validation of config/rig.yaml. ROS-free.
+// Rig driver core without devices: line splitter, serial port on a pty pair, the device worker,
+// command gate, flow aggregation, the valve loop with an in-memory backend (what a DAQ backend
+// would implement), and the validation of config/rig.yaml. ROS-free.
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <stdlib.h>
@@ -14,6 +14,7 @@
 #include <sstream>
 #include <thread>
 
+#include "hydrojet_control/devices/device_worker.h"
 #include "hydrojet_control/devices/rig_config.h"
 #include "emulator_process.h"
 
@@ -131,6 +132,109 @@ TEST(SerialPort, ReadWriteTimeoutAndHangup) {
   pty.close_master();  // the device goes away
   EXPECT_EQ(p.read_some(rb, sizeof rb, 0.5, &n, &err), SerialPort::ReadStatus::kHangup);
   EXPECT_NE(err.find("hung up"), std::string::npos) << err;
+}
+
+// ---------------------------------------------------------------------------------------------
+// DeviceWorker with in-memory sessions
+// ---------------------------------------------------------------------------------------------
+
+namespace {
+
+/// A device that never connects: the same fault every time.
+class UnreachableDevice : public DeviceSession {
+ public:
+  std::atomic<int> sessions{0}, closes{0}, shutdowns{0};
+  bool run_session(std::string* fault) override {
+    ++sessions;
+    *fault = "open failed";
+    return false;
+  }
+  void close_port() override { ++closes; }
+  void shut_down() override { ++shutdowns; }
+};
+
+/// A device that connects and then waits for wake-ups (as the valve loop waits for commands).
+class WakeableDevice : public DeviceSession {
+ public:
+  DeviceWorker* worker = nullptr;
+  std::atomic<int> wakes{0};
+  bool run_session(std::string*) override {
+    while (worker->wait_for_wake(10.0)) ++wakes;
+    return true;
+  }
+  void close_port() override {}
+  void shut_down() override {}
+};
+
+}  // namespace
+
+TEST(DeviceWorker, RetriesEveryPeriodLogsARepeatedFaultOnceAndStops) {
+  UnreachableDevice device;
+  std::mutex mu;
+  LinkStatus link;
+  std::mutex log_mu;
+  std::vector<std::string> logs;
+  DeviceWorker worker(device, mu, link, "fake device", 0.1, [&](LogLevel level, const std::string& m) {
+    std::lock_guard<std::mutex> l(log_mu);
+    logs.push_back(std::string(level == LogLevel::kWarn ? "W " : "I ") + m);
+  });
+  worker.start();
+  ASSERT_TRUE(eventually([&] { return device.sessions >= 3; }, 2.0));
+  {
+    std::lock_guard<std::mutex> l(mu);
+    EXPECT_EQ(link.state, LinkState::kDisconnected);
+    EXPECT_EQ(link.last_error, "open failed");
+    EXPECT_EQ(link.message, "open failed; retrying every 0.1 s");
+  }
+  worker.stop();
+  EXPECT_EQ(device.shutdowns, 1);
+  EXPECT_GE(device.closes, device.sessions - 1);
+  EXPECT_EQ(link.state, LinkState::kStopped);
+  EXPECT_EQ(link.message, "stopped");
+  EXPECT_EQ(link.last_error, "open failed");
+  std::lock_guard<std::mutex> l(log_mu);
+  EXPECT_EQ(logs, std::vector<std::string>{"W fake device: open failed"});
+}
+
+TEST(DeviceWorker, StopInterruptsTheReconnectWait) {
+  UnreachableDevice device;
+  std::mutex mu;
+  LinkStatus link;
+  DeviceWorker worker(device, mu, link, "fake device", 30.0, nullptr);
+  worker.start();
+  ASSERT_TRUE(eventually(
+      [&] {
+        std::lock_guard<std::mutex> l(mu);
+        return link.state == LinkState::kDisconnected && !link.last_error.empty();
+      },
+      2.0));
+  {
+    std::lock_guard<std::mutex> l(mu);
+    EXPECT_EQ(link.message, "open failed; retrying every 30.0 s");
+  }
+  const SteadyTime t0 = SteadyClock::now();
+  worker.stop();
+  EXPECT_LT(seconds_between(t0, SteadyClock::now()), 1.0);
+  EXPECT_EQ(device.sessions, 1);
+  EXPECT_EQ(link.state, LinkState::kStopped);
+}
+
+TEST(DeviceWorker, WakeEndsAWaitAtOnceAndStopEndsTheSession) {
+  WakeableDevice device;
+  std::mutex mu;
+  LinkStatus link;
+  DeviceWorker worker(device, mu, link, "fake device", 1.0, nullptr);
+  device.worker = &worker;
+  worker.start();
+  worker.wake();
+  ASSERT_TRUE(eventually([&] { return device.wakes >= 1; }, 1.0));
+  worker.wake();
+  ASSERT_TRUE(eventually([&] { return device.wakes >= 2; }, 1.0));
+  const SteadyTime t0 = SteadyClock::now();
+  worker.stop();
+  EXPECT_LT(seconds_between(t0, SteadyClock::now()), 0.5);
+  EXPECT_EQ(link.state, LinkState::kStopped);
+  EXPECT_TRUE(link.last_error.empty());  // stopping is no fault
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -277,7 +381,7 @@ class FakeValves : public ValveDriver {
 TEST(ValveLoop, GatesCommandsDetectsSilenceReconnectsAndClosesOnStop) {
   auto hw = std::make_shared<FakeValves::Shared>();
   std::atomic<bool> devices_ok{true};
-  ValveLoopConfig cfg;
+  ValveLoopOptions cfg;
   cfg.rate = 100.0;
   cfg.command_timeout = 0.1;
   cfg.max_failures = 3;
@@ -366,8 +470,8 @@ YAML::Node shipped() {
 
 std::string error_of(const YAML::Node& n) {
   try {
-    parse_rig_config(n);
-  } catch (const RigConfigError& e) {
+    parse_rig_options(n);
+  } catch (const RigOptionsError& e) {
     return e.what();
   }
   return "";
@@ -375,8 +479,8 @@ std::string error_of(const YAML::Node& n) {
 
 }  // namespace
 
-TEST(RigConfig, ShippedFileParses) {
-  const RigConfig c = parse_rig_config(shipped());
+TEST(RigOptions, ShippedFileParses) {
+  const RigOptions c = parse_rig_options(shipped());
   EXPECT_EQ(c.tracker.tip_handle, 0x0A);
   EXPECT_EQ(c.tracker.base_handle, 0x0B);
   EXPECT_EQ(c.tracker.baud, 115200);
@@ -396,7 +500,65 @@ TEST(RigConfig, ShippedFileParses) {
   EXPECT_NEAR(q, 8e-6, 1e-15);
 }
 
-TEST(RigConfig, InvalidKeysAreNamed) {
+// config/rig.yaml is the source of the defaults: every value it sets equals the default member
+// value of RigOptions (and of the device options it holds). Not compared, because they have no
+// default: scene (rig.launch sets it; the file leaves it out), the five device ports (per machine:
+// the file names example devices, the structs leave them empty) and the flow unit
+// (flow/format/unit is required; FlowLineFormat's scale 0 is deliberately invalid).
+TEST(RigOptions, ShippedFileHoldsTheDefaults) {
+  const RigOptions d;
+  const RigOptions y = parse_rig_options(shipped());
+  EXPECT_EQ(y.tracker_frame, d.tracker_frame);
+  EXPECT_EQ(y.tip_frame, d.tip_frame);
+  EXPECT_EQ(y.base_frame, d.base_frame);
+  EXPECT_DOUBLE_EQ(y.reconnect_period, d.reconnect_period);
+
+  EXPECT_EQ(y.tracker.baud, d.tracker.baud);
+  EXPECT_EQ(y.tracker.tip_handle, d.tracker.tip_handle);
+  EXPECT_EQ(y.tracker.base_handle, d.tracker.base_handle);
+  EXPECT_DOUBLE_EQ(y.tracker.rate, d.tracker.rate);
+  EXPECT_DOUBLE_EQ(y.tracker.reply_timeout, d.tracker.reply_timeout);
+  EXPECT_DOUBLE_EQ(y.tracker.command_timeout, d.tracker.command_timeout);
+  EXPECT_DOUBLE_EQ(y.tracker.reset_timeout, d.tracker.reset_timeout);
+  EXPECT_DOUBLE_EQ(y.tracker.timeout, d.tracker.timeout);
+  EXPECT_DOUBLE_EQ(y.tracker.reconnect_period, d.tracker.reconnect_period);
+  EXPECT_EQ(y.tracker.out_of_volume_mask, d.tracker.out_of_volume_mask);
+  EXPECT_EQ(y.tracker.tracking_priority, d.tracker.tracking_priority);
+  EXPECT_EQ(y.tracker.bx_options, d.tracker.bx_options);
+
+  EXPECT_DOUBLE_EQ(y.flow_rate, d.flow_rate);
+  EXPECT_DOUBLE_EQ(y.flow_publish_rate, d.flow_publish_rate);
+  EXPECT_EQ(y.invalidate_on_reject, d.invalidate_on_reject);
+  for (size_t i = 0; i < 3; ++i) {
+    SCOPED_TRACE("jet " + std::to_string(i + 1));
+    EXPECT_EQ(y.flow[i].name, d.flow[i].name);
+    EXPECT_EQ(y.flow[i].baud, d.flow[i].baud);
+    EXPECT_EQ(y.flow[i].format.regex, d.flow[i].format.regex);
+    EXPECT_EQ(y.flow[i].format.field_index, d.flow[i].format.field_index);
+    EXPECT_EQ(y.flow[i].format.separator, d.flow[i].format.separator);
+    EXPECT_DOUBLE_EQ(y.flow[i].timeout, d.flow[i].timeout);
+    EXPECT_DOUBLE_EQ(y.flow[i].reconnect_period, d.flow[i].reconnect_period);
+    EXPECT_EQ(y.flow[i].max_line_length, d.flow[i].max_line_length);
+    EXPECT_EQ(y.flow[i].start_command, d.flow[i].start_command);
+  }
+
+  EXPECT_EQ(y.valves.baud, d.valves.baud);
+  EXPECT_DOUBLE_EQ(y.valves.ack_timeout, d.valves.ack_timeout);
+  EXPECT_DOUBLE_EQ(y.valve_loop.rate, d.valve_loop.rate);
+  EXPECT_DOUBLE_EQ(y.valve_loop.command_timeout, d.valve_loop.command_timeout);
+  EXPECT_EQ(y.valve_loop.max_failures, d.valve_loop.max_failures);
+  EXPECT_DOUBLE_EQ(y.valve_loop.reconnect_period, d.valve_loop.reconnect_period);
+
+  // The fields without a default.
+  EXPECT_TRUE(d.scene.empty());
+  EXPECT_TRUE(d.tracker.port.empty() && d.valves.port.empty());
+  for (const FlowSensorOptions& f : d.flow) {
+    EXPECT_TRUE(f.port.empty());
+    EXPECT_EQ(f.format.scale_to_m3_per_s, 0.0);
+  }
+}
+
+TEST(RigOptions, InvalidKeysAreNamed) {
   struct Case {
     std::function<void(YAML::Node&)> edit;
     std::string prefix;
@@ -441,11 +603,11 @@ TEST(RigConfig, InvalidKeysAreNamed) {
   YAML::Node n = shipped();
   n["tracker"]["tip_handle"] = "0x0C";
   n["diagnostic_period"] = 0.5;
-  EXPECT_EQ(parse_rig_config(n).tracker.tip_handle, 0x0C);
+  EXPECT_EQ(parse_rig_options(n).tracker.tip_handle, 0x0C);
 }
 
-TEST(RigConfig, DocumentedFlowFormatsReadTheirExampleLines) {
-  // The three examples of README "Rig driver" / Flow sensors.
+TEST(RigOptions, DocumentedFlowFormatsReadTheirExampleLines) {
+  // The three examples of docs/rig.md, "Flow sensors".
   const struct {
     const char* yaml;
     const char* line;
@@ -458,7 +620,7 @@ TEST(RigConfig, DocumentedFlowFormatsReadTheirExampleLines) {
   for (const auto& c : cases) {
     YAML::Node n = shipped();
     n["flow"]["format"] = YAML::Load(c.yaml);
-    const RigConfig cfg = parse_rig_config(n);
+    const RigOptions cfg = parse_rig_options(n);
     double q = 0;
     std::string err;
     ASSERT_TRUE(parse_flow_line(c.line, cfg.flow[0].format, &q, &err)) << c.yaml << ": " << err;
@@ -468,7 +630,7 @@ TEST(RigConfig, DocumentedFlowFormatsReadTheirExampleLines) {
   // its tag or gained garbage; lost digits cannot be detected (no checksum in such lines).
   YAML::Node n = shipped();
   n["flow"]["format"] = YAML::Load("{regex: '^Q=\\s*([0-9.]+) ml/min$', unit: mL/min}");
-  const FlowLineFormat f = parse_rig_config(n).flow[0].format;
+  const FlowLineFormat f = parse_rig_options(n).flow[0].format;
   double q = 0;
   std::string err;
   EXPECT_TRUE(parse_flow_line("Q= 480.1 ml/min\r\n", f, &q, &err)) << err;
@@ -476,12 +638,12 @@ TEST(RigConfig, DocumentedFlowFormatsReadTheirExampleLines) {
   EXPECT_FALSE(parse_flow_line("Q= 480.1 ml/min\x13x", f, &q, &err));
 }
 
-TEST(AuroraConfig, CommParamsAndValidation) {
+TEST(AuroraOptions, CommParamsAndValidation) {
   EXPECT_EQ(aurora_comm_params(115200), "50000");
   EXPECT_EQ(aurora_comm_params(9600), "00000");
   EXPECT_EQ(aurora_comm_params(921600), "60000");
   EXPECT_EQ(aurora_comm_params(14400), "");
-  AuroraConfig a;
+  AuroraOptions a;
   a.port = "/dev/x";
   EXPECT_EQ(a.validate(), "");
   a.bx_options = "0002";

@@ -72,8 +72,8 @@ struct Collector {
   }
 };
 
-AuroraConfig aurora_config(const TempDir& d) {
-  AuroraConfig c;
+AuroraOptions aurora_options(const TempDir& d) {
+  AuroraOptions c;
   c.port = d / "aurora";
   c.rate = 40.0;
   c.reconnect_period = 0.2;
@@ -132,7 +132,7 @@ TEST(AuroraEmulator, NominalSession) {
                d / "aurora");
   ASSERT_TRUE(emu.started());
   Collector c;
-  AuroraClient client(aurora_config(d), [&](const AuroraSample& s) { c.add(s); });
+  AuroraClient client(aurora_options(d), [&](const AuroraSample& s) { c.add(s); });
   client.start();
   ASSERT_TRUE(eventually([&] { return c.count_valid_tip() >= 20; }, 8.0)) << client.status().message;
   const AuroraStatus st = client.status();
@@ -160,7 +160,7 @@ TEST(AuroraEmulator, CrcErrorsCountedNeverDelivered) {
   Emulator emu("aurora_emulator.py", {"--symlink", d / "aurora", "--crc-error-every", "3", "--seed", "7"},
                d / "aurora");
   Collector c;
-  AuroraClient client(aurora_config(d), [&](const AuroraSample& s) { c.add(s); });
+  AuroraClient client(aurora_options(d), [&](const AuroraSample& s) { c.add(s); });
   client.start();
   ASSERT_TRUE(eventually([&] { return c.count_valid_tip() >= 30 && client.status().crc_errors >= 5; }, 8.0))
       << client.status().message;
@@ -178,7 +178,7 @@ TEST(AuroraEmulator, PartialAndGarbageFrames) {
                 "--chunk-delay", "0.0005", "--seed", "3"},
                d / "aurora");
   Collector c;
-  AuroraClient client(aurora_config(d), [&](const AuroraSample& s) { c.add(s); });
+  AuroraClient client(aurora_options(d), [&](const AuroraSample& s) { c.add(s); });
   client.start();
   ASSERT_TRUE(eventually([&] { return c.count_valid_tip() >= 30; }, 8.0)) << client.status().message;
   const AuroraStatus st = client.status();
@@ -197,7 +197,7 @@ TEST(AuroraEmulator, OutOfVolumeNeverValid) {
       {"--symlink", d / "aurora", "--out-of-volume-after", "1.0", "--out-of-volume-for", "1.0", "--oov-keep-transform"},
       d / "aurora");
   Collector c;
-  AuroraConfig cfg = aurora_config(d);
+  AuroraOptions cfg = aurora_options(d);
   AuroraClient client(cfg, [&](const AuroraSample& s) { c.add(s); });
   client.start();
   bool saw_unhealthy_tip = false;
@@ -233,7 +233,7 @@ TEST(AuroraEmulator, OutOfVolumeNeverValid) {
 TEST(AuroraEmulator, UnplugAndReplug) {
   TempDir d;
   Collector c;
-  AuroraConfig cfg = aurora_config(d);
+  AuroraOptions cfg = aurora_options(d);
   std::mutex log_mu;
   std::vector<std::string> logs;
   AuroraClient client(
@@ -275,7 +275,7 @@ TEST(AuroraEmulator, SilenceDetectedAndReconnectRetried) {
   TempDir d;
   Emulator emu("aurora_emulator.py", {"--symlink", d / "aurora", "--silence-after", "0.8"}, d / "aurora");
   Collector c;
-  AuroraConfig cfg = aurora_config(d);
+  AuroraOptions cfg = aurora_options(d);
   cfg.reset_timeout = 0.2;
   AuroraClient client(cfg, [&](const AuroraSample& s) { c.add(s); });
   client.start();
@@ -295,7 +295,7 @@ TEST(AuroraEmulator, DeviceErrorsDecodedAndMissingHandleNamed) {
   TempDir d;
   {
     Emulator emu("aurora_emulator.py", {"--symlink", d / "aurora", "--error-on", "PINIT=13"}, d / "aurora");
-    AuroraClient client(aurora_config(d), nullptr);
+    AuroraClient client(aurora_options(d), nullptr);
     client.start();
     ASSERT_TRUE(eventually([&] { return client.status().connect_failures >= 1; }, 5.0));
     const AuroraStatus st = client.status();
@@ -306,7 +306,7 @@ TEST(AuroraEmulator, DeviceErrorsDecodedAndMissingHandleNamed) {
   }
   {
     Emulator emu("aurora_emulator.py", {"--symlink", d / "aurora"}, d / "aurora");
-    AuroraConfig cfg = aurora_config(d);
+    AuroraOptions cfg = aurora_options(d);
     cfg.base_handle = 0x0C;
     AuroraClient client(cfg, nullptr);
     client.start();
@@ -324,8 +324,8 @@ TEST(AuroraEmulator, DeviceErrorsDecodedAndMissingHandleNamed) {
 
 namespace {
 
-FlowSensorConfig flow_config(const std::string& port) {
-  FlowSensorConfig c;
+FlowSensorOptions flow_options(const std::string& port) {
+  FlowSensorOptions c;
   c.name = "flow sensor 1";
   c.port = port;
   c.format.field_index = 0;
@@ -366,8 +366,8 @@ TEST(FlowEmulator, ReadingsInSiAndBadLinesRejected) {
                 "--garbage-every", "7", "--long-every", "11", "--split", "--tau", "0"},
                d / "flow2");
   Readings r1, r2;
-  FlowSensor s1(flow_config(d / "flow1"), [&](const FlowReading& r) { r1.add(r); });
-  FlowSensorConfig c2 = flow_config(d / "flow2");
+  FlowSensor s1(flow_options(d / "flow1"), [&](const FlowReading& r) { r1.add(r); });
+  FlowSensorOptions c2 = flow_options(d / "flow2");
   c2.name = "flow sensor 2";
   FlowSensor s2(c2, [&](const FlowReading& r) { r2.add(r); });
   s1.start();
@@ -401,7 +401,7 @@ TEST(FlowEmulator, ReadingsInSiAndBadLinesRejected) {
 TEST(FlowEmulator, SilenceAndUnplugThenRecovery) {
   TempDir d;
   Readings r;
-  FlowSensorConfig cfg = flow_config(d / "flow1");
+  FlowSensorOptions cfg = flow_options(d / "flow1");
   FlowSensor s(cfg, [&](const FlowReading& x) { r.add(x); });
   {
     // Silent from 0.6 s to 1.4 s, then streaming again, then unplugged at 2.0 s.
@@ -452,10 +452,10 @@ bool near(const Duty& a, const Duty& b) {
 }
 
 std::unique_ptr<ValveLoop> make_loop(const std::string& port, std::atomic<bool>* ok, double reconnect = 0.2) {
-  SerialValveBoardConfig b;
+  SerialValveBoardOptions b;
   b.port = port;
   b.ack_timeout = 0.05;
-  ValveLoopConfig l;
+  ValveLoopOptions l;
   l.rate = 50.0;
   l.command_timeout = 0.1;
   l.max_failures = 3;

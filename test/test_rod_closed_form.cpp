@@ -80,7 +80,7 @@ namespace {
 // Tip position error against a reference solved with RK8 at 256 steps (error ~1e-16).
 double tip_error(rod::IntegratorType type, int steps, const rod::RodModel& m, const rod::TipWrench& w,
                  const Vec3& ref) {
-  rod::ShootingSettings s = test::rk8(steps, 1e-13);
+  rod::ShootingOptions s = test::rk8(steps, 1e-13);
   s.integrator.type = type;
   rod::ShootingSolver solver(m, s);
   const rod::RodSolution sol = solver.solve(w);
@@ -120,7 +120,7 @@ TEST(RodAccuracy, DefaultsWithinOneMicronOnHydroJetScenes) {
     const config::Scene sc = test::scene(name);
     rod::ShootingSolver def(sc.model, sc.solver);
     rod::ShootingSolver ref8(sc.model, test::rk8(256, 1e-13));
-    rod::ShootingSettings d5 = test::rk8(1, 1e-13);
+    rod::ShootingOptions d5 = test::rk8(1, 1e-13);
     d5.integrator.type = rod::IntegratorType::kDopri5;
     d5.integrator.tolerance = 1e-13;
     rod::ShootingSolver ref5(sc.model, d5);
@@ -165,7 +165,7 @@ TEST(RodRobustness, NonConvergenceIsReported) {
   EXPECT_FALSE(s.converged);
   EXPECT_FALSE(s.message.empty());
 
-  rod::ShootingSettings tight = sc.solver;
+  rod::ShootingOptions tight = sc.solver;
   tight.max_iterations = 1;
   tight.max_continuation_steps = 0;
   rod::ShootingSolver limited(sc.model, tight);

@@ -7,7 +7,7 @@
 namespace hydrojet {
 namespace actuation {
 
-std::string validate(const FlowRegulatorParameters& p) {
+std::string validate(const FlowRegulatorOptions& p) {
   const std::pair<const char*, double> gains[] = {{"kp", p.kp}, {"ki", p.ki}, {"feedforward", p.feedforward}};
   for (const auto& g : gains)
     if (!std::isfinite(g.second) || g.second < 0.0) return std::string(g.first) + " must be finite and >= 0";
@@ -17,9 +17,9 @@ std::string validate(const FlowRegulatorParameters& p) {
   return {};
 }
 
-FlowRegulator::FlowRegulator(const FlowRegulatorParameters& params) : params_(params) {
+FlowRegulator::FlowRegulator(const FlowRegulatorOptions& params) : params_(params) {
   const std::string e = validate(params);
-  if (!e.empty()) throw std::invalid_argument("FlowRegulatorParameters: " + e);
+  if (!e.empty()) throw std::invalid_argument("FlowRegulatorOptions: " + e);
 }
 
 void FlowRegulator::reset() {
@@ -55,10 +55,10 @@ double FlowRegulator::update(double q_des, double q_meas, double dt) {
   return output_;
 }
 
-FlowRegulatorBank::FlowRegulatorBank(const FlowRegulatorParameters& params)
+FlowRegulatorBank::FlowRegulatorBank(const FlowRegulatorOptions& params)
     : jets_{FlowRegulator(params), FlowRegulator(params), FlowRegulator(params)} {}
 
-FlowRegulatorBank::FlowRegulatorBank(const std::array<FlowRegulatorParameters, 3>& params)
+FlowRegulatorBank::FlowRegulatorBank(const std::array<FlowRegulatorOptions, 3>& params)
     : jets_{FlowRegulator(params[0]), FlowRegulator(params[1]), FlowRegulator(params[2])} {}
 
 Eigen::Vector3d FlowRegulatorBank::update(const Eigen::Vector3d& q_des_flow, const Eigen::Vector3d& q_meas_flow,

@@ -20,7 +20,7 @@ std::string positive(const char* name, double v) {
 }
 }  // namespace
 
-std::string validate(const NozzleParameters& n) {
+std::string validate(const Nozzle& n) {
   for (const auto& e : {positive("inlet_area", n.inlet_area), positive("outlet_area", n.outlet_area),
                         positive("water_density", n.water_density)}) {
     if (!e.empty()) return e;
@@ -31,18 +31,16 @@ std::string validate(const NozzleParameters& n) {
   return {};
 }
 
-double thrust_coefficient(const NozzleParameters& n) {
-  return n.water_density * (1.0 / n.outlet_area - 1.0 / n.inlet_area);
-}
+double thrust_coefficient(const Nozzle& n) { return n.water_density * (1.0 / n.outlet_area - 1.0 / n.inlet_area); }
 
-double force_from_flow(double Q, const NozzleParameters& n) {
+double force_from_flow(double Q, const Nozzle& n) {
   if (Q <= 0.0) return 0.0;
   // eq. (26): −ṁ (v_in − v_out) with ṁ = ρQ, v = Q/A
   const double mdot = n.water_density * Q;
   return -mdot * (Q / n.inlet_area - Q / n.outlet_area);
 }
 
-double flow_from_force(double F, const NozzleParameters& n) {
+double flow_from_force(double F, const Nozzle& n) {
   if (F <= 0.0) return 0.0;
   return std::sqrt(F / thrust_coefficient(n));
 }

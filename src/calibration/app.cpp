@@ -1,4 +1,4 @@
-// The `calibrate` command line (see app.h and README "Calibration").
+// The `calibrate` command line (see app.h and docs/calibration.md).
 #include "hydrojet_control/calibration/app.h"
 
 #include <cmath>
@@ -100,6 +100,101 @@ struct Args {
   bool help = false;
 };
 
+/// --scene, --data, --out, --samples-out, --fit, --bound, the cross-section and the fit's options;
+/// false when `k` is none of them.
+bool set_fit_option(const std::string& k, const std::string& v, Args* r) {
+  if (k == "--scene")
+    r->scene = v;
+  else if (k == "--data")
+    r->data = v;
+  else if (k == "--out")
+    r->out = v;
+  else if (k == "--samples-out")
+    r->samples_out = v;
+  else if (k == "--fit")
+    r->fit = v;
+  else if (k == "--bound")
+    r->bounds.push_back(v);
+  else if (k == "--outer-diameter")
+    r->outer = positive(k, v);
+  else if (k == "--inner-diameter") {
+    r->inner = parse_double(k, v);
+    if (r->inner < 0) throw UsageError(k + ": must not be negative");
+  } else if (k == "--loss") {
+    if (v == "none")
+      r->opt.loss = Loss::kNone;
+    else if (v == "huber")
+      r->opt.loss = Loss::kHuber;
+    else if (v == "cauchy")
+      r->opt.loss = Loss::kCauchy;
+    else
+      throw UsageError(k + ": unknown loss '" + v + "' (none, huber, cauchy)");
+  } else if (k == "--loss-scale")
+    r->opt.loss_scale = positive(k, v);
+  else if (k == "--max-iterations")
+    r->opt.max_iterations = parse_int(k, v, 1, 100000);
+  else if (k == "--threads")
+    r->opt.num_threads = parse_int(k, v, 1, 256);
+  else
+    return false;
+  return true;
+}
+
+/// The bag's topics and the quasistatic extraction's thresholds; false when `k` is none of them.
+bool set_bag_option(const std::string& k, const std::string& v, Args* r) {
+  if (k == "--tip-topic")
+    r->topics.tip = v;
+  else if (k == "--base-topic")
+    r->topics.base = v;
+  else if (k == "--jets-topic")
+    r->topics.jets = v;
+  else if (k == "--window")
+    r->qs.window = positive(k, v);
+  else if (k == "--max-force-std")
+    r->qs.max_force_std = positive(k, v);
+  else if (k == "--max-force-drift")
+    r->qs.max_force_drift = positive(k, v);
+  else if (k == "--max-angle-std")
+    r->qs.max_angle_std = positive(k, v);
+  else if (k == "--max-angle-drift")
+    r->qs.max_angle_drift = positive(k, v);
+  else if (k == "--max-pair-dt")
+    r->qs.max_pair_dt = positive(k, v);
+  else
+    return false;
+  return true;
+}
+
+/// --synthesize and its options; false when `k` is none of them.
+bool set_synthesis_option(const std::string& k, const std::string& v, Args* r) {
+  if (k == "--synthesize")
+    r->synthesize = parse_int(k, v, 1, 1000000);
+  else if (k == "--noise-deg") {
+    r->noise_deg = parse_double(k, v);
+    if (r->noise_deg < 0) throw UsageError(k + ": must not be negative");
+  } else if (k == "--seed")
+    r->seed = static_cast<unsigned>(parse_int(k, v, 0, 2147483647));
+  else if (k == "--max-force-fraction") {
+    r->max_force_fraction = positive(k, v);
+    if (r->max_force_fraction > 1.0) throw UsageError(k + ": must lie in (0, 1]");
+  } else
+    return false;
+  return true;
+}
+
+/// The required options of the chosen mode, and --fit turned into a mask.
+void check_required(Args* r) {
+  if (r->scene.empty()) throw UsageError("--scene: missing (the scene YAML with geometry and starting values)");
+  if (r->synthesize == 0 && r->data.empty()) throw UsageError("--data: missing (CSV or rosbag)");
+  if (r->out.empty())
+    throw UsageError(r->synthesize ? "--out: missing (CSV to write)" : "--out: missing (scene YAML to write)");
+  try {
+    r->opt.fit = parse_param_list(r->fit);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--fit: ") + e.what());
+  }
+}
+
 Args parse_args(const std::vector<std::string>& a) {
   Args r;
   for (size_t i = 0; i < a.size(); ++i) {
@@ -111,80 +206,213 @@ Args parse_args(const std::vector<std::string>& a) {
     if (k.rfind("--", 0) != 0) throw UsageError("unexpected argument '" + k + "'");
     if (i + 1 >= a.size()) throw UsageError(k + ": missing value");
     const std::string v = a[++i];
-    if (k == "--scene")
-      r.scene = v;
-    else if (k == "--data")
-      r.data = v;
-    else if (k == "--out")
-      r.out = v;
-    else if (k == "--samples-out")
-      r.samples_out = v;
-    else if (k == "--fit")
-      r.fit = v;
-    else if (k == "--bound")
-      r.bounds.push_back(v);
-    else if (k == "--outer-diameter")
-      r.outer = positive(k, v);
-    else if (k == "--inner-diameter") {
-      r.inner = parse_double(k, v);
-      if (r.inner < 0) throw UsageError(k + ": must not be negative");
-    } else if (k == "--loss") {
-      if (v == "none")
-        r.opt.loss = Loss::kNone;
-      else if (v == "huber")
-        r.opt.loss = Loss::kHuber;
-      else if (v == "cauchy")
-        r.opt.loss = Loss::kCauchy;
-      else
-        throw UsageError(k + ": unknown loss '" + v + "' (none, huber, cauchy)");
-    } else if (k == "--loss-scale")
-      r.opt.loss_scale = positive(k, v);
-    else if (k == "--max-iterations")
-      r.opt.max_iterations = parse_int(k, v, 1, 100000);
-    else if (k == "--threads")
-      r.opt.num_threads = parse_int(k, v, 1, 256);
-    else if (k == "--tip-topic")
-      r.topics.tip = v;
-    else if (k == "--base-topic")
-      r.topics.base = v;
-    else if (k == "--jets-topic")
-      r.topics.jets = v;
-    else if (k == "--window")
-      r.qs.window = positive(k, v);
-    else if (k == "--max-force-std")
-      r.qs.max_force_std = positive(k, v);
-    else if (k == "--max-force-drift")
-      r.qs.max_force_drift = positive(k, v);
-    else if (k == "--max-angle-std")
-      r.qs.max_angle_std = positive(k, v);
-    else if (k == "--max-angle-drift")
-      r.qs.max_angle_drift = positive(k, v);
-    else if (k == "--max-pair-dt")
-      r.qs.max_pair_dt = positive(k, v);
-    else if (k == "--synthesize")
-      r.synthesize = parse_int(k, v, 1, 1000000);
-    else if (k == "--noise-deg") {
-      r.noise_deg = parse_double(k, v);
-      if (r.noise_deg < 0) throw UsageError(k + ": must not be negative");
-    } else if (k == "--seed")
-      r.seed = static_cast<unsigned>(parse_int(k, v, 0, 2147483647));
-    else if (k == "--max-force-fraction") {
-      r.max_force_fraction = positive(k, v);
-      if (r.max_force_fraction > 1.0) throw UsageError(k + ": must lie in (0, 1]");
-    } else
+    if (!set_fit_option(k, v, &r) && !set_bag_option(k, v, &r) && !set_synthesis_option(k, v, &r))
       throw UsageError("unknown option '" + k + "' (see --help)");
   }
-  if (r.help) return r;
-  if (r.scene.empty()) throw UsageError("--scene: missing (the scene YAML with geometry and starting values)");
-  if (r.synthesize == 0 && r.data.empty()) throw UsageError("--data: missing (CSV or rosbag)");
-  if (r.out.empty())
-    throw UsageError(r.synthesize ? "--out: missing (CSV to write)" : "--out: missing (scene YAML to write)");
-  try {
-    r.opt.fit = parse_param_list(r.fit);
-  } catch (const std::invalid_argument& e) {
-    throw UsageError(std::string("--fit: ") + e.what());
-  }
+  if (!r.help) check_required(&r);
   return r;
+}
+
+/// The scene (its text, for the calibrated copy) and the cross-section (the scene's, or the
+/// command line's diameters).
+struct StartScene {
+  std::string text;
+  config::Scene scene;
+  CrossSection cs;
+};
+
+StartScene load_start_scene(const Args& a) {
+  StartScene s;
+  s.text = read_text(a.scene, "--scene");
+  s.scene = config::parse_scene(s.text);
+  s.cs = cross_section_from_scene_text(s.text, CrossSection());
+  if (a.outer > 0) s.cs.outer_diameter = a.outer;
+  if (a.inner >= 0) s.cs.inner_diameter = a.inner;
+  const std::string cse = s.cs.validate();
+  if (!cse.empty()) throw UsageError("cross-section: " + cse + " (--outer-diameter / --inner-diameter)");
+  if (!s.scene.has_jets) throw config::SceneError("jets", "missing (the calibration needs the jet geometry, eq. 24)");
+  return s;
+}
+
+/// The fit's options with the --bound overrides applied to the default bounds.
+CalibrationOptions calibration_options(const Args& a, const StartScene& s) {
+  CalibrationOptions opt = a.opt;
+  if (a.bounds.empty()) return opt;
+  opt.has_bounds = true;
+  opt.bounds = default_bounds(zeta_from_scene(s.scene, s.cs));
+  for (const std::string& b : a.bounds) {
+    const size_t eq = b.find('='), colon = b.find(':', eq == std::string::npos ? 0 : eq);
+    if (eq == std::string::npos || colon == std::string::npos)
+      throw UsageError("--bound: '" + b + "' is not NAME=LO:HI (e.g. E=1e6:1e7)");
+    const int i = param_index(b.substr(0, eq));
+    if (i < 0) throw UsageError("--bound: unknown parameter '" + b.substr(0, eq) + "' (ux, uy, E, G, da, db, dg)");
+    opt.bounds.lower[i] = parse_double("--bound " + b.substr(0, eq), b.substr(eq + 1, colon - eq - 1));
+    opt.bounds.upper[i] = parse_double("--bound " + b.substr(0, eq), b.substr(colon + 1));
+    if (!(opt.bounds.lower[i] < opt.bounds.upper[i])) throw UsageError("--bound " + b + ": LO must be below HI");
+  }
+  return opt;
+}
+
+/// --synthesize: writes samples of the scene's own model and reports them.
+int run_synthesis(const Args& a, const StartScene& s, std::ostream& out) {
+  SyntheticOptions so;
+  so.samples = a.synthesize;
+  so.noise_rad = a.noise_deg * M_PI / 180.0;
+  so.seed = a.seed;
+  so.max_force_fraction = a.max_force_fraction;
+  const std::vector<Sample> samples = synthesize(s.scene, so);
+  write_text(a.out, to_csv(samples), "--out");
+  util::JsonObject j;
+  j.add("samples", static_cast<int>(samples.size()))
+      .add("noise_rad", so.noise_rad)
+      .add("seed", static_cast<int>(a.seed));
+  j.raw("parameters", json_params(zeta_from_scene(s.scene, s.cs))).add("out", a.out);
+  out << "calibrate: wrote " << samples.size() << " synthetic samples of the scene's model (noise " << a.noise_deg
+      << " deg per axis) to " << a.out << "\n"
+      << j.str() << "\n";
+  return 0;
+}
+
+/// The static samples: a CSV, or the quasistatic intervals of a rosbag (summarised in `rep`).
+std::vector<Sample> read_samples(const Args& a, const config::Scene& scene, std::ostream& rep) {
+  if (!is_rosbag(a.data)) return read_csv(a.data);
+  const BagRecords br = read_bag(a.data, a.topics);
+  const Extraction ex = extract_quasistatic(br.jets, br.tip, br.base, scene.nozzle, a.qs);
+  rep << "bag " << a.data << ": " << br.tip.size() << " tip, " << br.base.size() << " base, " << br.jets.size()
+      << " jet-state messages; " << ex.paired_points << " paired points (" << ex.skipped_points << " skipped); "
+      << ex.quasistatic_windows << " of " << ex.windows << " windows quasistatic; " << ex.samples.size()
+      << " static samples (" << ex.merged_intervals << " repeated intervals merged)\n";
+  return ex.samples;
+}
+
+/// The table of start, estimate and std per parameter, and the correlations of the fitted ones.
+void report_parameters(const CalibrationResult& res, std::ostream& rep) {
+  rep << "parameter        start            estimate         std              unit\n";
+  for (int i = 0; i < kNumParams; ++i) {
+    char line[160];
+    std::snprintf(line, sizeof(line), "%-4s %-11s %-16.6g %-16.6g %-16s %s\n", param_name(i),
+                  res.fitted[i] ? "" : "(fixed)", res.start[i], res.zeta[i],
+                  res.fitted[i] && std::isfinite(res.stddev[i]) ? fmt("%.3g", res.stddev[i]).c_str() : "-",
+                  param_unit(i));
+    rep << line;
+  }
+  rep << "correlations:\n      ";
+  for (int j = 0; j < kNumParams; ++j)
+    if (res.fitted[j]) rep << std::string(7 - std::string(param_name(j)).size(), ' ') << param_name(j);
+  rep << "\n";
+  for (int i = 0; i < kNumParams; ++i) {
+    if (!res.fitted[i]) continue;
+    rep << param_name(i) << std::string(6 - std::string(param_name(i)).size(), ' ');
+    for (int j = 0; j < kNumParams; ++j)
+      if (res.fitted[j])
+        rep << (std::isfinite(res.correlation(i, j)) ? fmt("%7.3f", res.correlation(i, j)) : std::string("      -"));
+    rep << "\n";
+  }
+}
+
+/// The per-sample errors, the RMS, the fit's cost and its warnings (also on `err`).
+void report_residuals(const CalibrationResult& res, const std::vector<Sample>& samples, std::ostream& rep,
+                      std::ostream& err) {
+  rep << "per-sample orientation error [deg]:\n";
+  for (size_t k = 0; k < res.sample_error_rad.size(); ++k) {
+    char line[200];
+    std::snprintf(line, sizeof(line), "  %-28s q = [%.4f, %.4f, %.4f] N  %.3f\n", samples[k].origin.c_str(),
+                  samples[k].jet_force[0], samples[k].jet_force[1], samples[k].jet_force[2],
+                  res.sample_error_rad[k] * 180.0 / M_PI);
+    rep << line;
+  }
+  rep << "RMS residual: " << fmt("%.6g", res.rms_rad) << " rad (" << fmt("%.3f", res.rms_rad * 180 / M_PI)
+      << " deg; start " << fmt("%.3f", res.start_rms_rad * 180 / M_PI) << " deg); sigma per axis "
+      << fmt("%.3g", res.sigma_rad) << " rad\n";
+  rep << "fit: " << res.iterations << " iterations, " << res.rod_solves << " rod solves (" << res.failed_solves
+      << " failed), " << fmt("%.3f", res.time_s) << " s; " << res.message << "\n";
+  for (const std::string& w : res.warnings) {
+    rep << "WARNING: " << w << "\n";
+    err << "calibrate: warning: " << w << "\n";
+  }
+}
+
+/// The `calibration` section of the output scene: data, start, what was fitted and how well.
+YAML::Node calibration_summary(const Args& a, const CalibrationResult& res, size_t samples) {
+  YAML::Node cal(YAML::NodeType::Map);
+  cal["data"] = a.data;
+  cal["start_scene"] = a.scene;
+  cal["samples"] = static_cast<int>(samples);
+  YAML::Node fl(YAML::NodeType::Sequence), sd(YAML::NodeType::Map), id(YAML::NodeType::Map);
+  for (int i = 0; i < kNumParams; ++i) {
+    if (!res.fitted[i]) continue;
+    fl.push_back(param_name(i));
+    sd[param_name(i)] = std::isfinite(res.stddev[i]) ? YAML::Node(yaml_number(res.stddev[i])) : YAML::Node();
+    id[param_name(i)] = res.identifiable[i];
+  }
+  fl.SetStyle(YAML::EmitterStyle::Flow);
+  sd.SetStyle(YAML::EmitterStyle::Flow);
+  id.SetStyle(YAML::EmitterStyle::Flow);
+  cal["fitted"] = fl;
+  cal["rms_rad"] = yaml_number(res.rms_rad);
+  cal["start_rms_rad"] = yaml_number(res.start_rms_rad);
+  cal["std"] = sd;
+  cal["identifiable"] = id;
+  return cal;
+}
+
+/// Writes the calibrated scene when the fit converged; true when written.
+bool write_calibrated_scene(const Args& a, const StartScene& s, const CalibrationResult& res, size_t samples,
+                            std::ostream& rep, std::ostream& err) {
+  if (!res.converged) {
+    rep << "not converged: " << a.out << " not written\n";
+    err << "calibrate: the fit did not converge (" << res.message << "); " << a.out << " not written\n";
+    return false;
+  }
+  const std::string comment = "Scene calibrated by `calibrate` (paper §6.2, eq. 27).\nData: " + a.data +
+                              "; start: " + a.scene + ".\nRMS orientation residual " + fmt("%.4g", res.rms_rad) +
+                              " rad over " + std::to_string(samples) +
+                              " samples; the `calibration` section summarises the fit (load_scene ignores it).";
+  write_text(a.out, calibrated_scene_yaml(s.text, res.zeta, s.cs, comment, calibration_summary(a, res, samples)),
+             "--out");
+  rep << "wrote " << a.out << "\n";
+  return true;
+}
+
+/// The last stdout line: the result as one JSON object.
+std::string result_json(const CalibrationResult& res, size_t samples, const std::string* written) {
+  util::JsonObject j;
+  j.add("converged", res.converged).add("rms_rad", res.rms_rad);
+  j.raw("parameters", json_params(res.zeta));
+  j.raw("std", json_params(res.stddev, &res.fitted));
+  j.add("time_s", res.time_s);
+  j.add("samples", static_cast<int>(samples)).add("start_rms_rad", res.start_rms_rad);
+  j.add("sigma_rad", res.sigma_rad).add("iterations", res.iterations).add("rod_solves", res.rod_solves);
+  util::JsonObject ident;
+  for (int i = 0; i < kNumParams; ++i)
+    if (res.fitted[i]) ident.add(param_name(i), res.identifiable[i]);
+  j.raw("identifiable", ident.str());
+  j.raw("warnings", json_strings(res.warnings));
+  if (written) j.add("out", *written);
+  return j.str();
+}
+
+/// Fit mode: samples → fit → report, calibrated scene and JSON. 0 converged, 1 not.
+int run_fit(const Args& a, const StartScene& s, const CalibrationOptions& opt, std::ostream& out, std::ostream& err) {
+  std::ostringstream rep;  // the report; written to `out` only when the input was good
+  const std::vector<Sample> samples = read_samples(a, s.scene, rep);
+  if (!a.samples_out.empty()) write_text(a.samples_out, to_csv(samples), "--samples-out");
+  const Eigen::Vector3d& k = s.scene.model.rod.stiffness;
+  if (std::abs(k.x() - k.y()) > 1e-9 * std::abs(k.x()))
+    rep << "note: the scene's EI_x and EI_y differ; E starts from their mean and the output is isotropic\n";
+
+  const CalibrationResult res = calibrate(s.scene, s.cs, samples, opt);
+
+  std::string fitted_list;
+  for (int i = 0; i < kNumParams; ++i)
+    if (res.fitted[i]) fitted_list += (fitted_list.empty() ? "" : " ") + std::string(param_name(i));
+  rep << "calibrate: " << samples.size() << " samples from " << a.data << "; fitting " << fitted_list
+      << "; cross-section D = " << s.cs.outer_diameter << " m, d = " << s.cs.inner_diameter << " m\n";
+  report_parameters(res, rep);
+  report_residuals(res, samples, rep, err);
+  const bool wrote = write_calibrated_scene(a, s, res, samples.size(), rep, err);
+  out << rep.str() << result_json(res, samples.size(), wrote ? &a.out : nullptr) << "\n";
+  return res.converged ? 0 : 1;
 }
 
 }  // namespace
@@ -207,170 +435,16 @@ std::string calibrate_usage() {
 }
 
 int run_calibrate(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err) {
-  std::ostringstream rep;  // the report; written to `out` only when the input was good
   try {
     const Args a = parse_args(argv);
     if (a.help) {
       out << calibrate_usage();
       return 0;
     }
-    const std::string scene_text = read_text(a.scene, "--scene");
-    const config::Scene scene = config::parse_scene(scene_text);
-    CrossSection cs = cross_section_from_scene_text(scene_text, CrossSection());
-    if (a.outer > 0) cs.outer_diameter = a.outer;
-    if (a.inner >= 0) cs.inner_diameter = a.inner;
-    const std::string cse = cs.validate();
-    if (!cse.empty()) throw UsageError("cross-section: " + cse + " (--outer-diameter / --inner-diameter)");
-    if (!scene.has_jets) throw config::SceneError("jets", "missing (the calibration needs the jet geometry, eq. 24)");
-    CalibrationOptions opt = a.opt;
-    if (!a.bounds.empty()) {
-      opt.has_bounds = true;
-      opt.bounds = default_bounds(zeta_from_scene(scene, cs));
-      for (const std::string& b : a.bounds) {
-        const size_t eq = b.find('='), colon = b.find(':', eq == std::string::npos ? 0 : eq);
-        if (eq == std::string::npos || colon == std::string::npos)
-          throw UsageError("--bound: '" + b + "' is not NAME=LO:HI (e.g. E=1e6:1e7)");
-        const int i = param_index(b.substr(0, eq));
-        if (i < 0) throw UsageError("--bound: unknown parameter '" + b.substr(0, eq) + "' (ux, uy, E, G, da, db, dg)");
-        opt.bounds.lower[i] = parse_double("--bound " + b.substr(0, eq), b.substr(eq + 1, colon - eq - 1));
-        opt.bounds.upper[i] = parse_double("--bound " + b.substr(0, eq), b.substr(colon + 1));
-        if (!(opt.bounds.lower[i] < opt.bounds.upper[i])) throw UsageError("--bound " + b + ": LO must be below HI");
-      }
-    }
-
-    // --- synthesize mode -------------------------------------------------------------------
-    if (a.synthesize > 0) {
-      SyntheticOptions so;
-      so.samples = a.synthesize;
-      so.noise_rad = a.noise_deg * M_PI / 180.0;
-      so.seed = a.seed;
-      so.max_force_fraction = a.max_force_fraction;
-      const std::vector<Sample> s = synthesize(scene, so);
-      write_text(a.out, to_csv(s), "--out");
-      util::JsonObject j;
-      j.add("samples", static_cast<int>(s.size())).add("noise_rad", so.noise_rad).add("seed", static_cast<int>(a.seed));
-      j.raw("parameters", json_params(zeta_from_scene(scene, cs))).add("out", a.out);
-      out << "calibrate: wrote " << s.size() << " synthetic samples of the scene's model (noise " << a.noise_deg
-          << " deg per axis) to " << a.out << "\n"
-          << j.str() << "\n";
-      return 0;
-    }
-
-    // --- data ------------------------------------------------------------------------------
-    std::vector<Sample> samples;
-    if (is_rosbag(a.data)) {
-      const BagRecords br = read_bag(a.data, a.topics);
-      const Extraction ex = extract_quasistatic(br.jets, br.tip, br.base, scene.nozzle, a.qs);
-      rep << "bag " << a.data << ": " << br.tip.size() << " tip, " << br.base.size() << " base, " << br.jets.size()
-          << " jet-state messages; " << ex.paired_points << " paired points (" << ex.skipped_points << " skipped); "
-          << ex.quasistatic_windows << " of " << ex.windows << " windows quasistatic; " << ex.samples.size()
-          << " static samples (" << ex.merged_intervals << " repeated intervals merged)\n";
-      samples = ex.samples;
-    } else {
-      samples = read_csv(a.data);
-    }
-    if (!a.samples_out.empty()) write_text(a.samples_out, to_csv(samples), "--samples-out");
-
-    const config::Scene& s0 = scene;
-    if (std::abs(s0.model.rod.stiffness.x() - s0.model.rod.stiffness.y()) > 1e-9 * std::abs(s0.model.rod.stiffness.x()))
-      rep << "note: the scene's EI_x and EI_y differ; E starts from their mean and the output is isotropic\n";
-
-    // --- fit -------------------------------------------------------------------------------
-    const CalibrationResult res = calibrate(scene, cs, samples, opt);
-
-    std::string fitted_list;
-    for (int i = 0; i < kNumParams; ++i)
-      if (res.fitted[i]) fitted_list += (fitted_list.empty() ? "" : " ") + std::string(param_name(i));
-    rep << "calibrate: " << samples.size() << " samples from " << a.data << "; fitting " << fitted_list
-        << "; cross-section D = " << cs.outer_diameter << " m, d = " << cs.inner_diameter << " m\n";
-    rep << "parameter        start            estimate         std              unit\n";
-    for (int i = 0; i < kNumParams; ++i) {
-      char line[160];
-      std::snprintf(line, sizeof(line), "%-4s %-11s %-16.6g %-16.6g %-16s %s\n", param_name(i),
-                    res.fitted[i] ? "" : "(fixed)", res.start[i], res.zeta[i],
-                    res.fitted[i] && std::isfinite(res.stddev[i]) ? fmt("%.3g", res.stddev[i]).c_str() : "-",
-                    param_unit(i));
-      rep << line;
-    }
-    rep << "correlations:\n      ";
-    for (int j = 0; j < kNumParams; ++j)
-      if (res.fitted[j]) rep << std::string(7 - std::string(param_name(j)).size(), ' ') << param_name(j);
-    rep << "\n";
-    for (int i = 0; i < kNumParams; ++i) {
-      if (!res.fitted[i]) continue;
-      rep << param_name(i) << std::string(6 - std::string(param_name(i)).size(), ' ');
-      for (int j = 0; j < kNumParams; ++j)
-        if (res.fitted[j])
-          rep << (std::isfinite(res.correlation(i, j)) ? fmt("%7.3f", res.correlation(i, j)) : std::string("      -"));
-      rep << "\n";
-    }
-    rep << "per-sample orientation error [deg]:\n";
-    for (size_t k = 0; k < res.sample_error_rad.size(); ++k) {
-      char line[200];
-      std::snprintf(line, sizeof(line), "  %-28s q = [%.4f, %.4f, %.4f] N  %.3f\n", samples[k].origin.c_str(),
-                    samples[k].jet_force[0], samples[k].jet_force[1], samples[k].jet_force[2],
-                    res.sample_error_rad[k] * 180.0 / M_PI);
-      rep << line;
-    }
-    rep << "RMS residual: " << fmt("%.6g", res.rms_rad) << " rad (" << fmt("%.3f", res.rms_rad * 180 / M_PI)
-        << " deg; start " << fmt("%.3f", res.start_rms_rad * 180 / M_PI) << " deg); sigma per axis "
-        << fmt("%.3g", res.sigma_rad) << " rad\n";
-    rep << "fit: " << res.iterations << " iterations, " << res.rod_solves << " rod solves (" << res.failed_solves
-        << " failed), " << fmt("%.3f", res.time_s) << " s; " << res.message << "\n";
-    for (const std::string& w : res.warnings) {
-      rep << "WARNING: " << w << "\n";
-      err << "calibrate: warning: " << w << "\n";
-    }
-
-    // --- output scene ----------------------------------------------------------------------
-    bool wrote = false;
-    if (res.converged) {
-      YAML::Node cal(YAML::NodeType::Map);
-      cal["data"] = a.data;
-      cal["start_scene"] = a.scene;
-      cal["samples"] = static_cast<int>(samples.size());
-      YAML::Node fl(YAML::NodeType::Sequence), sd(YAML::NodeType::Map), id(YAML::NodeType::Map);
-      for (int i = 0; i < kNumParams; ++i) {
-        if (!res.fitted[i]) continue;
-        fl.push_back(param_name(i));
-        sd[param_name(i)] = std::isfinite(res.stddev[i]) ? YAML::Node(yaml_number(res.stddev[i])) : YAML::Node();
-        id[param_name(i)] = res.identifiable[i];
-      }
-      fl.SetStyle(YAML::EmitterStyle::Flow);
-      sd.SetStyle(YAML::EmitterStyle::Flow);
-      id.SetStyle(YAML::EmitterStyle::Flow);
-      cal["fitted"] = fl;
-      cal["rms_rad"] = yaml_number(res.rms_rad);
-      cal["start_rms_rad"] = yaml_number(res.start_rms_rad);
-      cal["std"] = sd;
-      cal["identifiable"] = id;
-      const std::string comment = "Scene calibrated by `calibrate` (paper §6.2, eq. 27).\nData: " + a.data +
-                                  "; start: " + a.scene + ".\nRMS orientation residual " + fmt("%.4g", res.rms_rad) +
-                                  " rad over " + std::to_string(samples.size()) +
-                                  " samples; the `calibration` section summarises the fit (load_scene ignores it).";
-      write_text(a.out, calibrated_scene_yaml(scene_text, res.zeta, cs, comment, cal), "--out");
-      wrote = true;
-      rep << "wrote " << a.out << "\n";
-    } else {
-      rep << "not converged: " << a.out << " not written\n";
-      err << "calibrate: the fit did not converge (" << res.message << "); " << a.out << " not written\n";
-    }
-
-    util::JsonObject j;
-    j.add("converged", res.converged).add("rms_rad", res.rms_rad);
-    j.raw("parameters", json_params(res.zeta));
-    j.raw("std", json_params(res.stddev, &res.fitted));
-    j.add("time_s", res.time_s);
-    j.add("samples", static_cast<int>(samples.size())).add("start_rms_rad", res.start_rms_rad);
-    j.add("sigma_rad", res.sigma_rad).add("iterations", res.iterations).add("rod_solves", res.rod_solves);
-    util::JsonObject ident;
-    for (int i = 0; i < kNumParams; ++i)
-      if (res.fitted[i]) ident.add(param_name(i), res.identifiable[i]);
-    j.raw("identifiable", ident.str());
-    j.raw("warnings", json_strings(res.warnings));
-    if (wrote) j.add("out", a.out);
-    out << rep.str() << j.str() << "\n";
-    return res.converged ? 0 : 1;
+    const StartScene s = load_start_scene(a);
+    const CalibrationOptions opt = calibration_options(a, s);  // --bound is checked in either mode
+    if (a.synthesize > 0) return run_synthesis(a, s, out);
+    return run_fit(a, s, opt, out, err);
   } catch (const UsageError& e) {
     err << "calibrate: " << e.what() << "\n";
   } catch (const config::SceneError& e) {

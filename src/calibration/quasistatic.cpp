@@ -83,6 +83,96 @@ WindowStats stats(const std::vector<Point>& p, int s, int e, double t_half) {
   return w;
 }
 
+/// Pairs every tip pose with the nearest base pose and jet state (within max_pair_dt): the jet
+/// forces (eq. 26) and the tip orientation in the base frame at each time point. All three sorted
+/// by time; unpaired or unusable records are counted in ex->skipped_points.
+std::vector<Point> pair_records(const std::vector<JetRecord>& jets, const std::vector<PoseRecord>& tip,
+                                const std::vector<PoseRecord>& base, const actuation::Nozzle& nozzle,
+                                const QuasistaticOptions& o, Extraction* ex) {
+  std::vector<Point> pts;
+  pts.reserve(tip.size());
+  for (const PoseRecord& tr : tip) {
+    const int b = nearest(base, tr.t, o.max_pair_dt);
+    const int j = nearest(jets, tr.t, o.max_pair_dt);
+    if (b < 0 || j < 0 || !usable(tr.orientation) || !usable(base[b].orientation) || !jets[j].valid ||
+        !jets[j].flow.allFinite()) {
+      ++ex->skipped_points;
+      continue;
+    }
+    Point p;
+    p.t = tr.t;
+    for (int i = 0; i < 3; ++i) p.F[i] = actuation::force_from_flow(jets[j].flow[i], nozzle);
+    p.R = base[b].orientation.normalized().toRotationMatrix().transpose() *
+          tr.orientation.normalized().toRotationMatrix();
+    pts.push_back(p);
+  }
+  return pts;
+}
+
+bool is_quasistatic(const WindowStats& w, const QuasistaticOptions& o) {
+  return w.force_std <= o.max_force_std && w.force_drift <= o.max_force_drift && w.angle_std <= o.max_angle_std &&
+         w.angle_drift <= o.max_angle_drift;
+}
+
+/// A run of quasistatic windows (end time, statistics).
+using Run = std::vector<std::pair<double, WindowStats>>;
+
+/// The run's sample: from the last window that ends at least end_guard before the run does (the
+/// last windows of a run may already hold the first few points of the next transient, before it
+/// shows in the tests).
+void emit_sample(const Run& run, const QuasistaticOptions& o, Extraction* ex) {
+  const double last_end = run.back().first;
+  for (auto it = run.rbegin(); it != run.rend(); ++it) {
+    if (it->first > last_end - o.end_guard + 1e-9) continue;
+    Sample smp;
+    smp.jet_force = it->second.F_mean.cwiseMax(0.0);
+    smp.tip_orientation = Eigen::Quaterniond(it->second.R_mean).normalized();
+    char b[64];
+    std::snprintf(b, sizeof(b), "bag t=%.2f s", it->first);
+    smp.origin = b;
+    // A noise spike or a slow creep can split one hold into two intervals: when the previous
+    // sample has the same jet forces (within max_force_drift) it is the same hold, and the later
+    // (more settled) sample replaces it.
+    if (!ex->samples.empty()) {
+      const double dF = (ex->samples.back().jet_force - smp.jet_force).cwiseAbs().maxCoeff();
+      if (dF <= o.max_force_drift) {
+        ex->samples.pop_back();
+        ex->sample_time.pop_back();
+        ++ex->merged_intervals;
+      }
+    }
+    ex->samples.push_back(smp);
+    ex->sample_time.push_back(it->first);
+    return;
+  }
+}
+
+/// Sliding windows ending at every point; each run of quasistatic windows gives one sample.
+void scan_windows(const std::vector<Point>& pts, const QuasistaticOptions& o, Extraction* ex) {
+  int s = 0;
+  Run run;
+  for (int e = 0; e < static_cast<int>(pts.size()); ++e) {
+    const double t_end = pts[e].t;
+    while (pts[s].t <= t_end - o.window) ++s;
+    bool quasistatic = false;
+    const int n = e - s + 1;
+    if (n >= o.min_points && t_end - pts[s].t >= 0.75 * o.window) {
+      ++ex->windows;
+      const WindowStats w = stats(pts, s, e, t_end - 0.5 * o.window);
+      quasistatic = is_quasistatic(w, o);
+      if (quasistatic) {
+        ++ex->quasistatic_windows;
+        run.emplace_back(t_end, w);
+      }
+    }
+    if (!quasistatic && !run.empty()) {
+      emit_sample(run, o, ex);
+      run.clear();
+    }
+  }
+  if (!run.empty()) emit_sample(run, o, ex);
+}
+
 }  // namespace
 
 std::string QuasistaticOptions::validate() const {
@@ -98,7 +188,7 @@ std::string QuasistaticOptions::validate() const {
 }
 
 Extraction extract_quasistatic(const std::vector<JetRecord>& jets_in, const std::vector<PoseRecord>& tip_in,
-                               const std::vector<PoseRecord>& base_in, const actuation::NozzleParameters& nozzle,
+                               const std::vector<PoseRecord>& base_in, const actuation::Nozzle& nozzle,
                                const QuasistaticOptions& o) {
   const std::string oe = o.validate();
   if (!oe.empty()) throw DataError("quasistatic options: " + oe);
@@ -109,79 +199,13 @@ Extraction extract_quasistatic(const std::vector<JetRecord>& jets_in, const std:
   sort_by_time(&base);
 
   Extraction ex;
-  std::vector<Point> pts;
-  pts.reserve(tip.size());
-  for (const PoseRecord& tr : tip) {
-    const int b = nearest(base, tr.t, o.max_pair_dt);
-    const int j = nearest(jets, tr.t, o.max_pair_dt);
-    if (b < 0 || j < 0 || !usable(tr.orientation) || !usable(base[b].orientation) || !jets[j].valid ||
-        !jets[j].flow.allFinite()) {
-      ++ex.skipped_points;
-      continue;
-    }
-    Point p;
-    p.t = tr.t;
-    for (int i = 0; i < 3; ++i) p.F[i] = actuation::force_from_flow(jets[j].flow[i], nozzle);
-    p.R = base[b].orientation.normalized().toRotationMatrix().transpose() *
-          tr.orientation.normalized().toRotationMatrix();
-    pts.push_back(p);
-  }
+  const std::vector<Point> pts = pair_records(jets, tip, base, nozzle, o, &ex);
   ex.paired_points = static_cast<int>(pts.size());
   if (pts.empty())
     throw DataError("no tracker pose could be paired with a base pose and a jet state within " +
                     std::to_string(o.max_pair_dt) + " s (" + std::to_string(tip.size()) + " tip, " +
                     std::to_string(base.size()) + " base, " + std::to_string(jets.size()) + " jet records)");
-
-  // Sliding windows ending at every point; runs of quasistatic windows give one sample each, from
-  // the last window that ends at least end_guard before the run does (the last windows of a run
-  // may already hold the first few points of the next transient, before it shows in the tests).
-  int s = 0;
-  std::vector<std::pair<double, WindowStats>> run;
-  auto emit = [&]() {
-    const double last_end = run.back().first;
-    for (auto it = run.rbegin(); it != run.rend(); ++it) {
-      if (it->first > last_end - o.end_guard + 1e-9) continue;
-      Sample smp;
-      smp.jet_force = it->second.F_mean.cwiseMax(0.0);
-      smp.tip_orientation = Eigen::Quaterniond(it->second.R_mean).normalized();
-      char b[64];
-      std::snprintf(b, sizeof(b), "bag t=%.2f s", it->first);
-      smp.origin = b;
-      // A noise spike or a slow creep can split one hold into two intervals: when the previous
-      // sample has the same jet forces (within max_force_drift) it is the same hold, and the later
-      // (more settled) sample replaces it.
-      if (!ex.samples.empty()) {
-        const double dF = (ex.samples.back().jet_force - smp.jet_force).cwiseAbs().maxCoeff();
-        if (dF <= o.max_force_drift) {
-          ex.samples.pop_back();
-          ex.sample_time.pop_back();
-          ++ex.merged_intervals;
-        }
-      }
-      ex.samples.push_back(smp);
-      ex.sample_time.push_back(it->first);
-      break;
-    }
-    run.clear();
-  };
-  for (int e = 0; e < static_cast<int>(pts.size()); ++e) {
-    const double t_end = pts[e].t;
-    while (pts[s].t <= t_end - o.window) ++s;
-    bool quasistatic = false;
-    const int n = e - s + 1;
-    if (n >= o.min_points && t_end - pts[s].t >= 0.75 * o.window) {
-      ++ex.windows;
-      const WindowStats w = stats(pts, s, e, t_end - 0.5 * o.window);
-      quasistatic = w.force_std <= o.max_force_std && w.force_drift <= o.max_force_drift &&
-                    w.angle_std <= o.max_angle_std && w.angle_drift <= o.max_angle_drift;
-      if (quasistatic) {
-        ++ex.quasistatic_windows;
-        run.emplace_back(t_end, w);
-      }
-    }
-    if (!quasistatic && !run.empty()) emit();
-  }
-  if (!run.empty()) emit();
+  scan_windows(pts, o, &ex);
   return ex;
 }
 

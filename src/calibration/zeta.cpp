@@ -71,7 +71,7 @@ CrossSection cross_section_from_scene_text(const std::string& text, const CrossS
 }
 
 ZetaVector zeta_from_scene(const config::Scene& scene, const CrossSection& cs) {
-  const rod::RodParameters& r = scene.model.rod;
+  const rod::ElasticRod& r = scene.model.rod;
   ZetaVector z;
   z[kUx] = r.precurvature.x();
   z[kUy] = r.precurvature.y();

@@ -10,28 +10,26 @@ namespace {
 /// Controller options are "a/b" paths; errors are ParamError naming them.
 using Tree = YamlTree<ParamError>;
 
-}  // namespace
-
-ControllerOptions parse_controller_options(const YAML::Node& root) {
-  if (root.IsDefined() && !root.IsNull() && !root.IsMap()) throw ParamError("(root)", "must be a mapping");
-  Tree p(root);
-  ControllerOptions o;
-  o.scene = p.text("scene", "");
+/// The node's own options: scene, rate, autostart, base_frame and the loop mode.
+void read_node_options(Tree& p, ControllerNodeOptions& o) {
+  o.scene = p.text("scene", o.scene);
   o.rate = p.number("rate", o.rate);
   if (!(o.rate >= 1.0 && o.rate <= 1000.0)) p.fail("rate", "must lie in [1, 1000] Hz");
   o.autostart = p.boolean("autostart", o.autostart);
   o.base_frame = p.text("base_frame", o.base_frame);
-  const std::string mode = p.text("mode", "closed");
+  const std::string mode = p.text("mode", control::to_string(o.controller.mode));
   if (mode == "closed")
     o.controller.mode = control::LoopMode::kClosed;
   else if (mode == "open")
     o.controller.mode = control::LoopMode::kOpen;
   else
     p.fail("mode", "must be 'closed' or 'open', got '" + mode + "'");
+}
 
-  // Each numeric parameter: its key, the core's field name (as ControllerParams::validate() names
+/// Gains, limits, safety and path (ControllerOptions), validated; an error names the key.
+void read_controller_options(Tree& p, control::ControllerOptions& c) {
+  // Each numeric parameter: its key, the core's field name (as ControllerOptions::validate() names
   // it) and where it lives.
-  control::ControllerParams& c = o.controller;
   const struct {
     const char* key;
     const char* field;
@@ -68,8 +66,10 @@ ControllerOptions parse_controller_options(const YAML::Node& root) {
       if (field == n.field) k = n.key;
     p.fail(k, err.substr(std::min(err.size(), field.size() + 2)));
   }
+}
 
-  actuation::FlowRegulatorParameters& f = o.flow;
+/// The per-jet PI flow regulator, validated; an error names the key.
+void read_flow_regulator(Tree& p, actuation::FlowRegulatorOptions& f) {
   f.kp = p.number("flow_regulator/kp", f.kp);
   f.ki = p.number("flow_regulator/ki", f.ki);
   f.feedforward = p.number("flow_regulator/feedforward", f.feedforward);
@@ -80,11 +80,22 @@ ControllerOptions parse_controller_options(const YAML::Node& root) {
     const size_t sp = ferr.find(' ');
     p.fail("flow_regulator/" + ferr.substr(0, sp), ferr.substr(std::min(ferr.size(), sp + 1)));
   }
+}
+
+}  // namespace
+
+ControllerNodeOptions parse_controller_options(const YAML::Node& root) {
+  if (root.IsDefined() && !root.IsNull() && !root.IsMap()) throw ParamError("(root)", "must be a mapping");
+  Tree p(root);
+  ControllerNodeOptions o;
+  read_node_options(p, o);
+  read_controller_options(p, o.controller);
+  read_flow_regulator(p, o.flow_regulator);
   p.reject_unknown();
   return o;
 }
 
-ControllerOptions load_controller_options(const std::string& path) {
+ControllerNodeOptions load_controller_options(const std::string& path) {
   YAML::Node root;
   try {
     root = YAML::LoadFile(path);

@@ -13,7 +13,7 @@ namespace {
 /// Plant keys are dotted paths ("plant.tracker.latency"); errors are SceneError naming them.
 using Tree = YamlTree<SceneError>;
 
-void parse_valve(const YAML::Node& n, const std::string& path, plant::ValveParameters* v) {
+void parse_valve(const YAML::Node& n, const std::string& path, plant::ValveModel* v) {
   if (!n.IsMap()) throw SceneError(path, "must be a mapping");
   Tree t(n, '.', path + ".");
   t.keys("", {"max_flow", "dead_zone", "exponent", "hysteresis", "time_constant", "saturation"});
@@ -27,95 +27,117 @@ void parse_valve(const YAML::Node& n, const std::string& path, plant::ValveParam
   if (!e.empty()) t.fail(e.substr(0, e.find(':')), e.substr(e.find(':') + 2));
 }
 
-}  // namespace
+/// The root of a plant file's text; SceneError("plant", ...) when it is not YAML.
+YAML::Node load_yaml(const std::string& text) {
+  try {
+    return YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw SceneError("plant", std::string("malformed YAML: ") + e.what());
+  }
+}
 
-plant::PlantParameters make_plant(const Scene& nominal, const std::string& text) {
+/// plant.mismatch.*
+void parse_mismatch(Tree& t, plant::ModelMismatch* m) {
+  const std::string M = "plant.mismatch.";
+  t.keys("plant.mismatch", {"precurvature_offset", "bending_stiffness_scale", "torsional_stiffness_scale",
+                            "misalignment_offset", "tip_mass_scale", "base_tilt_offset"});
+  m->precurvature_offset = t.vec3(M + "precurvature_offset", m->precurvature_offset);
+  m->misalignment_offset = t.vec3(M + "misalignment_offset", m->misalignment_offset);
+  m->bending_stiffness_scale = t.positive(M + "bending_stiffness_scale", m->bending_stiffness_scale);
+  m->torsional_stiffness_scale = t.positive(M + "torsional_stiffness_scale", m->torsional_stiffness_scale);
+  m->tip_mass_scale = t.nonnegative(M + "tip_mass_scale", m->tip_mass_scale);
+  m->base_tilt_offset = t.number(M + "base_tilt_offset", m->base_tilt_offset);
+}
+
+/// plant.dynamics.*, plant.tracker.*, plant.flow_sensors.*, plant.command_timeout.
+void parse_dynamics_and_sensors(Tree& t, plant::PlantModel* p) {
+  const std::string D = "plant.dynamics.";
+  t.keys("plant.dynamics", {"shear_stiffness", "axial_stiffness", "kelvin_voigt_time", "linear_drag", "tip_drag",
+                            "tip_angular_drag", "tip_inertia", "linear_density", "nodes", "internal_dt", "alpha"});
+  t.keys("plant.tracker",
+         {"position_sigma", "angle_sigma", "position_quantum", "latency", "dropout_rate", "dropout_duration"});
+  t.keys("plant.flow_sensors", {"sigma", "quantum"});
+  // Optional numbers: key (below its section) and where it lives.
+  const std::pair<std::string, double*> numbers[] = {
+      {D + "shear_stiffness", &p->rod.shear_stiffness},
+      {D + "axial_stiffness", &p->rod.axial_stiffness},
+      {D + "kelvin_voigt_time", &p->rod.kelvin_voigt_time},
+      {D + "linear_drag", &p->rod.linear_drag},
+      {D + "tip_drag", &p->rod.tip_drag},
+      {D + "tip_angular_drag", &p->rod.tip_angular_drag},
+      {D + "linear_density", &p->rod.model.rod.linear_density},
+      {D + "alpha", &p->rod.alpha},
+      {D + "internal_dt", &p->internal_dt},
+      {"plant.tracker.position_sigma", &p->tracker.position_sigma},
+      {"plant.tracker.angle_sigma", &p->tracker.angle_sigma},
+      {"plant.tracker.position_quantum", &p->tracker.position_quantum},
+      {"plant.tracker.latency", &p->tracker.latency},
+      {"plant.tracker.dropout_rate", &p->tracker.dropout_rate},
+      {"plant.tracker.dropout_duration", &p->tracker.dropout_duration},
+      {"plant.flow_sensors.sigma", &p->flow.sigma},
+      {"plant.flow_sensors.quantum", &p->flow.quantum},
+      {"plant.command_timeout", &p->command_timeout},
+  };
+  for (const auto& n : numbers) *n.second = t.number(n.first, *n.second);
+  p->rod.tip_inertia = t.vec3(D + "tip_inertia", p->rod.tip_inertia);
+  p->rod.nodes = t.integer(D + "nodes", p->rod.nodes);
+}
+
+/// plant.valves: a list of three valve mappings.
+void parse_valves(Tree& t, plant::PlantModel* p) {
+  if (!t.has("plant.valves")) return;
+  t.allow("plant.valves");
+  const YAML::Node v = t.find("plant.valves");
+  if (!v.IsSequence() || v.size() != 3) t.fail("plant.valves", "must be a list of 3 valve mappings");
+  for (int i = 0; i < 3; ++i) parse_valve(v[i], "plant.valves[" + std::to_string(i) + "]", &p->valves[i]);
+}
+
+/// The `plant` section of a plant file over the defaults in *m and *p.
+void parse_plant_section(const YAML::Node& root, plant::ModelMismatch* m, plant::PlantModel* p) {
+  Tree t(root, '.');
+  t.section("plant");
+  t.keys("plant", {"mismatch", "dynamics", "valves", "tracker", "flow_sensors", "sensor_noise", "command_timeout",
+                   "base_position"});
+  parse_mismatch(t, m);
+  parse_dynamics_and_sensors(t, p);
+  parse_valves(t, p);
+  p->sensor_noise = t.boolean("plant.sensor_noise", p->sensor_noise);
+  p->base_position = t.vec3("plant.base_position", p->base_position);
+}
+
+/// The plant as the nominal scene describes it: its rod, jets and nozzles, and the base tilt read
+/// off its gravity vector (which must lie in the base y–z plane).
+plant::PlantModel nominal_plant(const Scene& nominal) {
   if (!nominal.has_jets) throw SceneError("jets", "missing (the plant needs the jet geometry)");
-  plant::PlantParameters p;
+  plant::PlantModel p;
   p.rod.model = nominal.model;
   p.jets = nominal.jets;
   p.nozzle = nominal.nozzle;
-  // Per-jet hydraulics differ a little by default (three valves are never identical).
-  p.valves[0].max_flow = 1.60e-5, p.valves[0].dead_zone = 0.05, p.valves[0].time_constant = 0.04;
-  p.valves[1].max_flow = 1.52e-5, p.valves[1].dead_zone = 0.08, p.valves[1].time_constant = 0.05;
-  p.valves[2].max_flow = 1.66e-5, p.valves[2].dead_zone = 0.04, p.valves[2].time_constant = 0.035;
   const Eigen::Vector3d g = nominal.model.gravity;
   if (std::abs(g.x()) > 1e-9 * (1.0 + g.norm()))
     throw SceneError("gravity", "the plant tilts its base about x only: gravity[0] must be 0");
   p.gravity = g.norm();
   p.base_tilt = g.norm() > 0 ? std::atan2(g.y(), g.z()) : 0.0;
+  return p;
+}
 
-  // Default model mismatch: what the nominal (calibrated) model does not capture.
-  Eigen::Vector3d du(0.0, 0.0, 0.0), dmis(0.0, 0.0, 0.0);
-  double ei_scale = 1.0, gj_scale = 1.0, mass_scale = 1.0;
+/// The truth: the nominal plant with the mismatch applied.
+void apply_mismatch(const plant::ModelMismatch& m, plant::PlantModel* p) {
+  p->base_tilt += m.base_tilt_offset;
+  p->rod.model.rod.precurvature += m.precurvature_offset;
+  p->rod.model.rod.stiffness.head<2>() *= m.bending_stiffness_scale;
+  p->rod.model.rod.stiffness[2] *= m.torsional_stiffness_scale;
+  p->rod.model.tip_mass *= m.tip_mass_scale;
+  p->jets.misalignment += m.misalignment_offset;
+}
 
-  if (!text.empty()) {
-    YAML::Node root;
-    try {
-      root = YAML::Load(text);
-    } catch (const YAML::Exception& e) {
-      throw SceneError("plant", std::string("malformed YAML: ") + e.what());
-    }
-    Tree t(root, '.');
-    t.section("plant");
-    t.keys("plant", {"mismatch", "dynamics", "valves", "tracker", "flow_sensors", "sensor_noise", "command_timeout",
-                     "base_position"});
-    const std::string M = "plant.mismatch.";
-    t.keys("plant.mismatch", {"precurvature_offset", "bending_stiffness_scale", "torsional_stiffness_scale",
-                              "misalignment_offset", "tip_mass_scale", "base_tilt_offset"});
-    du = t.vec3(M + "precurvature_offset", du);
-    dmis = t.vec3(M + "misalignment_offset", dmis);
-    ei_scale = t.positive(M + "bending_stiffness_scale", ei_scale);
-    gj_scale = t.positive(M + "torsional_stiffness_scale", gj_scale);
-    mass_scale = t.nonnegative(M + "tip_mass_scale", mass_scale);
-    p.base_tilt += t.number(M + "base_tilt_offset", 0.0);
+}  // namespace
 
-    const std::string D = "plant.dynamics.";
-    t.keys("plant.dynamics", {"shear_stiffness", "axial_stiffness", "kelvin_voigt_time", "linear_drag", "tip_drag",
-                              "tip_angular_drag", "tip_inertia", "linear_density", "nodes", "internal_dt", "alpha"});
-    t.keys("plant.tracker",
-           {"position_sigma", "angle_sigma", "position_quantum", "latency", "dropout_rate", "dropout_duration"});
-    t.keys("plant.flow_sensors", {"sigma", "quantum"});
-    // Optional numbers: key (below its section) and where it lives.
-    const std::pair<std::string, double*> numbers[] = {
-        {D + "shear_stiffness", &p.rod.shear_stiffness},
-        {D + "axial_stiffness", &p.rod.axial_stiffness},
-        {D + "kelvin_voigt_time", &p.rod.kelvin_voigt_time},
-        {D + "linear_drag", &p.rod.linear_drag},
-        {D + "tip_drag", &p.rod.tip_drag},
-        {D + "tip_angular_drag", &p.rod.tip_angular_drag},
-        {D + "linear_density", &p.rod.model.rod.linear_density},
-        {D + "alpha", &p.rod.alpha},
-        {D + "internal_dt", &p.internal_dt},
-        {"plant.tracker.position_sigma", &p.tracker.position_sigma},
-        {"plant.tracker.angle_sigma", &p.tracker.angle_sigma},
-        {"plant.tracker.position_quantum", &p.tracker.position_quantum},
-        {"plant.tracker.latency", &p.tracker.latency},
-        {"plant.tracker.dropout_rate", &p.tracker.dropout_rate},
-        {"plant.tracker.dropout_duration", &p.tracker.dropout_duration},
-        {"plant.flow_sensors.sigma", &p.flow.sigma},
-        {"plant.flow_sensors.quantum", &p.flow.quantum},
-        {"plant.command_timeout", &p.command_timeout},
-    };
-    for (const auto& n : numbers) *n.second = t.number(n.first, *n.second);
-    p.rod.tip_inertia = t.vec3(D + "tip_inertia", p.rod.tip_inertia);
-    p.rod.nodes = t.integer(D + "nodes", p.rod.nodes);
-
-    if (t.has("plant.valves")) {
-      t.allow("plant.valves");
-      const YAML::Node v = t.find("plant.valves");
-      if (!v.IsSequence() || v.size() != 3) t.fail("plant.valves", "must be a list of 3 valve mappings");
-      for (int i = 0; i < 3; ++i) parse_valve(v[i], "plant.valves[" + std::to_string(i) + "]", &p.valves[i]);
-    }
-
-    p.sensor_noise = t.boolean("plant.sensor_noise", p.sensor_noise);
-    p.base_position = t.vec3("plant.base_position", p.base_position);
-  }
-  p.rod.model.rod.precurvature += du;
-  p.rod.model.rod.stiffness.head<2>() *= ei_scale;
-  p.rod.model.rod.stiffness[2] *= gj_scale;
-  p.rod.model.tip_mass *= mass_scale;
-  p.jets.misalignment += dmis;
+plant::PlantModel make_plant(const Scene& nominal, const std::string& text) {
+  plant::PlantModel p = nominal_plant(nominal);
+  plant::ModelMismatch mismatch;
+  if (!text.empty()) parse_plant_section(load_yaml(text), &mismatch, &p);
+  apply_mismatch(mismatch, &p);
   const std::string e = p.validate();
   if (!e.empty())
     throw SceneError("plant." + e.substr(0, e.find(':')),
@@ -123,7 +145,7 @@ plant::PlantParameters make_plant(const Scene& nominal, const std::string& text)
   return p;
 }
 
-plant::PlantParameters load_plant(const Scene& nominal, const std::string& path) {
+plant::PlantModel load_plant(const Scene& nominal, const std::string& path) {
   if (path.empty()) return make_plant(nominal, "");
   std::ifstream f(path);
   if (!f) throw SceneError("plant", "cannot read file '" + path + "'");

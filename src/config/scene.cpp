@@ -13,7 +13,7 @@ namespace {
 /// Scene keys are dotted paths ("rod.length"); errors are SceneError naming them.
 using Tree = YamlTree<SceneError>;
 
-void parse_rod(Tree& t, rod::RodParameters* p) {
+void parse_rod(Tree& t, rod::ElasticRod* p) {
   t.section("rod");
   t.keys("rod",
          {"length", "bending_stiffness", "torsional_stiffness", "youngs_modulus", "shear_modulus", "outer_diameter",
@@ -86,7 +86,7 @@ void parse_tip(Tree& t, Scene* s) {
   }
 }
 
-void parse_solver(Tree& t, rod::ShootingSettings* st) {
+void parse_solver(Tree& t, rod::ShootingOptions* st) {
   t.section("solver");
   t.keys("solver", {"integrator", "steps", "tolerance", "residual_tolerance", "max_iterations",
                     "max_continuation_steps", "shooting_segments", "accuracy_tolerance"});
@@ -158,9 +158,9 @@ Scene load_scene(const std::string& path) {
 namespace hydrojet {
 namespace config {
 
-control::ControllerModel make_controller_model(const Scene& scene, const actuation::FlowRegulatorParameters& flow) {
+control::RobotModel make_controller_model(const Scene& scene, const actuation::FlowRegulatorOptions& flow) {
   if (!scene.has_jets) throw SceneError("jets", "missing (the controller needs the jet geometry)");
-  control::ControllerModel m;
+  control::RobotModel m;
   m.rod = scene.model;
   m.solver = scene.solver;
   m.actuated = scene.actuated;

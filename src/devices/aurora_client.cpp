@@ -49,7 +49,7 @@ std::string aurora_comm_params(int baud) {
   }
 }
 
-std::string AuroraConfig::validate() const {
+std::string AuroraOptions::validate() const {
   if (port.empty()) return "port: must not be empty";
   if (aurora_comm_params(baud).empty())
     return "baud: " + std::to_string(baud) + " is not one of 9600, 19200, 38400, 57600, 115200, 921600";
@@ -85,86 +85,30 @@ bool AuroraStatus::handle_ok(const HandleStats& h, SteadyTime now, double timeou
   return h.ever_valid && h.last_status == HandlePose::kValid && seconds_between(h.last_valid, now) <= timeout;
 }
 
-AuroraClient::AuroraClient(const AuroraConfig& config, SampleCallback on_sample, LogCallback log)
-    : cfg_(config), on_sample_(std::move(on_sample)), log_(std::move(log)), parser_(config.out_of_volume_mask) {
+AuroraClient::AuroraClient(const AuroraOptions& config, SampleCallback on_sample, LogCallback log)
+    : cfg_(config),
+      on_sample_(std::move(on_sample)),
+      parser_(config.out_of_volume_mask),
+      worker_(*this, mu_, status_, "tracker", config.reconnect_period, std::move(log)) {
   const std::string err = cfg_.validate();
   if (!err.empty()) throw std::invalid_argument("tracker: " + err);
 }
 
 AuroraClient::~AuroraClient() { stop(); }
 
-void AuroraClient::start() {
-  if (thread_.joinable()) return;
-  stop_ = false;
-  closing_ = false;
-  {
-    std::lock_guard<std::mutex> l(mu_);
-    status_.state = LinkState::kDisconnected;
-    status_.message = "starting";
-  }
-  thread_ = std::thread(&AuroraClient::run, this);
-}
-
-void AuroraClient::stop() {
-  if (!thread_.joinable()) return;
-  {
-    std::lock_guard<std::mutex> l(wait_mu_);
-    stop_ = true;
-  }
-  wait_cv_.notify_all();
-  thread_.join();
-}
-
 AuroraStatus AuroraClient::status() const {
   std::lock_guard<std::mutex> l(mu_);
   return status_;
 }
 
-void AuroraClient::log(LogLevel level, const std::string& msg) {
-  if (log_) log_(level, msg);
+bool AuroraClient::run_session(std::string* fault) {
+  if (!connect(fault)) return false;
+  worker_.log(LogLevel::kInfo, "tracking on " + cfg_.port);
+  track(fault);
+  return true;
 }
 
-void AuroraClient::set_state(LinkState s, const std::string& msg) {
-  std::lock_guard<std::mutex> l(mu_);
-  status_.state = s;
-  status_.message = msg;
-}
-
-void AuroraClient::fault(const std::string& msg, bool log_it) {
-  {
-    std::lock_guard<std::mutex> l(mu_);
-    status_.state = LinkState::kDisconnected;
-    status_.tracking = false;
-    status_.last_error = msg;
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "; retrying every %.1f s", cfg_.reconnect_period);
-    status_.message = msg + buf;
-  }
-  if (log_it) log(LogLevel::kWarn, "tracker: " + msg);
-}
-
-bool AuroraClient::sleep_for(double s) {
-  std::unique_lock<std::mutex> l(wait_mu_);
-  return !wait_cv_.wait_for(l, seconds(s), [this] { return stop_.load(); });
-}
-
-void AuroraClient::run() {
-  std::string last_logged;
-  while (!stopping()) {
-    std::string err;
-    const bool connected = connect(&err);
-    if (connected) {
-      log(LogLevel::kInfo, "tracker: tracking on " + cfg_.port);
-      track(&err);
-    }
-    if (stopping()) break;
-    port_.close();
-    if (err.empty()) err = "connection lost";
-    // Log a repeated failure once, not every second.
-    fault(err, err != last_logged || connected);
-    last_logged = err;
-    sleep_for(cfg_.reconnect_period);
-  }
+void AuroraClient::shut_down() {
   bool was_tracking;
   {
     std::lock_guard<std::mutex> l(mu_);
@@ -174,19 +118,16 @@ void AuroraClient::run() {
     closing_ = true;  // read TSTOP's reply although stopping
     std::string reply, err;
     if (command("TSTOP", "", &reply, &err, 0.5))
-      log(LogLevel::kInfo, "tracker: TSTOP, tracking stopped");
+      worker_.log(LogLevel::kInfo, "TSTOP, tracking stopped");
     else
-      log(LogLevel::kWarn, "tracker: TSTOP failed: " + err);
+      worker_.log(LogLevel::kWarn, "TSTOP failed: " + err);
+    closing_ = false;
   }
   port_.close();
-  std::lock_guard<std::mutex> l(mu_);
-  status_.state = LinkState::kStopped;
-  status_.tracking = false;
-  status_.message = "stopped";
 }
 
 bool AuroraClient::connect(std::string* err) {
-  set_state(LinkState::kConnecting, "opening " + cfg_.port);
+  worker_.set_link(LinkState::kConnecting, "opening " + cfg_.port);
   auto fail = [&](const std::string& e) {
     *err = e;
     std::lock_guard<std::mutex> l(mu_);
@@ -198,19 +139,19 @@ bool AuroraClient::connect(std::string* err) {
   parser_.reset();
   have_tip_frame_ = have_base_frame_ = false;
 
-  set_state(LinkState::kConnecting, "resetting (BREAK)");
+  worker_.set_link(LinkState::kConnecting, "resetting (BREAK)");
   if (!reset_device(&e)) return fail(e);
   std::string reply;
   if (cfg_.baud != 9600) {
-    set_state(LinkState::kConnecting, "COMM " + std::to_string(cfg_.baud));
+    worker_.set_link(LinkState::kConnecting, "COMM " + std::to_string(cfg_.baud));
     if (!command("COMM", aurora_comm_params(cfg_.baud), &reply, &e, cfg_.command_timeout)) return fail(e);
     if (!okay_text(reply)) return fail("COMM: unexpected reply '" + reply + "'");
     if (!port_.set_baud(cfg_.baud, &e)) return fail(e);
     // The device switches after its OKAY; give it time before the first byte at the new rate.
-    if (!sleep_for(0.1)) return fail("stopping");
+    if (!worker_.sleep_for(0.1)) return fail("stopping");
     port_.flush_input();
   }
-  set_state(LinkState::kConnecting, "INIT");
+  worker_.set_link(LinkState::kConnecting, "INIT");
   if (!command("INIT", "", &reply, &e, cfg_.command_timeout)) return fail(e);
   if (!okay_text(reply)) return fail("INIT: unexpected reply '" + reply + "'");
 
@@ -226,7 +167,7 @@ bool AuroraClient::connect(std::string* err) {
   if (!handle_list("02", &to_init, &e)) return fail(e);
   for (uint8_t h : {cfg_.tip_handle, cfg_.base_handle}) {
     if (!contains(to_init, h)) continue;
-    set_state(LinkState::kConnecting, "PINIT " + hex2(h));
+    worker_.set_link(LinkState::kConnecting, "PINIT " + hex2(h));
     if (!command("PINIT", hex2(h), &reply, &e, cfg_.command_timeout)) return fail(e);
     if (!okay_text(reply)) return fail("PINIT " + hex2(h) + ": unexpected reply '" + reply + "'");
   }
@@ -373,7 +314,7 @@ void AuroraClient::track(std::string* err) {
   while (!stopping()) {
     SteadyTime now = SteadyClock::now();
     if (next > now) {
-      if (!sleep_for(seconds_between(now, next))) return;
+      if (!worker_.sleep_for(seconds_between(now, next))) return;
     } else if (seconds_between(next, now) > period) {
       next = now;  // fell behind (a fault, a slow reply): do not burst
     }

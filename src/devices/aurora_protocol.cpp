@@ -226,6 +226,92 @@ const HandlePose* BxFrame::find(uint8_t handle) const {
   return nullptr;
 }
 
+namespace {
+
+/// The 32-byte transform of a valid handle: quaternion (normalised), position [mm -> m], RMS error.
+bool decode_transform(const uint8_t* data, HandlePose* h, std::string* err) {
+  float v[8];
+  for (int k = 0; k < 8; ++k) {
+    v[k] = lef32(data + 4 * k);
+    if (!std::isfinite(v[k])) {
+      set_err(err, "BX handle " + std::to_string(h->handle) + " has a non-finite value");
+      return false;
+    }
+  }
+  const double norm = std::sqrt(double(v[0]) * v[0] + double(v[1]) * v[1] + double(v[2]) * v[2] + double(v[3]) * v[3]);
+  if (std::fabs(norm - 1.0) > 1e-2) {
+    set_err(err, "BX handle " + std::to_string(h->handle) + " quaternion norm " + std::to_string(norm) + " is not 1");
+    return false;
+  }
+  if (v[7] < 0.0f) {
+    set_err(err, "BX handle " + std::to_string(h->handle) + " has a negative rms error");
+    return false;
+  }
+  for (int k = 0; k < 4; ++k) h->q[k] = double(v[k]) / norm;
+  for (int k = 0; k < 3; ++k) h->t[k] = double(v[4 + k]) * kMmToM;
+  h->rms_m = double(v[7]) * kMmToM;
+  return true;
+}
+
+/// Handle entry `index` at body[*p]: handle, status byte, [transform,] port status, frame number.
+/// Advances *p past it.
+bool decode_handle(const uint8_t* body, size_t n, size_t index, uint32_t out_of_volume_mask, size_t* p, HandlePose* h,
+                   std::string* err) {
+  if (*p + 2 > n) {
+    set_err(err, "BX body ends inside handle entry " + std::to_string(index));
+    return false;
+  }
+  h->handle = body[*p];
+  const uint8_t st = body[*p + 1];
+  *p += 2;
+  clear_pose(h);
+  if (st == kBxHandleDisabled) {
+    h->status = HandlePose::kDisabled;
+    h->port_status = 0;
+    h->frame = 0;
+    return true;
+  }
+  if (st != kBxHandleValid && st != kBxHandleMissing) {
+    set_err(err, "BX handle " + std::to_string(h->handle) + " has unknown status byte " + std::to_string(st));
+    return false;
+  }
+  const size_t need = (st == kBxHandleValid ? 32 : 0) + 8;
+  if (*p + need > n) {
+    set_err(err, "BX body ends inside handle " + std::to_string(h->handle));
+    return false;
+  }
+  if (st == kBxHandleValid) {
+    if (!decode_transform(body + *p, h, err)) return false;
+    *p += 32;
+  }
+  h->port_status = le32(body + *p);
+  h->frame = le32(body + *p + 4);
+  *p += 8;
+  if (h->port_status & out_of_volume_mask)
+    h->status = HandlePose::kOutOfVolume;
+  else
+    h->status = (st == kBxHandleValid) ? HandlePose::kValid : HandlePose::kMissing;
+  return true;
+}
+
+/// What follows the handles: nothing, or the 2-byte system status.
+bool decode_system_status(const uint8_t* body, size_t n, size_t p, BxFrame* f, std::string* err) {
+  if (p == n) {
+    f->has_system_status = false;
+    f->system_status = 0;
+  } else if (p + 2 == n) {
+    f->has_system_status = true;
+    f->system_status = le16(body + p);
+  } else {
+    set_err(err, "BX body has " + std::to_string(n - p) +
+                     " unexpected trailing bytes (expected 0 or a 2-byte system status)");
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
 bool decode_bx_body(const uint8_t* body, size_t n, uint32_t out_of_volume_mask, BxFrame* out, std::string* err) {
   if (n < 1) {
     set_err(err, "BX body is empty");
@@ -236,76 +322,11 @@ bool decode_bx_body(const uint8_t* body, size_t n, uint32_t out_of_volume_mask, 
   size_t p = 1;
   f.handles.reserve(count);
   for (size_t i = 0; i < count; ++i) {
-    if (p + 2 > n) {
-      set_err(err, "BX body ends inside handle entry " + std::to_string(i));
-      return false;
-    }
     HandlePose h;
-    h.handle = body[p];
-    const uint8_t st = body[p + 1];
-    p += 2;
-    clear_pose(&h);
-    if (st == kBxHandleDisabled) {
-      h.status = HandlePose::kDisabled;
-      h.port_status = 0;
-      h.frame = 0;
-      f.handles.push_back(h);
-      continue;
-    }
-    if (st != kBxHandleValid && st != kBxHandleMissing) {
-      set_err(err, "BX handle " + std::to_string(h.handle) + " has unknown status byte " + std::to_string(st));
-      return false;
-    }
-    const size_t need = (st == kBxHandleValid ? 32 : 0) + 8;
-    if (p + need > n) {
-      set_err(err, "BX body ends inside handle " + std::to_string(h.handle));
-      return false;
-    }
-    if (st == kBxHandleValid) {
-      float v[8];
-      for (int k = 0; k < 8; ++k) {
-        v[k] = lef32(body + p + 4 * k);
-        if (!std::isfinite(v[k])) {
-          set_err(err, "BX handle " + std::to_string(h.handle) + " has a non-finite value");
-          return false;
-        }
-      }
-      const double norm =
-          std::sqrt(double(v[0]) * v[0] + double(v[1]) * v[1] + double(v[2]) * v[2] + double(v[3]) * v[3]);
-      if (std::fabs(norm - 1.0) > 1e-2) {
-        set_err(err,
-                "BX handle " + std::to_string(h.handle) + " quaternion norm " + std::to_string(norm) + " is not 1");
-        return false;
-      }
-      if (v[7] < 0.0f) {
-        set_err(err, "BX handle " + std::to_string(h.handle) + " has a negative rms error");
-        return false;
-      }
-      for (int k = 0; k < 4; ++k) h.q[k] = double(v[k]) / norm;
-      for (int k = 0; k < 3; ++k) h.t[k] = double(v[4 + k]) * kMmToM;
-      h.rms_m = double(v[7]) * kMmToM;
-      p += 32;
-    }
-    h.port_status = le32(body + p);
-    h.frame = le32(body + p + 4);
-    p += 8;
-    if (h.port_status & out_of_volume_mask)
-      h.status = HandlePose::kOutOfVolume;
-    else
-      h.status = (st == kBxHandleValid) ? HandlePose::kValid : HandlePose::kMissing;
+    if (!decode_handle(body, n, i, out_of_volume_mask, &p, &h, err)) return false;
     f.handles.push_back(h);
   }
-  if (p == n) {
-    f.has_system_status = false;
-    f.system_status = 0;
-  } else if (p + 2 == n) {
-    f.has_system_status = true;
-    f.system_status = le16(body + p);
-  } else {
-    set_err(err, "BX body has " + std::to_string(n - p) +
-                     " unexpected trailing bytes (expected 0 or a 2-byte system status)");
-    return false;
-  }
+  if (!decode_system_status(body, n, p, &f, err)) return false;
   if (out) *out = std::move(f);
   return true;
 }

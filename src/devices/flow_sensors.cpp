@@ -14,7 +14,7 @@ bool positive_finite(double x) { return std::isfinite(x) && x > 0.0; }
 
 }  // namespace
 
-std::string FlowSensorConfig::validate() const {
+std::string FlowSensorOptions::validate() const {
   if (port.empty()) return "port: must not be empty";
   if (!is_supported_baud(baud)) return "baud: " + std::to_string(baud) + " is not a supported rate";
   if (!positive_finite(format.scale_to_m3_per_s)) return "scale: the unit scale to m^3/s must be finite and > 0";
@@ -34,87 +34,41 @@ std::string FlowSensorConfig::validate() const {
   return "";
 }
 
-FlowSensor::FlowSensor(const FlowSensorConfig& config, ReadingCallback on_reading, LogCallback log)
-    : cfg_(config), on_reading_(std::move(on_reading)), log_(std::move(log)) {
+FlowSensor::FlowSensor(const FlowSensorOptions& config, ReadingCallback on_reading, LogCallback log)
+    : cfg_(config),
+      on_reading_(std::move(on_reading)),
+      worker_(*this, mu_, status_, config.name, config.reconnect_period, std::move(log)) {
   const std::string err = cfg_.validate();
   if (!err.empty()) throw std::invalid_argument(cfg_.name + ": " + err);
 }
 
 FlowSensor::~FlowSensor() { stop(); }
 
-void FlowSensor::start() {
-  if (thread_.joinable()) return;
-  stop_ = false;
-  {
-    std::lock_guard<std::mutex> l(mu_);
-    status_.state = LinkState::kDisconnected;
-    status_.message = "starting";
-  }
-  thread_ = std::thread(&FlowSensor::run, this);
-}
-
-void FlowSensor::stop() {
-  if (!thread_.joinable()) return;
-  {
-    std::lock_guard<std::mutex> l(wait_mu_);
-    stop_ = true;
-  }
-  wait_cv_.notify_all();
-  thread_.join();
-}
-
 FlowSensorStatus FlowSensor::status() const {
   std::lock_guard<std::mutex> l(mu_);
   return status_;
 }
 
-bool FlowSensor::sleep_for(double s) {
-  std::unique_lock<std::mutex> l(wait_mu_);
-  return !wait_cv_.wait_for(l, seconds(s), [this] { return stop_.load(); });
+bool FlowSensor::run_session(std::string* fault) {
+  worker_.set_link(LinkState::kConnecting, "opening " + cfg_.port);
+  if (!open_port(fault)) {
+    std::lock_guard<std::mutex> l(mu_);
+    ++status_.connect_failures;
+    return false;
+  }
+  {
+    std::lock_guard<std::mutex> l(mu_);
+    ++status_.connects;
+    status_.message = "waiting for data";
+  }
+  worker_.log(LogLevel::kInfo, "port " + cfg_.port + " open");
+  *fault = stream();
+  return true;
 }
 
-void FlowSensor::run() {
-  std::string last_logged;
-  while (!stop_) {
-    {
-      std::lock_guard<std::mutex> l(mu_);
-      status_.state = LinkState::kConnecting;
-      status_.message = "opening " + cfg_.port;
-    }
-    std::string err;
-    bool opened = port_.open(cfg_.port, cfg_.baud, &err);
-    if (opened && !cfg_.start_command.empty()) opened = port_.write_all(cfg_.start_command, 0.5, &err);
-    if (opened) {
-      {
-        std::lock_guard<std::mutex> l(mu_);
-        ++status_.connects;
-        status_.message = "waiting for data";
-      }
-      if (log_) log_(LogLevel::kInfo, cfg_.name + ": port " + cfg_.port + " open");
-      err = stream();
-      last_logged.clear();
-    } else {
-      std::lock_guard<std::mutex> l(mu_);
-      ++status_.connect_failures;
-    }
-    port_.close();
-    if (stop_) break;
-    {
-      std::lock_guard<std::mutex> l(mu_);
-      status_.state = LinkState::kDisconnected;
-      status_.last_error = err;
-      char buf[64];
-      std::snprintf(buf, sizeof buf, "; retrying every %.1f s", cfg_.reconnect_period);
-      status_.message = err + buf;
-    }
-    if (err != last_logged && log_) log_(LogLevel::kWarn, cfg_.name + ": " + err);
-    last_logged = err;
-    sleep_for(cfg_.reconnect_period);
-  }
-  port_.close();
-  std::lock_guard<std::mutex> l(mu_);
-  status_.state = LinkState::kStopped;
-  status_.message = "stopped";
+bool FlowSensor::open_port(std::string* err) {
+  if (!port_.open(cfg_.port, cfg_.baud, err)) return false;
+  return cfg_.start_command.empty() || port_.write_all(cfg_.start_command, 0.5, err);
 }
 
 std::string FlowSensor::stream() {
@@ -123,37 +77,14 @@ std::string FlowSensor::stream() {
   SteadyTime last_ok = SteadyClock::now();  // silence clock starts at open
   uint64_t discarded_seen = 0;
   uint8_t buf[512];
-  while (!stop_) {
+  while (!worker_.stopping()) {
     size_t n = 0;
     std::string e;
     const auto st = port_.read_some(buf, sizeof buf, 0.05, &n, &e);
     if (st == SerialPort::ReadStatus::kHangup || st == SerialPort::ReadStatus::kError) return e;
     if (n > 0) lines.feed(buf, n);
     std::string line;
-    while (lines.next(&line)) {
-      FlowReading r;
-      r.time = SteadyClock::now();
-      double q = 0.0;
-      r.accepted = parse_flow_line(line, cfg_.format, &q, &r.error);
-      r.flow = r.accepted ? q : std::numeric_limits<double>::quiet_NaN();
-      {
-        std::lock_guard<std::mutex> l(mu_);
-        ++status_.lines;
-        if (r.accepted) {
-          ++status_.accepted;
-          status_.last_accepted = r.time;
-          status_.ever_accepted = true;
-          status_.last_flow = q;
-          status_.state = LinkState::kRunning;
-          status_.message = "streaming";
-        } else {
-          ++status_.rejected;
-          status_.last_error = "rejected line '" + line.substr(0, 40) + "': " + r.error;
-        }
-      }
-      if (r.accepted) last_ok = r.time;
-      if (on_reading_) on_reading_(r);
-    }
+    while (lines.next(&line)) deliver_line(line, &last_ok);
     if (lines.discarded() != discarded_seen) {
       std::lock_guard<std::mutex> l(mu_);
       status_.discarded += lines.discarded() - discarded_seen;
@@ -168,6 +99,31 @@ std::string FlowSensor::stream() {
     }
   }
   return "stopped";
+}
+
+void FlowSensor::deliver_line(const std::string& line, SteadyTime* last_accepted) {
+  FlowReading r;
+  r.time = SteadyClock::now();
+  double q = 0.0;
+  r.accepted = parse_flow_line(line, cfg_.format, &q, &r.error);
+  r.flow = r.accepted ? q : std::numeric_limits<double>::quiet_NaN();
+  {
+    std::lock_guard<std::mutex> l(mu_);
+    ++status_.lines;
+    if (r.accepted) {
+      ++status_.accepted;
+      status_.last_accepted = r.time;
+      status_.ever_accepted = true;
+      status_.last_flow = q;
+      status_.state = LinkState::kRunning;
+      status_.message = "streaming";
+    } else {
+      ++status_.rejected;
+      status_.last_error = "rejected line '" + line.substr(0, 40) + "': " + r.error;
+    }
+  }
+  if (r.accepted) *last_accepted = r.time;
+  if (on_reading_) on_reading_(r);
 }
 
 // ---------------------------------------------------------------------------------------------

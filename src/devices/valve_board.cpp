@@ -13,6 +13,11 @@ namespace {
 
 bool positive_finite(double x) { return std::isfinite(x) && x > 0.0; }
 
+std::unique_ptr<ValveDriver> require_driver(std::unique_ptr<ValveDriver> driver) {
+  if (!driver) throw std::invalid_argument("valves: no valve driver");
+  return driver;
+}
+
 std::string duty_text(const Duty& d) {
   char b[64];
   std::snprintf(b, sizeof b, "%.4f, %.4f, %.4f", d[0], d[1], d[2]);
@@ -25,14 +30,14 @@ std::string duty_text(const Duty& d) {
 // SerialValveBoard
 // ---------------------------------------------------------------------------------------------
 
-std::string SerialValveBoardConfig::validate() const {
+std::string SerialValveBoardOptions::validate() const {
   if (port.empty()) return "port: must not be empty";
   if (!is_supported_baud(baud)) return "baud: " + std::to_string(baud) + " is not a supported rate";
   if (!positive_finite(ack_timeout) || ack_timeout > 1.0) return "ack_timeout: must lie in (0, 1] s";
   return "";
 }
 
-SerialValveBoard::SerialValveBoard(const SerialValveBoardConfig& config) : cfg_(config) {
+SerialValveBoard::SerialValveBoard(const SerialValveBoardOptions& config) : cfg_(config) {
   const std::string err = cfg_.validate();
   if (!err.empty()) throw std::invalid_argument("valves: " + err);
 }
@@ -131,7 +136,7 @@ Duty CommandGate::duty(SteadyTime now, bool devices_ok, const std::string& devic
 // ValveLoop
 // ---------------------------------------------------------------------------------------------
 
-std::string ValveLoopConfig::validate() const {
+std::string ValveLoopOptions::validate() const {
   if (!(positive_finite(rate) && rate <= 1000.0)) return "rate: must lie in (0, 1000] Hz";
   if (!positive_finite(command_timeout)) return "command_timeout: must be finite and > 0";
   if (max_failures < 1) return "max_failures: must be >= 1";
@@ -139,15 +144,14 @@ std::string ValveLoopConfig::validate() const {
   return "";
 }
 
-ValveLoop::ValveLoop(std::unique_ptr<ValveDriver> driver, const ValveLoopConfig& config, HealthFn health,
+ValveLoop::ValveLoop(std::unique_ptr<ValveDriver> driver, const ValveLoopOptions& config, HealthFn health,
                      AppliedCallback on_applied, LogCallback log)
-    : driver_(std::move(driver)),
+    : driver_(require_driver(std::move(driver))),
       cfg_(config),
       health_(std::move(health)),
       on_applied_(std::move(on_applied)),
-      log_(std::move(log)),
-      gate_(config.command_timeout) {
-  if (!driver_) throw std::invalid_argument("valves: no valve driver");
+      gate_(config.command_timeout),
+      worker_(*this, mu_, status_, driver_->describe(), config.reconnect_period, std::move(log)) {
   const std::string err = cfg_.validate();
   if (!err.empty()) throw std::invalid_argument("valves: " + err);
 }
@@ -162,193 +166,125 @@ void ValveLoop::command(const Duty& duty) {
   notify();
 }
 
-void ValveLoop::notify() {
-  {
-    std::lock_guard<std::mutex> l(wait_mu_);
-    pending_ = true;
-  }
-  wait_cv_.notify_all();
-}
-
-void ValveLoop::start() {
-  if (thread_.joinable()) return;
-  stop_ = false;
-  {
-    std::lock_guard<std::mutex> l(mu_);
-    status_.state = LinkState::kDisconnected;
-    status_.message = "starting";
-  }
-  thread_ = std::thread(&ValveLoop::run, this);
-}
-
-void ValveLoop::stop() {
-  if (!thread_.joinable()) return;
-  {
-    std::lock_guard<std::mutex> l(wait_mu_);
-    stop_ = true;
-  }
-  wait_cv_.notify_all();
-  thread_.join();
-}
-
 ValveStatus ValveLoop::status() const {
   std::lock_guard<std::mutex> l(mu_);
   return status_;
 }
 
-bool ValveLoop::wait(double s) {
-  std::unique_lock<std::mutex> l(wait_mu_);
-  wait_cv_.wait_for(l, seconds(s), [this] { return stop_.load() || pending_; });
-  pending_ = false;
-  return !stop_;
+bool ValveLoop::run_session(std::string* fault) {
+  if (!connect(fault)) return false;
+  exchange(fault);
+  return true;
 }
 
-void ValveLoop::set_fault(const std::string& msg, bool log_it) {
+bool ValveLoop::connect(std::string* err) {
   {
     std::lock_guard<std::mutex> l(mu_);
-    status_.state = LinkState::kDisconnected;
-    status_.healthy = false;
-    status_.last_error = msg;
-    char b[64];
-    std::snprintf(b, sizeof b, "; retrying every %.1f s", cfg_.reconnect_period);
-    status_.message = msg + b;
+    status_.state = LinkState::kConnecting;
   }
-  if (log_it && log_) log_(LogLevel::kWarn, driver_->describe() + ": " + msg);
+  Duty applied{};
+  bool ok = driver_->open(err);
+  if (ok) {
+    // Healthy again only once the board acknowledged closed valves.
+    ok = driver_->apply(Duty{}, &applied, err) == ValveDriver::Result::kApplied;
+    if (!ok) *err = "after reconnecting: " + *err;
+  }
+  if (!ok) {
+    driver_->close();
+    std::lock_guard<std::mutex> l(mu_);
+    ++status_.connect_failures;
+    return false;
+  }
+  const SteadyTime now = SteadyClock::now();
+  {
+    std::lock_guard<std::mutex> l(mu_);
+    ++status_.connects;
+    ++status_.sent;
+    record_ack(applied, now);
+  }
+  worker_.log(LogLevel::kInfo, "connected, valves closed");
+  if (on_applied_) on_applied_(applied, now);
+  return true;
 }
 
-void ValveLoop::run() {
+void ValveLoop::exchange(std::string* fault) {
   const double period = 1.0 / cfg_.rate;
-  std::string last_logged;
   int failures = 0;
-  auto sleep_reconnect = [&] {
-    std::unique_lock<std::mutex> l(wait_mu_);
-    wait_cv_.wait_for(l, seconds(cfg_.reconnect_period), [this] { return stop_.load(); });
-  };
-  while (!stop_) {
-    if (!driver_->is_open()) {
-      {
-        std::lock_guard<std::mutex> l(mu_);
-        status_.state = LinkState::kConnecting;
-      }
-      std::string err;
-      Duty applied{};
-      bool ok = driver_->open(&err);
-      if (ok) {
-        // Healthy again only once the board acknowledged closed valves.
-        const auto r = driver_->apply(Duty{}, &applied, &err);
-        ok = r == ValveDriver::Result::kApplied;
-        if (!ok) err = "after reconnecting: " + err;
-      }
-      if (!ok) {
-        driver_->close();
-        {
-          std::lock_guard<std::mutex> l(mu_);
-          ++status_.connect_failures;
-        }
-        set_fault(err, err != last_logged);
-        last_logged = err;
-        sleep_reconnect();
-        continue;
-      }
-      const SteadyTime now = SteadyClock::now();
-      {
-        std::lock_guard<std::mutex> l(mu_);
-        ++status_.connects;
-        ++status_.sent;
-        ++status_.acknowledged_count;
-        status_.state = LinkState::kRunning;
-        status_.healthy = true;
-        status_.message = "acknowledging";
-        status_.acknowledged = applied;
-        status_.ever_acknowledged = true;
-        status_.last_ack = now;
-      }
-      if (log_) log_(LogLevel::kInfo, driver_->describe() + ": connected, valves closed");
-      if (on_applied_) on_applied_(applied, now);
-      last_logged.clear();
-      failures = 0;
-    }
-    if (!wait(period)) break;
-
-    std::string dev_reason, reason;
-    const bool devices_ok = health_ ? health_(&dev_reason) : true;
-    Duty duty;
-    {
-      std::lock_guard<std::mutex> l(mu_);
-      duty = gate_.duty(SteadyClock::now(), devices_ok, dev_reason, &reason);
-      status_.gate_open = reason.empty();
-      status_.gate_reason = reason;
-    }
-    Duty applied{};
+  while (driver_->is_open() && worker_.wait_for_wake(period)) {
     std::string err;
-    const auto r = driver_->apply(duty, &applied, &err);
-    const SteadyTime now = SteadyClock::now();
-    {
-      std::lock_guard<std::mutex> l(mu_);
-      ++status_.sent;
-      switch (r) {
-        case ValveDriver::Result::kApplied:
-          ++status_.acknowledged_count;
-          status_.acknowledged = applied;
-          status_.ever_acknowledged = true;
-          status_.last_ack = now;
-          status_.healthy = true;
-          status_.state = LinkState::kRunning;
-          status_.message = "acknowledging";
-          break;
-        case ValveDriver::Result::kNoReply:
-          ++status_.no_reply;
-          status_.last_error = err;
-          break;
-        case ValveDriver::Result::kRejected:
-          ++status_.rejected;
-          status_.last_error = err;
-          break;
-        case ValveDriver::Result::kHangup: ++status_.hangups; break;
-      }
-    }
+    const ValveDriver::Result r = send_gated_duty(&err);
     if (r == ValveDriver::Result::kApplied) {
       failures = 0;
-      if (on_applied_) on_applied_(applied, now);
-      continue;
-    }
-    if (r == ValveDriver::Result::kHangup) {
-      driver_->close();
-      set_fault(err, true);
-      last_logged = err;
-      sleep_reconnect();
-      continue;
-    }
-    if (++failures >= cfg_.max_failures) {
-      driver_->close();
-      const std::string msg = std::to_string(failures) + " commands in a row not acknowledged (" + err + ")";
-      set_fault(msg, true);
-      last_logged = msg;
-      failures = 0;
-      sleep_reconnect();
+    } else if (r == ValveDriver::Result::kHangup) {
+      *fault = err;
+      return;
+    } else if (++failures >= cfg_.max_failures) {
+      *fault = std::to_string(failures) + " commands in a row not acknowledged (" + err + ")";
+      return;
     }
   }
+}
+
+Duty ValveLoop::gated_duty() {
+  std::string devices_reason, reason;
+  const bool devices_ok = health_ ? health_(&devices_reason) : true;
+  std::lock_guard<std::mutex> l(mu_);
+  const Duty duty = gate_.duty(SteadyClock::now(), devices_ok, devices_reason, &reason);
+  status_.gate_open = reason.empty();
+  status_.gate_reason = reason;
+  return duty;
+}
+
+ValveDriver::Result ValveLoop::send_gated_duty(std::string* err) {
+  const Duty duty = gated_duty();
+  Duty applied{};
+  const ValveDriver::Result r = driver_->apply(duty, &applied, err);
+  const SteadyTime now = SteadyClock::now();
+  {
+    std::lock_guard<std::mutex> l(mu_);
+    ++status_.sent;
+    switch (r) {
+      case ValveDriver::Result::kApplied: record_ack(applied, now); break;
+      case ValveDriver::Result::kNoReply:
+        ++status_.no_reply;
+        status_.last_error = *err;
+        break;
+      case ValveDriver::Result::kRejected:
+        ++status_.rejected;
+        status_.last_error = *err;
+        break;
+      case ValveDriver::Result::kHangup: ++status_.hangups; break;
+    }
+  }
+  if (r == ValveDriver::Result::kApplied && on_applied_) on_applied_(applied, now);
+  return r;
+}
+
+void ValveLoop::record_ack(const Duty& applied, SteadyTime when) {
+  ++status_.acknowledged_count;
+  status_.acknowledged = applied;
+  status_.ever_acknowledged = true;
+  status_.last_ack = when;
+  status_.healthy = true;
+  status_.state = LinkState::kRunning;
+  status_.message = "acknowledging";
+}
+
+void ValveLoop::shut_down() {
   if (driver_->is_open()) {
     Duty applied{};
     std::string err;
     const auto r = driver_->apply(Duty{}, &applied, &err);
-    if (log_) {
-      if (r == ValveDriver::Result::kApplied)
-        log_(LogLevel::kInfo, driver_->describe() + ": valves closed on shutdown");
-      else
-        log_(LogLevel::kWarn, driver_->describe() + ": closing valves on shutdown failed: " + err);
-    }
     if (r == ValveDriver::Result::kApplied) {
+      worker_.log(LogLevel::kInfo, "valves closed on shutdown");
       std::lock_guard<std::mutex> l(mu_);
       status_.acknowledged = applied;
       status_.last_ack = SteadyClock::now();
+    } else {
+      worker_.log(LogLevel::kWarn, "closing valves on shutdown failed: " + err);
     }
   }
   driver_->close();
-  std::lock_guard<std::mutex> l(mu_);
-  status_.state = LinkState::kStopped;
-  status_.healthy = false;
-  status_.message = "stopped";
 }
 
 }  // namespace devices

@@ -35,8 +35,8 @@ std::string bad_vec(const char* name, const char* what, const Vec3& v) {
 
 }  // namespace
 
-std::string DynamicRodParameters::validate() const {
-  const rod::RodParameters& r = model.rod;
+std::string DynamicRodModel::validate() const {
+  const rod::ElasticRod& r = model.rod;
   if (!finite_pos(r.length)) return bad("model.rod.length", "must be positive and finite", r.length);
   if (!r.stiffness.allFinite() || (r.stiffness.array() <= 0.0).any())
     return bad_vec("model.rod.stiffness", "must be positive and finite", r.stiffness);
@@ -69,23 +69,23 @@ std::string DynamicRodParameters::validate() const {
   return std::string();
 }
 
-DynamicRod::DynamicRod(const DynamicRodParameters& params) : params_(params) {
-  const std::string err = params_.validate();
-  if (!err.empty()) throw std::invalid_argument("DynamicRodParameters: " + err);
-  const rod::RodParameters& r = params_.model.rod;
+DynamicRod::DynamicRod(const DynamicRodModel& model) : model_(model) {
+  const std::string err = model_.validate();
+  if (!err.empty()) throw std::invalid_argument("DynamicRodModel: " + err);
+  const rod::ElasticRod& r = model_.model.rod;
   length_ = r.length;
-  steps_ = params_.nodes - 1;
+  steps_ = model_.nodes - 1;
   h_ = length_ / steps_;
   slots_ = 4 * steps_ + 1;  // four RK4 stages per step, plus the tip
-  // Uniform rod: K(s) and ũ(s) are taken at s = 0 (RodParameters' seams are uniform today).
-  k_se_ = Vec3(params_.shear_stiffness, params_.shear_stiffness, params_.axial_stiffness);
+  // Uniform rod: K(s) and ũ(s) are taken at s = 0 (ElasticRod's seams are uniform today).
+  k_se_ = Vec3(model_.shear_stiffness, model_.shear_stiffness, model_.axial_stiffness);
   k_bt_ = r.stiffness_at(0.0);
-  kse_vstar_ = Vec3(0.0, 0.0, params_.axial_stiffness);  // K_se v*, v* = e_z
+  kse_vstar_ = Vec3(0.0, 0.0, model_.axial_stiffness);  // K_se v*, v* = e_z
   kbt_ustar_ = k_bt_.cwiseProduct(r.precurvature_at(0.0));
-  b_se_ = params_.kelvin_voigt_time * k_se_;
-  b_bt_ = params_.kelvin_voigt_time * k_bt_;
+  b_se_ = model_.kelvin_voigt_time * k_se_;
+  b_bt_ = model_.kelvin_voigt_time * k_bt_;
   rho_a_ = r.linear_density;
-  rho_j_ = params_.rotational_inertia_per_length * Vec3(1.0, 1.0, 2.0);
+  rho_j_ = model_.rotational_inertia_per_length * Vec3(1.0, 1.0, 2.0);
   force_scale_ = k_bt_.maxCoeff() / (length_ * length_);
 
   z1_.setZero(12, slots_);
@@ -94,13 +94,13 @@ DynamicRod::DynamicRod(const DynamicRodParameters& params) : params_(params) {
   zh_.setZero(12, slots_);
   rec_.setZero(12, slots_);
   rec_trial_.setZero(12, slots_);
-  nodes_.assign(params_.nodes, Vec24::Zero());
-  nodes_solve_.assign(params_.nodes, Vec24::Zero());
-  nodes_trial_.assign(params_.nodes, Vec24::Zero());
+  nodes_.assign(model_.nodes, Vec24::Zero());
+  nodes_solve_.assign(model_.nodes, Vec24::Zero());
+  nodes_trial_.assign(model_.nodes, Vec24::Zero());
   snap_z1_.setZero(12, slots_);
   snap_z2_.setZero(12, slots_);
   snap_zt1_.setZero(12, slots_);
-  snap_nodes_.assign(params_.nodes, Vec24::Zero());
+  snap_nodes_.assign(model_.nodes, Vec24::Zero());
 
   reset_to_static(rod::TipWrench());
 }
@@ -141,7 +141,7 @@ void DynamicRod::rhs(const Vec24& y, int slot, Vec24& dy, Mat12X* rec) const {
   dR.col(2) = R.col(0) * u.y() - R.col(1) * u.x();
   // n_s = ρA R(ω̂q + q_t) − ρA g + R c_d(q) q   (drag is the body-frame force −c_d q per length)
   Vec3 fb = rho_a_ * (w.cross(q) + qt);
-  if (drag_active_) fb += (params_.linear_drag + params_.quadratic_drag * q.norm()) * q;
+  if (drag_active_) fb += (model_.linear_drag + model_.quadratic_drag * q.norm()) * q;
   dy.segment<3>(12) = R * fb - dist_weight_;
   // m_s = R(ω̂ ρJ ω + ρJ ω_t) − p_s × n
   dy.segment<3>(15) = R * (w.cross(rho_j_.cwiseProduct(w)) + rho_j_.cwiseProduct(wt)) - ps.cross(n);
@@ -199,15 +199,14 @@ Vec6 DynamicRod::pass(const Vec6& x, const rod::TipWrench& wr, Mat12X* rec, std:
   const double c0 = coef_.c0;
   const Vec3 qt = c0 * q + zh.segment<3>(6);
   const Vec3 wt = c0 * w + zh.segment<3>(9);
-  const double mt = params_.model.tip_mass;
-  const Vec3& Jt = params_.tip_inertia;
+  const double mt = model_.model.tip_mass;
+  const Vec3& Jt = model_.tip_inertia;
   // n(L) = R f_b + m_t g − m_t R(ω̂q + q_t) − R c_t(q) q
-  const Vec3 f_body =
-      wr.force - mt * (w.cross(q) + qt) - (params_.tip_drag + params_.tip_quadratic_drag * q.norm()) * q;
+  const Vec3 f_body = wr.force - mt * (w.cross(q) + qt) - (model_.tip_drag + model_.tip_quadratic_drag * q.norm()) * q;
   // m(L) = R l_b − R(ω̂ J_t ω + J_t ω_t) − R c_ω ω
-  const Vec3 l_body = wr.moment - w.cross(Jt.cwiseProduct(w)) - Jt.cwiseProduct(wt) - params_.tip_angular_drag * w;
+  const Vec3 l_body = wr.moment - w.cross(Jt.cwiseProduct(w)) - Jt.cwiseProduct(wt) - model_.tip_angular_drag * w;
   Vec6 r;
-  r.head<3>() = n - R * f_body - mt * params_.model.gravity;
+  r.head<3>() = n - R * f_body - mt * model_.model.gravity;
   r.tail<3>() = (m - R * l_body) / length_;
   // Size of the largest terms that cancel in r (sets the round-off floor of the residual).
   residual_scale_ = n.norm() + mt * (qt.norm() + w.norm() * q.norm()) + wr.force.norm() +
@@ -221,6 +220,11 @@ Vec6 DynamicRod::pass(const Vec6& x, const rod::TipWrench& wr, Mat12X* rec, std:
   }
   if (!y.allFinite()) r.setConstant(std::numeric_limits<double>::quiet_NaN());
   return r;
+}
+
+bool DynamicRod::fail(const std::string& message) {
+  last_error_ = message;
+  return false;
 }
 
 bool DynamicRod::refresh_jacobian(const Vec6& x, const Vec6& r, const rod::TipWrench& w) {
@@ -238,14 +242,14 @@ bool DynamicRod::refresh_jacobian(const Vec6& x, const Vec6& r, const rod::TipWr
   }
   jac_fresh_ = jac_valid_;
   jac_c0_ = coef_.c0;
-  return jac_valid_;
+  return jac_valid_ || fail("singular or non-finite shooting Jacobian");
 }
 
-bool DynamicRod::newton(Vec6* x, const rod::TipWrench& w, bool full_newton, const Vec6* alternatives,
-                        int n_alternatives) {
-  Vec6 r = pass(*x, w, &rec_, &nodes_solve_);
-  double rn = r.norm();
-  double scale = residual_scale_;
+double DynamicRod::best_start(Vec6* x, const rod::TipWrench& w, const Vec6* alternatives, int n_alternatives, Vec6* r,
+                              double* scale) {
+  *r = pass(*x, w, &rec_, &nodes_solve_);
+  double rn = r->norm();
+  *scale = residual_scale_;
   // A poor predictor (violent motion: the base forces vary faster than the extrapolation can
   // follow) is replaced by the best of the alternative starting points.
   if (std::isfinite(rn) && rn > 10.0 * force_scale_) {
@@ -253,101 +257,101 @@ bool DynamicRod::newton(Vec6* x, const rod::TipWrench& w, bool full_newton, cons
       const Vec6 ra = pass(alternatives[k], w, &rec_trial_, &nodes_trial_);
       if (ra.allFinite() && ra.norm() < rn) {
         *x = alternatives[k];
-        r = ra;
+        *r = ra;
         rn = ra.norm();
-        scale = residual_scale_;
+        *scale = residual_scale_;
         std::swap(rec_, rec_trial_);
         std::swap(nodes_solve_, nodes_trial_);
       }
     }
   }
-  // Tolerance [N]: relative to F0, but never below the round-off floor of the residual, whose
-  // terms (e.g. m_t q_t at large c0 = O(1/Δt)) can be much larger than F0 in violent motion.
-  auto tolerance = [&]() { return params_.tolerance * force_scale_ + 1e-13 * scale; };
-  double tol = tolerance();
-  if (!std::isfinite(rn)) {
-    last_error_ = "shooting pass produced a non-finite state at the initial guess";
-    return false;
-  }
-  if (rn <= tol) return true;
+  return rn;
+}
+
+double DynamicRod::newton_tolerance(double scale) const {
+  // Relative to F0, but never below the round-off floor of the residual, whose terms (e.g. m_t q_t
+  // at large c0 = O(1/Δt)) can be much larger than F0 in violent motion.
+  return model_.tolerance * force_scale_ + 1e-13 * scale;
+}
+
+bool DynamicRod::prepare_jacobian(const Vec6& x, const Vec6& r, const rod::TipWrench& w, bool full_newton) {
   const bool c0_changed = std::abs(coef_.c0 - jac_c0_) > 1e-12 * std::max(1.0, std::abs(coef_.c0));
-  if (full_newton || !jac_valid_ || c0_changed) {
-    if (!refresh_jacobian(*x, r, w)) {
-      last_error_ = "singular or non-finite shooting Jacobian";
-      return false;
-    }
-  } else {
+  if (full_newton || !jac_valid_ || c0_changed) return refresh_jacobian(x, r, w);
+  jac_fresh_ = false;
+  return true;
+}
+
+bool DynamicRod::line_search(const Vec6& x, const Vec6& dx, double rn, const rod::TipWrench& w, Vec6* xt, Vec6* rt,
+                             double* lambda) {
+  // A trial is accepted when the residual decreases or when Deuflhard's affine-invariant natural
+  // monotonicity test holds, |J⁻¹ r(x + λΔx)| ≤ (1 − λ/4)|Δx| (the residual's components have very
+  // different sensitivities, so |r| alone is a poor merit).
+  const double dx_norm = dx.norm();
+  *lambda = 1.0;
+  for (int k = 0; k < 12; ++k, *lambda *= 0.5) {
+    *xt = x + *lambda * dx;
+    *rt = pass(*xt, w, &rec_trial_, &nodes_trial_);
+    if (rt->allFinite() &&
+        (rt->norm() < (1.0 - 1e-4 * *lambda) * rn || lu_.solve(*rt).norm() <= (1.0 - 0.25 * *lambda) * dx_norm))
+      return true;
+    if (!jac_fresh_) return false;  // an outdated Jacobian: refresh rather than backtrack
+  }
+  return false;
+}
+
+void DynamicRod::broyden_update(const Vec6& x, const Vec6& xt, const Vec6& r, const Vec6& rt) {
+  // Skipped when the step is so small that the secant would mostly carry round-off.
+  const Vec6 s = xt - x;
+  if (s.norm() > 1e-8 * (force_scale_ + x.norm())) {
+    jac_ += ((rt - r) - jac_ * s) * s.transpose() / s.squaredNorm();
+    lu_.compute(jac_);
     jac_fresh_ = false;
   }
+}
+
+bool DynamicRod::newton(Vec6* x, const rod::TipWrench& w, bool full_newton, const Vec6* alternatives,
+                        int n_alternatives) {
+  Vec6 r;
+  double scale = 0.0;
+  double rn = best_start(x, w, alternatives, n_alternatives, &r, &scale);
+  double tol = newton_tolerance(scale);  // [N]
+  if (!std::isfinite(rn)) return fail("shooting pass produced a non-finite state at the initial guess");
+  if (rn <= tol) return true;
+  if (!prepare_jacobian(*x, r, w, full_newton)) return false;
   int iterations = 0;
   while (rn > tol) {
-    if (iterations >= params_.max_iterations) {
+    if (iterations >= model_.max_iterations) {
       std::ostringstream os;
-      os << "Newton did not converge in " << params_.max_iterations << " iterations (|residual| = " << rn
+      os << "Newton did not converge in " << model_.max_iterations << " iterations (|residual| = " << rn
          << " N, tolerance " << tol << " N)";
-      last_error_ = os.str();
-      return false;
+      return fail(os.str());
     }
     const Vec6 dx = -lu_.solve(r);
-    const double dx_norm = dx.norm();
-    if (!std::isfinite(dx_norm)) {
-      last_error_ = "non-finite Newton step";
-      return false;
-    }
-    // Damped step. A trial is accepted when the residual decreases or when Deuflhard's
-    // affine-invariant natural monotonicity test holds, |J⁻¹ r(x + λΔx)| ≤ (1 − λ/4)|Δx| (the
-    // residual's components have very different sensitivities, so |r| alone is a poor merit).
-    bool accepted = false;
-    double lambda = 1.0;
+    if (!std::isfinite(dx.norm())) return fail("non-finite Newton step");
     Vec6 xt, rt;
-    for (int k = 0; k < 12; ++k, lambda *= 0.5) {
-      xt = *x + lambda * dx;
-      rt = pass(xt, w, &rec_trial_, &nodes_trial_);
-      if (rt.allFinite() &&
-          (rt.norm() < (1.0 - 1e-4 * lambda) * rn || lu_.solve(rt).norm() <= (1.0 - 0.25 * lambda) * dx_norm)) {
-        accepted = true;
-        break;
-      }
-      if (!jac_fresh_) break;  // an outdated Jacobian: refresh rather than backtrack
-    }
+    double lambda = 1.0;
+    const bool accepted = line_search(*x, dx, rn, w, &xt, &rt, &lambda);
     ++iterations;
     ++last_iterations_;
     if (!accepted) {
       if (!jac_fresh_) {
-        if (!refresh_jacobian(*x, r, w)) {
-          last_error_ = "singular or non-finite shooting Jacobian";
-          return false;
-        }
+        if (!refresh_jacobian(*x, r, w)) return false;
         continue;
       }
       if (rn <= 1e3 * tol) return true;  // at the round-off floor: accept
       std::ostringstream os;
       os << "line search failed (|residual| = " << rn << " N)";
-      last_error_ = os.str();
-      return false;
+      return fail(os.str());
     }
-    // Broyden rank-one update of the Jacobian with the accepted step, unless the step is so small
-    // that the secant would mostly carry round-off.
-    const Vec6 s = xt - *x;
-    if (s.norm() > 1e-8 * (force_scale_ + x->norm())) {
-      jac_ += ((rt - r) - jac_ * s) * s.transpose() / s.squaredNorm();
-      lu_.compute(jac_);
-      jac_fresh_ = false;
-    }
+    broyden_update(*x, xt, r, rt);
     const double ratio = rt.norm() / rn;
     *x = xt;
     r = rt;
     rn = rt.norm();
-    scale = residual_scale_;  // the accepted trial was the last pass
-    tol = tolerance();
+    tol = newton_tolerance(residual_scale_);  // the accepted trial was the last pass
     std::swap(rec_, rec_trial_);
     std::swap(nodes_solve_, nodes_trial_);
-    if (rn > tol && (full_newton || ratio > 0.3 || lambda < 1.0)) {
-      if (!refresh_jacobian(*x, r, w)) {
-        last_error_ = "singular or non-finite shooting Jacobian";
-        return false;
-      }
-    }
+    if (rn > tol && (full_newton || ratio > 0.3 || lambda < 1.0) && !refresh_jacobian(*x, r, w)) return false;
   }
   return true;
 }
@@ -357,15 +361,15 @@ Vec6 DynamicRod::kirchhoff_guess(const rod::TipWrench& w, bool* ok) {
   // and moment balance of the whole rod:
   //   n(0) = R(L) f_b + m_t g + ρA g L
   //   m(0) = R(L) l_b + p(L) × n(L) + ∫₀ᴸ p × ρA g ds
-  rod::ShootingSettings st;
+  rod::ShootingOptions st;
   st.integrator.type = rod::IntegratorType::kRk8;
   st.integrator.steps = 8;
   st.residual_tolerance = 1e-12;
-  rod::ShootingSolver solver(params_.model, st);
+  rod::ShootingSolver solver(model_.model, st);
   const rod::RodSolution sol = solver.solve(w);
   Vec6 x;
-  const Vec3 g = params_.model.gravity;
-  const Vec3 nL = (sol.converged ? sol.tip_rotation * w.force : w.force) + params_.model.tip_mass * g;
+  const Vec3 g = model_.model.gravity;
+  const Vec3 nL = (sol.converged ? sol.tip_rotation * w.force : w.force) + model_.model.tip_mass * g;
   x.head<3>() = nL + rho_a_ * length_ * g;
   x.tail<3>().setZero();
   *ok = sol.converged;
@@ -399,8 +403,8 @@ bool DynamicRod::reset_to_static(const rod::TipWrench& w) {
   // Static problem: all time derivatives zero (c0 = 0, y_h = 0) -> q ≡ ω ≡ 0.
   set_coefficients(Coefficients());
   zh_.setZero();
-  dist_weight_ = rho_a_ * params_.model.gravity;
-  drag_active_ = params_.linear_drag > 0.0 || params_.quadratic_drag > 0.0;
+  dist_weight_ = rho_a_ * model_.model.gravity;
+  drag_active_ = model_.linear_drag > 0.0 || model_.quadratic_drag > 0.0;
   const bool ok = newton(&x, w, true);
   jac_valid_ = false;  // the static Jacobian (c0 = 0) is not the dynamic one
   if (!ok) {
@@ -467,7 +471,7 @@ bool DynamicRod::step(const rod::TipWrench& w, double dt) {
     dt_prev_ = sdt1, dt_prev2_ = sdt2, time_ = st;
     at_rest_history_ = srest;
   };
-  for (int level = 1; level <= params_.max_substep_halvings; ++level) {
+  for (int level = 1; level <= model_.max_substep_halvings; ++level) {
     const int n = 1 << level;
     bool ok = true;
     for (int i = 0; i < n && ok; ++i) ok = advance(w, dt / n);
@@ -481,8 +485,8 @@ bool DynamicRod::step(const rod::TipWrench& w, double dt) {
   }
   std::ostringstream os;
   os << "step: the boundary-value problem did not converge (" << first;
-  if (params_.max_substep_halvings > 0)
-    os << "; also failed with " << (1 << params_.max_substep_halvings) << " substeps: " << last_error_;
+  if (model_.max_substep_halvings > 0)
+    os << "; also failed with " << (1 << model_.max_substep_halvings) << " substeps: " << last_error_;
   os << ")";
   last_error_ = os.str();
   return false;
@@ -490,7 +494,7 @@ bool DynamicRod::step(const rod::TipWrench& w, double dt) {
 
 bool DynamicRod::advance(const rod::TipWrench& w, double dt) {
   // Till's BDF-α coefficients; the θ-method for a step whose Δt differs from the last one.
-  const double a = params_.alpha;
+  const double a = model_.alpha;
   Coefficients c;
   c.d1 = a / (1.0 + a);
   if (at_rest_history_ || std::abs(dt - dt_prev_) <= 1e-12 * dt) {
@@ -508,8 +512,8 @@ bool DynamicRod::advance(const rod::TipWrench& w, double dt) {
   zh_.noalias() = c.c1 * z1_;
   zh_.noalias() += c.c2 * z2_;
   zh_.noalias() += c.d1 * zt1_;
-  dist_weight_ = rho_a_ * params_.model.gravity;
-  drag_active_ = params_.linear_drag > 0.0 || params_.quadratic_drag > 0.0;
+  dist_weight_ = rho_a_ * model_.model.gravity;
+  drag_active_ = model_.linear_drag > 0.0 || model_.quadratic_drag > 0.0;
 
   // Warm start: extrapolate the base unknowns from the last steps (quadratic when the last two
   // steps had this dt, linear otherwise). After a reset the history is "at rest" (x_prev_ =
@@ -554,7 +558,7 @@ void DynamicRod::set_gravity(const Vec3& g) {
     last_error_ = "set_gravity: non-finite gravity ignored";
     return;
   }
-  params_.model.gravity = g;
+  model_.model.gravity = g;
 }
 
 Mat3 DynamicRod::tip_rotation() const { return so3::orthonormalize(Eigen::Map<const Mat3>(nodes_.back().data() + 3)); }

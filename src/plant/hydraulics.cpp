@@ -6,7 +6,7 @@
 namespace hydrojet {
 namespace plant {
 
-std::string ValveParameters::validate() const {
+std::string ValveModel::validate() const {
   auto pos = [](double v) { return std::isfinite(v) && v > 0.0; };
   if (!pos(max_flow)) return "max_flow: must be positive";
   if (!(dead_zone >= 0.0 && dead_zone < 1.0)) return "dead_zone: must lie in [0, 1)";
@@ -15,6 +15,14 @@ std::string ValveParameters::validate() const {
   if (!pos(time_constant)) return "time_constant: must be positive";
   if (!pos(saturation)) return "saturation: must be positive";
   return "";
+}
+
+std::array<ValveModel, 3> hydrojet_valves() {
+  std::array<ValveModel, 3> v;
+  v[0].max_flow = 1.60e-5, v[0].dead_zone = 0.05, v[0].time_constant = 0.04;
+  v[1].max_flow = 1.52e-5, v[1].dead_zone = 0.08, v[1].time_constant = 0.05;
+  v[2].max_flow = 1.66e-5, v[2].dead_zone = 0.04, v[2].time_constant = 0.035;
+  return v;
 }
 
 double Valve::steady_flow(double duty) const {

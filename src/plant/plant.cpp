@@ -5,7 +5,7 @@
 namespace hydrojet {
 namespace plant {
 
-std::string PlantParameters::validate() const {
+std::string PlantModel::validate() const {
   const std::string r = rod.validate();
   if (!r.empty()) return "dynamics." + r;
   for (int i = 0; i < 3; ++i) {
@@ -28,8 +28,8 @@ Eigen::Matrix3d base_orientation(double tilt) {
   return Eigen::AngleAxisd(M_PI + tilt, Eigen::Vector3d::UnitX()).toRotationMatrix();
 }
 
-Plant::Plant(const PlantParameters& p, unsigned seed)
-    : p_(p),
+Plant::Plant(const PlantModel& p, unsigned seed)
+    : model_(p),
       jets_(p.jets),
       hydraulics_(p.valves),
       tracker_(
@@ -37,11 +37,11 @@ Plant::Plant(const PlantParameters& p, unsigned seed)
           seed),
       flow_sensors_(p.sensor_noise ? p.flow : FlowNoise{0, 0}, seed + 7919u),
       R_tracker_base_(base_orientation(p.base_tilt)) {
-  const std::string err = p_.validate();
+  const std::string err = model_.validate();
   if (!err.empty()) throw std::invalid_argument("plant: " + err);
   // Gravity in the base frame from the base orientation (tracker z is up).
-  p_.rod.model.gravity = R_tracker_base_.transpose() * Eigen::Vector3d(0, 0, -p_.gravity);
-  rod_.reset(new DynamicRod(p_.rod));
+  model_.rod.model.gravity = R_tracker_base_.transpose() * Eigen::Vector3d(0, 0, -model_.gravity);
+  rod_.reset(new DynamicRod(model_.rod));
   reset();
 }
 
@@ -65,8 +65,8 @@ void Plant::command(const Eigen::Vector3d& duty, double t) {
 
 Eigen::Vector3d Plant::jet_forces() const {
   const Eigen::Vector3d q = hydraulics_.flows();
-  return {actuation::force_from_flow(q[0], p_.nozzle), actuation::force_from_flow(q[1], p_.nozzle),
-          actuation::force_from_flow(q[2], p_.nozzle)};
+  return {actuation::force_from_flow(q[0], model_.nozzle), actuation::force_from_flow(q[1], model_.nozzle),
+          actuation::force_from_flow(q[2], model_.nozzle)};
 }
 
 bool Plant::advance_to(double t) {
@@ -74,12 +74,12 @@ bool Plant::advance_to(double t) {
   // Equal internal steps no longer than internal_dt that land exactly on t (no sliver steps: the
   // implicit rod step conditions badly as dt -> 0).
   const double span = t - t_;
-  const int n = std::max(1, static_cast<int>(std::ceil(span / p_.internal_dt - 1e-9)));
+  const int n = std::max(1, static_cast<int>(std::ceil(span / model_.internal_dt - 1e-9)));
   const double dt = span / n;
   const double t0 = t_;
   for (int i = 1; i <= n; ++i) {
     // Command timeout: the valves close when the controller goes silent.
-    timed_out_ = t_ - t_command_ > p_.command_timeout;
+    timed_out_ = t_ - t_command_ > model_.command_timeout;
     const Eigen::Vector3d duty = timed_out_ ? Eigen::Vector3d::Zero() : duty_;
     hydraulics_.step(duty, dt);
     const actuation::Vec6 w = jets_.wrench(jet_forces());
@@ -97,9 +97,9 @@ bool Plant::advance_to(double t) {
 
 TrackerSample Plant::tracker_sample() {
   SensorPose base, tip;
-  base.position = p_.base_position;
+  base.position = model_.base_position;
   base.orientation = Eigen::Quaterniond(R_tracker_base_);
-  tip.position = p_.base_position + R_tracker_base_ * rod_->tip_position();
+  tip.position = model_.base_position + R_tracker_base_ * rod_->tip_position();
   tip.orientation = Eigen::Quaterniond(R_tracker_base_ * rod_->tip_rotation());
   return tracker_.sample(t_, tip, base);
 }

@@ -135,7 +135,7 @@ struct CvodeWorkspace::Impl {
 CvodeWorkspace::CvodeWorkspace() : impl_(new Impl) {}
 CvodeWorkspace::~CvodeWorkspace() = default;
 
-IntegrationStats CvodeWorkspace::integrate(const IntegratorSettings& st, const OdeFunctions& f, double s0, double s1,
+IntegrationStats CvodeWorkspace::integrate(const IntegratorOptions& st, const OdeFunctions& f, double s0, double s1,
                                            double* y, double* ys, const char** error) {
   IntegrationStats out;
   out.ok = false;

@@ -85,10 +85,14 @@ int KinsolWorkspace::solve(Func f, Jac j, void* data, double* x, double fnorm_to
   return flag;
 }
 
-bool ShootingSolver::newton_kinsol(Mat3* R_tip, const Load& load, RodSolution* sol, Eval* last) const {
-  if (!scratch_.kinsol_) scratch_.kinsol_.reset(new KinsolWorkspace);
+KinsolWorkspace& ShootingSolver::Workspace::kinsol() {
+  if (!kinsol_) kinsol_.reset(new KinsolWorkspace);
+  return *kinsol_;
+}
+
+bool ShootingSolver::newton_kinsol(Mat3* R_tip, const Load& load, RodSolution* sol, Eval* last) {
   struct Ctx {
-    const ShootingSolver* s = nullptr;
+    ShootingSolver* s = nullptr;
     const Load* load = nullptr;
     Mat3 R_ref;
     Vec3 x = Vec3::Constant(std::nan(""));
@@ -122,8 +126,8 @@ bool ShootingSolver::newton_kinsol(Mat3* R_tip, const Load& load, RodSolution* s
   double x[3] = {0.0, 0.0, 0.0};
   long iters = 0, fevals = 0;
   // KINSOL's test is on the max-norm; |r| ≤ tol in the 2-norm is checked below.
-  const int flag = scratch_.kinsol_->solve(f, j, &c, x, settings_.residual_tolerance / std::sqrt(3.0),
-                                           settings_.max_iterations, settings_.max_step, &iters, &fevals);
+  const int flag = workspace_.kinsol().solve(f, j, &c, x, settings_.residual_tolerance / std::sqrt(3.0),
+                                             settings_.max_iterations, settings_.max_step, &iters, &fevals);
   sol->iterations += static_cast<int>(iters);
   const Eval& e = c.at(x);
   sol->rhs_evaluations += c.rhs;

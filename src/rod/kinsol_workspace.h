@@ -1,5 +1,5 @@
 // Internal to hydrojet_rod: KINSOL memory for the 3-unknown shooting problem
-// (ShootingSettings::newton = NewtonBackend::kKinsol). Not installed.
+// (ShootingOptions::newton = NewtonBackend::kKinsol). Not installed.
 #pragma once
 
 namespace hydrojet {

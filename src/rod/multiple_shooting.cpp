@@ -1,5 +1,5 @@
 // Multiple shooting for the rod BVP (the fallback of ShootingSolver::solve, or forced with
-// ShootingSettings::shooting_segments ≥ 2).
+// ShootingOptions::shooting_segments ≥ 2).
 //
 // Nodes s_k = k L / M, k = 0..M. Unknowns X = [ξ_M (3); (η_k, δu_k) for k = M−1 down to 1]: the tip
 // orientation R_M·exp(ξ̂) and the node states R_k·exp(η̂_k), u_k + δu_k. Segment k runs from node
@@ -8,23 +8,25 @@
 //   c_k = [log(R_kᵀ R⁻(s_k)); h (u⁻(s_k) − u_k)],  k = 1..M−1,  h = L / M;
 //   r_0 = log R⁻(0) (the base condition).
 // The Jacobian comes from forward sensitivities per segment (9 directions: ξ_M, η_{k+1}, δu_{k+1}),
-// the node columns in closed form (−J_l⁻¹(c_k), −h I). Damped Newton on ‖F‖ with load
-// continuation, as in single shooting. The positions decouple (n(s) is closed form), so the tip
+// the node columns in closed form (−J_l⁻¹(c_k), −h I). Damped Newton on ‖F‖ on the load path of
+// single shooting (load_path.h). The positions decouple (n(s) is closed form), so the tip
 // position is −R⁻(0)ᵀ Σ_k Δp_k. C^b follows from the implicit-function theorem on F(X, w) = 0 with
 // 6 more directions per segment. This path allocates (Eigen dynamic matrices): it is a fallback.
 // One variant (the general Cosserat form) serves every model here.
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 
 #include "hydrojet_control/rod/shooting_solver.h"
+#include "load_path.h"
 #include "rod_integration.h"
 #include "solver_templates.h"
 
 namespace hydrojet {
 namespace rod {
+
+using internal::FoldTracker;
 
 struct ShootingSolver::MsEval {
   Eigen::VectorXd F;
@@ -36,7 +38,160 @@ struct ShootingSolver::MsEval {
   Vec3 sum_dp = Vec3::Zero();                     ///< Σ Δp_k = p(0) − p(L), integration frame
   double det_scale = 1.0;                         ///< det of the node block of J (J's det / this = det ∂r/∂x)
   bool ok = false;
+
+  /// Zero F and J for M segments (and the compliance blocks with_wrench).
+  void reset(int M, bool with_wrench) {
+    const int N = 6 * (M - 1) + 3;
+    F.setZero(N);
+    J.setZero(N, N);
+    if (with_wrench) {
+      Fw.setZero(N, 6);
+      dP_X.setZero(3, N);
+      dP_w.setZero();
+    }
+    sum_dp.setZero();
+    det_scale = 1.0;
+    ok = false;
+  }
+  /// Columns of node k's unknowns (η_k, δu_k) in X; also the row of c_k's δu part.
+  static int node_col(int M, int k) { return 3 + 6 * (M - 1 - k); }
+  /// Adds segment k (integrated from node k+1 down to s_k, end state y): its residual rows and
+  /// their columns.
+  template <class Dir, class Ode>
+  void add_segment(const Nodes& x, int k, double h, const typename Ode::State& y) {
+    const int M = x.segments;
+    const bool tip = k + 1 == M;
+    const int row = 6 * (M - 1 - k);  // for k = 0 this is the base row block 6(M−1)
+    sum_dp += y.template segment<3>(0);
+    const Mat3 Jri = add_residual(x, k, row, h, Eigen::Map<const Mat3>(y.data() + 3), Vec3(y.template segment<3>(12)));
+    auto column = [&](int d, int col, bool wrench) {
+      const Eigen::Matrix<double, 9, 1> s = y.template segment<9>(Ode::kBase + Ode::kPerDir * d);
+      add_column(k, row, h, Jri, s, col, wrench, Dir::kWithWrench);
+    };
+    for (int i = 0; i < 3; ++i) {
+      column(i, i, false);
+      if (!tip) {
+        column(Dir::kEta + i, node_col(M, k + 1) + i, false);
+        column(Dir::kDu + i, node_col(M, k + 1) + 3 + i, false);
+      }
+      if (Dir::kWithWrench) {
+        column(Dir::kF + i, i, true);
+        if (tip) column(Dir::kL + i, 3 + i, true);
+      }
+    }
+  }
+  /// Residual rows of segment k at s_k (from `row`): for k ≥ 1 node k's continuity c_k and its node
+  /// columns, for k = 0 the base condition r_0. Returns J_r⁻¹ of the rotation residual.
+  Mat3 add_residual(const Nodes& x, int k, int row, double h, const Mat3& Rm, const Vec3& um) {
+    if (k == 0) {
+      const Vec3 r = so3::log(so3::orthonormalize(Rm));
+      F.segment<3>(row) = r;
+      R0 = Rm;
+      return so3::right_jacobian_inverse(r);
+    }
+    const Vec3 r = so3::log(so3::orthonormalize(x.R[k].transpose() * Rm));
+    F.segment<3>(row) = r;
+    F.segment<3>(row + 3) = h * (um - x.u[k]);
+    const Mat3 Jli = so3::right_jacobian_inverse(-r);
+    const int c = node_col(x.segments, k);
+    J.block<3, 3>(row, c) = -Jli;
+    J.block<3, 3>(row + 3, c + 3) = -h * Mat3::Identity();
+    det_scale *= Jli.determinant() * h * h * h;
+    return so3::right_jacobian_inverse(r);
+  }
+  /// Adds the change of segment k's rows along one start direction (η, δu, δp at s_k in s) to
+  /// column `col` of J, or of Fw for a wrench direction.
+  void add_column(int k, int row, double h, const Mat3& Jri, const Eigen::Matrix<double, 9, 1>& s, int col, bool wrench,
+                  bool with_wrench) {
+    Eigen::MatrixXd& A = wrench ? Fw : J;
+    A.block<3, 1>(row, col) += Jri * s.head<3>();
+    if (k >= 1) A.block<3, 1>(row + 3, col) += h * s.segment<3>(3);
+    if (!with_wrench) return;
+    if (wrench) {
+      dP_w.col(col) += s.tail<3>();
+    } else {
+      dP_X.col(col) += s.tail<3>();
+    }
+  }
 };
+
+/// Multiple shooting on the load path (load_path.h): the unknowns are the node states. A cold
+/// start takes the load path from the unloaded shape directly.
+struct ShootingSolver::MultipleShooting {
+  using Unknowns = Nodes;
+  using Load = ShootingSolver::Load;
+  using Point = internal::PathPoint<Nodes, Load>;
+  using Saved = RodSolution;
+  static constexpr bool kNewtonFromUnloaded = false;
+
+  ShootingSolver& solver;
+  Load target;
+  RodSolution* sol;
+  Nodes x;
+  double det = 0.0;
+  Vec3 tip = Vec3::Zero();
+
+  const ShootingOptions& options() const { return solver.settings_; }
+  double length() const { return solver.model_.rod.length; }
+  double growth() const { return solver.growth_estimate(target.wrench); }
+  bool newton(Nodes* n, const Load& load, double* d, Vec3* p) {
+    if (!solver.ms_newton(n, load, sol, d)) return false;
+    *p = sol->tip_position;
+    return true;
+  }
+  bool turned_far(const Nodes& a, const Nodes& b) const {
+    for (int k = 1; k <= a.segments; ++k)
+      if (so3::log(a.R[k].transpose() * b.R[k]).norm() > options().max_step) return true;
+    return false;
+  }
+  Saved save() const { return *sol; }
+  void restore(const Saved& direct) { *sol = direct; }
+
+  /// Newton from the stored solution (on M segments; multiple or single shooting) → load
+  /// continuation from it → from the unloaded shape.
+  bool reach_equilibrium(int M, FoldTracker* folds) {
+    ShootingSolver& s = solver;
+    const Point unloaded{s.ms_unloaded_nodes(M), Load::none(), s.unloaded_.tip_position, s.unloaded_.det};
+    Point start{Nodes(), s.load_, s.tip_pos_, s.det_};
+    bool warm = false;
+    if (s.have_solution_) {
+      start.x = s.ms_stored_nodes(M);
+      warm = start.x.R.size() == static_cast<size_t>(M + 1);
+      for (const Mat3& R : start.x.R) warm = warm && R.allFinite();
+    }
+    return internal::reach_equilibrium(*this, warm ? start : unloaded, warm, unloaded, folds);
+  }
+};
+
+namespace {
+/// Direction layout of one segment's sensitivities. Newton: ξ 0–2, η 3–5, δu 6–8. Compliance: ξ 0–2,
+/// f_b 3–5, η 6–8, δu 9–11, l_b 12–14 (only ξ and f_b carry a δn).
+template <bool kWrench>
+struct MsDirections {
+  static constexpr bool kWithWrench = kWrench;
+  static constexpr int kCount = kWrench ? 15 : 9;
+  static constexpr int kEta = kWrench ? 6 : 3, kDu = kWrench ? 9 : 6, kF = 3, kL = 12;
+};
+
+/// Start state of the segment from node k+1 down: p = 0, the node's (R, u), and a unit seed per
+/// direction: ξ_M (which also rotates the tip segment's start) and l_b (u(L) changes by K⁻¹ e_i) at
+/// the tip, η_{k+1} and δu_{k+1} elsewhere.
+template <class Dir, class Ode>
+void segment_start(const Ode& ode, const Mat3& R, const Vec3& u, bool tip, typename Ode::State* y) {
+  y->setZero();
+  Eigen::Map<Mat3>(y->data() + 3) = R;
+  y->template segment<3>(12) = u;
+  for (int i = 0; i < 3; ++i) {
+    if (tip) {
+      (*y)[Ode::kBase + Ode::kPerDir * i + i] = 1.0;
+      if (Dir::kWithWrench) (*y)[Ode::kBase + Ode::kPerDir * (Dir::kL + i) + 3 + i] = ode.k_inv[i];
+    } else {
+      (*y)[Ode::kBase + Ode::kPerDir * (Dir::kEta + i) + i] = 1.0;
+      (*y)[Ode::kBase + Ode::kPerDir * (Dir::kDu + i) + 3 + i] = 1.0;
+    }
+  }
+}
+}  // namespace
 
 int ShootingSolver::auto_segments(const Load& load) const {
   // Pieces of growth exp(λL/M) ≈ e² each; at least 4 (the fallback also helps with nonlinearity).
@@ -53,7 +208,12 @@ ShootingSolver::Nodes ShootingSolver::ms_unloaded_nodes(int M) const {
   return x;
 }
 
-ShootingSolver::Nodes ShootingSolver::ms_nodes_from_tip(const Mat3& R_tip, const Load& load, int M) const {
+ShootingSolver::Nodes ShootingSolver::ms_stored_nodes(int M) {
+  if (!multiple_) return ms_nodes_from_tip(R_tip_, load_, M);
+  return nodes_.segments == M ? nodes_ : ms_resample(nodes_, load_, M);
+}
+
+ShootingSolver::Nodes ShootingSolver::ms_nodes_from_tip(const Mat3& R_tip, const Load& load, int M) {
   using Ode = RodOde<0, CosseratGeneral>;
   Ode ode;
   setup_ode(&ode, R_tip, load);
@@ -66,17 +226,17 @@ ShootingSolver::Nodes ShootingSolver::ms_nodes_from_tip(const Mat3& R_tip, const
   x.R[M] = R_tip;
   x.u[M] = y.segment<3>(12);
   const double L = model_.rod.length;
-  IntegratorSettings is = settings_.integrator;
+  IntegratorOptions is = settings_.integrator;
   is.steps = std::max(1, (settings_.integrator.steps + M - 1) / M);
   for (int k = M - 1; k >= 0; --k) {
-    integrate_ode(ode, L * (k + 1) / M, L * k / M, &y, is);
+    workspace_.integrate(ode, L * (k + 1) / M, L * k / M, &y, is);
     x.R[k] = so3::orthonormalize(Eigen::Map<const Mat3>(y.data() + 3));
     x.u[k] = y.segment<3>(12);
   }
   return x;
 }
 
-ShootingSolver::Nodes ShootingSolver::ms_resample(const Nodes& x, const Load& load, int M) const {
+ShootingSolver::Nodes ShootingSolver::ms_resample(const Nodes& x, const Load& load, int M) {
   // Node values at s_j = j L / M from a multiple-shooting solution on other nodes: integrate each old
   // segment from its upper node down to the new nodes inside it.
   using Ode = RodOde<0, CosseratGeneral>;
@@ -90,7 +250,7 @@ ShootingSolver::Nodes ShootingSolver::ms_resample(const Nodes& x, const Load& lo
   y.u.resize(M + 1);
   y.R[M] = x.R[Mo];
   y.u[M] = ode.u_tilde + ode.k_inv.cwiseProduct(load.wrench.moment);
-  IntegratorSettings is = settings_.integrator;
+  IntegratorOptions is = settings_.integrator;
   for (int j = M - 1; j >= 1; --j) {
     const double sj = L * j / M;
     const int k = std::min(Mo - 1, static_cast<int>(std::floor(sj / L * Mo)));  // old segment [s_k, s_k+1]
@@ -99,7 +259,7 @@ ShootingSolver::Nodes ShootingSolver::ms_resample(const Nodes& x, const Load& lo
     if (k + 1 < Mo) st.segment<3>(12) = x.u[k + 1];
     const double s0 = L * (k + 1) / Mo;
     is.steps = std::max(1, static_cast<int>(std::ceil(settings_.integrator.steps * (s0 - sj) / L - 1e-9)));
-    integrate_ode(ode, s0, sj, &st, is);
+    workspace_.integrate(ode, s0, sj, &st, is);
     y.R[j] = so3::orthonormalize(Eigen::Map<const Mat3>(st.data() + 3));
     y.u[j] = st.segment<3>(12);
   }
@@ -109,109 +269,36 @@ ShootingSolver::Nodes ShootingSolver::ms_resample(const Nodes& x, const Load& lo
 }
 
 template <bool kWithWrench>
-bool ShootingSolver::ms_assemble(const Nodes& x, const Load& load, MsEval* e, int* rhs, int steps_per_segment) const {
-  // Direction layout per segment. Newton: ξ 0–2, η 3–5, δu 6–8. Compliance: ξ 0–2, f_b 3–5,
-  // η 6–8, δu 9–11, l_b 12–14 (only ξ and f_b carry a δn).
-  constexpr int D = kWithWrench ? 15 : 9;
-  constexpr int kEta = kWithWrench ? 6 : 3, kDu = kWithWrench ? 9 : 6, kF = 3, kL = 12;
-  using Ode = RodOde<D, CosseratGeneral>;
+bool ShootingSolver::ms_assemble(const Nodes& x, const Load& load, MsEval* e, int* rhs, int steps_per_segment) {
+  using Dir = MsDirections<kWithWrench>;
+  using Ode = RodOde<Dir::kCount, CosseratGeneral>;
   const int M = x.segments;
-  const int N = 6 * (M - 1) + 3;
   const double L = model_.rod.length, h = L / M;
-  e->F.setZero(N);
-  e->J.setZero(N, N);
-  if (kWithWrench) {
-    e->Fw.setZero(N, 6);
-    e->dP_X.setZero(3, N);
-    e->dP_w.setZero();
-  }
-  e->sum_dp.setZero();
-  e->det_scale = 1.0;
-  e->ok = false;
-  IntegratorSettings is = settings_.integrator;
+  e->reset(M, kWithWrench);
+  IntegratorOptions is = settings_.integrator;
   is.steps = steps_per_segment > 0 ? steps_per_segment : std::max(1, (settings_.integrator.steps + M - 1) / M);
   const Mat3& RM = x.R[M];
-  auto node_col = [M](int k) { return 3 + 6 * (M - 1 - k); };
-
   Ode ode;
   setup_ode(&ode, RM, load);
   for (int i = 0; i < 3; ++i) {
     ode.dn.col(i) = RM * Vec3::Unit(i).cross(load.wrench.force);
-    if (kWithWrench) ode.dn.col(kF + i) = RM.col(i);
+    if (kWithWrench) ode.dn.col(Dir::kF + i) = RM.col(i);
   }
   typename Ode::State y;
   for (int k = M - 1; k >= 0; --k) {
     const bool tip = k + 1 == M;
-    y.setZero();
-    Eigen::Map<Mat3>(y.data() + 3) = x.R[k + 1];
-    y.template segment<3>(12) = tip ? Vec3(ode.u_tilde + ode.k_inv.cwiseProduct(load.wrench.moment)) : x.u[k + 1];
-    for (int i = 0; i < 3; ++i) {
-      if (tip) {
-        y[Ode::kBase + Ode::kPerDir * i + i] = 1.0;  // ξ_M also rotates the tip segment's start
-        if (kWithWrench) y[Ode::kBase + Ode::kPerDir * (kL + i) + 3 + i] = ode.k_inv[i];
-      } else {
-        y[Ode::kBase + Ode::kPerDir * (kEta + i) + i] = 1.0;
-        y[Ode::kBase + Ode::kPerDir * (kDu + i) + 3 + i] = 1.0;
-      }
-    }
-    const IntegrationStats st = integrate_ode(ode, L * (k + 1) / M, L * k / M, &y, is);
+    const Vec3 u = tip ? Vec3(ode.u_tilde + ode.k_inv.cwiseProduct(load.wrench.moment)) : x.u[k + 1];
+    segment_start<Dir>(ode, x.R[k + 1], u, tip, &y);
+    const IntegrationStats st = workspace_.integrate(ode, L * (k + 1) / M, L * k / M, &y, is);
     *rhs += st.rhs_evaluations;
     if (!st.ok || !y.allFinite()) return false;
-    const Mat3 Rm = Eigen::Map<const Mat3>(y.data() + 3);
-    const Vec3 um = y.template segment<3>(12);
-    e->sum_dp += y.template segment<3>(0);
-    auto eta = [&](int d) { return Vec3(y.template segment<3>(Ode::kBase + Ode::kPerDir * d)); };
-    auto du = [&](int d) { return Vec3(y.template segment<3>(Ode::kBase + Ode::kPerDir * d + 3)); };
-    auto dp = [&](int d) { return Vec3(y.template segment<3>(Ode::kBase + Ode::kPerDir * d + 6)); };
-    const int row = 6 * (M - 1 - k);  // for k = 0 this is the base row block 6(M−1)
-    Vec3 r;
-    Mat3 Jri;
-    if (k >= 1) {
-      r = so3::log(so3::orthonormalize(x.R[k].transpose() * Rm));
-      Jri = so3::right_jacobian_inverse(r);
-      e->F.template segment<3>(row) = r;
-      e->F.template segment<3>(row + 3) = h * (um - x.u[k]);
-      const int c = node_col(k);
-      const Mat3 Jli = so3::right_jacobian_inverse(-r);
-      e->J.template block<3, 3>(row, c) = -Jli;
-      e->J.template block<3, 3>(row + 3, c + 3) = -h * Mat3::Identity();
-      e->det_scale *= Jli.determinant() * h * h * h;
-    } else {
-      r = so3::log(so3::orthonormalize(Rm));
-      Jri = so3::right_jacobian_inverse(r);
-      e->F.template segment<3>(row) = r;
-      e->R0 = Rm;
-    }
-    // Columns of the segment's start unknowns (and of the wrench).
-    auto put = [&](int d, int col, bool wrench) {
-      Eigen::MatrixXd& A = wrench ? e->Fw : e->J;
-      A.template block<3, 1>(row, col) += Jri * eta(d);
-      if (k >= 1) A.template block<3, 1>(row + 3, col) += h * du(d);
-      if (kWithWrench) {
-        if (wrench) {
-          e->dP_w.col(col) += dp(d);
-        } else {
-          e->dP_X.col(col) += dp(d);
-        }
-      }
-    };
-    for (int i = 0; i < 3; ++i) {
-      put(i, i, false);
-      if (!tip) {
-        put(kEta + i, node_col(k + 1) + i, false);
-        put(kDu + i, node_col(k + 1) + 3 + i, false);
-      }
-      if (kWithWrench) {
-        put(kF + i, i, true);
-        if (tip) put(kL + i, 3 + i, true);
-      }
-    }
+    e->add_segment<Dir, Ode>(x, k, h, y);
   }
   e->ok = e->F.allFinite() && e->J.allFinite();
   return e->ok;
 }
 
-bool ShootingSolver::ms_newton(Nodes* x, const Load& load, RodSolution* sol, double* det) const {
+bool ShootingSolver::ms_newton(Nodes* x, const Load& load, RodSolution* sol, double* det) {
   const int M = x->segments;
   const double h = model_.rod.length / M;
   MsEval e;
@@ -223,7 +310,7 @@ bool ShootingSolver::ms_newton(Nodes* x, const Load& load, RodSolution* sol, dou
     Nodes t = from;
     t.R[M] = so3::orthonormalize(from.R[M] * so3::exp(alpha * step.head<3>()));
     for (int k = 1; k < M; ++k) {
-      const int c = 3 + 6 * (M - 1 - k);
+      const int c = MsEval::node_col(M, k);
       t.R[k] = so3::orthonormalize(from.R[k] * so3::exp(alpha * step.segment<3>(c)));
       t.u[k] = from.u[k] + alpha * step.segment<3>(c + 3);
     }
@@ -252,7 +339,7 @@ bool ShootingSolver::ms_newton(Nodes* x, const Load& load, RodSolution* sol, dou
     // Cap every rotation part at max_step [rad] and every curvature part at max_step / h.
     double worst = step.head<3>().norm();
     for (int k = 1; k < M; ++k) {
-      const int c = 3 + 6 * (M - 1 - k);
+      const int c = MsEval::node_col(M, k);
       worst = std::max({worst, step.segment<3>(c).norm(), h * step.segment<3>(c + 3).norm()});
     }
     if (worst > settings_.max_step) step *= settings_.max_step / worst;
@@ -276,7 +363,7 @@ bool ShootingSolver::ms_newton(Nodes* x, const Load& load, RodSolution* sol, dou
   }
 }
 
-double ShootingSolver::ms_error_estimate(const Nodes& x, const Load& load) const {
+double ShootingSolver::ms_error_estimate(const Nodes& x, const Load& load) {
   // The Richardson estimate of error_t() for multiple shooting: every segment once more with half
   // (or twice) its steps; the change of the residuals F and of Σ Δp goes through the Jacobian.
   const int M = x.segments;
@@ -296,144 +383,36 @@ double ShootingSolver::ms_error_estimate(const Nodes& x, const Load& load) const
 
 bool ShootingSolver::ms_solve(const Load& target, int M, RodSolution* sol) {
   sol->segments = M;
-  Load zero;
-  zero.gravity_scale = 0.0;
-  // Start: the stored solution (multiple or single shooting) at its load, else the unloaded shape.
-  Nodes start;
-  Load from = zero;
-  bool warm = false;
-  if (have_solution_) {
-    start = !multiple_             ? ms_nodes_from_tip(R_tip_, load_, M)
-            : nodes_.segments == M ? nodes_
-                                   : ms_resample(nodes_, load_, M);
-    from = load_;
-    warm = start.R.size() == static_cast<size_t>(M + 1);
-    for (const Mat3& R : start.R) warm = warm && R.allFinite();
-  }
-  if (!warm) start = ms_unloaded_nodes(M);
-  const Vec3 p_from = warm ? tip_pos_ : unloaded_tip_position();
-  double det_prev = warm ? det_ : unloaded_det();
-  int crossings = 0;
-  auto note = [&](double d) {
-    if (!std::isfinite(d) || d == 0.0) return;
-    if (std::isfinite(det_prev) && det_prev != 0.0 && (d > 0.0) != (det_prev > 0.0)) ++crossings;
-    det_prev = d;
-  };
-
-  Nodes x = start;
-  double det = 0.0;
-  bool ok = warm && ms_newton(&x, target, sol, &det);
-  auto continuation = [&](const Load& l0, const Nodes& x0, const Vec3& p0) {
-    Nodes xc = x0;
-    Vec3 pc = p0;
-    double lambda = 0.0, dl = 0.25;
-    while (lambda < 1.0) {
-      if (sol->continuation_steps >= settings_.max_continuation_steps || dl < 1e-6) return false;
-      const double ln = std::min(1.0, lambda + dl);
-      Load l;
-      l.wrench.force = l0.wrench.force + ln * (target.wrench.force - l0.wrench.force);
-      l.wrench.moment = l0.wrench.moment + ln * (target.wrench.moment - l0.wrench.moment);
-      l.gravity_scale = l0.gravity_scale + ln * (target.gravity_scale - l0.gravity_scale);
-      Nodes xt = xc;
-      ++sol->continuation_steps;
-      double d = 0.0;
-      // Taken only if no node orientation moved by more than max_step and the tip by no more than
-      // L/4 (else: a branch jump, or a snap-through at a fold).
-      auto near = [&] {
-        for (int k = 1; k <= M; ++k)
-          if (so3::log(xc.R[k].transpose() * xt.R[k]).norm() > settings_.max_step) return false;
-        return (sol->tip_position - pc).norm() <= 0.25 * model_.rod.length;
-      };
-      if (ms_newton(&xt, l, sol, &d)) {
-        const bool jump = !near();
-        if (jump && dl > 1.0 / 256.0) {  // see kSnapStep in shooting_solver.cpp
-          dl *= 0.5;
-          continue;
-        }
-        if (jump) {
-          ++crossings;  // snap-through at a fold
-          det_prev = std::nan("");
-        }
-        xc = xt;
-        pc = sol->tip_position;
-        lambda = ln;
-        dl = std::min(2.0 * dl, 0.5);
-        if (ln < 1.0) note(d);
-        det = d;
-      } else {
-        dl *= 0.5;
-      }
-    }
-    x = xc;
-    return true;
-  };
-  bool far = false;
-  if (ok) {
-    for (int k = 1; k <= M; ++k) far = far || so3::log(start.R[k].transpose() * x.R[k]).norm() > settings_.max_step;
-    far = far || (sol->tip_position - p_from).norm() > 0.25 * model_.rod.length;
-  }
-  if (ok && (far || (std::isfinite(det_prev) && det_prev != 0.0 && det != 0.0 && (det > 0.0) != (det_prev > 0.0)))) {
-    // Newton crossed a singular Jacobian or moved far (a snap, or another branch): prefer the
-    // equilibrium reached along the load path, as single shooting does.
-    const Nodes x_direct = x;
-    const double det_direct = det;
-    const RodSolution s_direct = *sol;
-    if (!continuation(from, start, p_from)) {
-      // The path breaks down at a fold: keep the far direct result (the snap) and report it.
-      const bool crossed =
-          std::isfinite(det_) && det_ != 0.0 && det_direct != 0.0 && (det_direct > 0.0) != (det_ > 0.0);
-      x = x_direct;
-      det = det_direct;
-      *sol = s_direct;
-      det_prev = det_;
-      crossings = crossed ? 0 : 1;  // a sign change is counted by note() below
-    }
-  }
-  if (!ok && warm) {
-    det_prev = det_;
-    crossings = 0;
-    ok = continuation(from, start, p_from);
-  }
-  if (!ok) {
-    det_prev = unloaded_det();
-    crossings = 0;
-    ok = continuation(zero, ms_unloaded_nodes(M), unloaded_tip_position());
-  }
-  sol->converged = ok && std::isfinite(sol->residual) && sol->residual <= settings_.residual_tolerance &&
-                   sol->tip_position.allFinite();
+  FoldTracker folds;
+  MultipleShooting ms{*this, target, sol};
+  sol->converged = converged(ms.reach_equilibrium(M, &folds), *sol);
   if (!sol->converged) {
     if (sol->message.empty()) sol->message = "did not converge";
     return false;
   }
-  if (settings_.accuracy_tolerance > 0.0 && !is_adaptive(settings_.integrator.type)) {
-    sol->error_estimate = ms_error_estimate(x, target);
-    const double allowed = settings_.accuracy_tolerance * model_.rod.length;
-    if (!(sol->error_estimate <= allowed)) {
-      sol->message = internal::accuracy_refusal(sol->error_estimate, settings_.integrator.type,
-                                                settings_.integrator.steps, M, allowed);
-      sol->converged = false;
-      return false;
-    }
+  if (accuracy_check_applies()) {
+    sol->error_estimate = ms_error_estimate(ms.x, target);
+    if (!accurate_enough(sol, M)) return false;
   }
-  note(det);
-  sol->jacobian_det = det;
+  folds.note(ms.det);
+  sol->jacobian_det = ms.det;
   sol->message.clear();
-  sol->fold_crossings = crossings;
-  if (crossings > 0)
-    sol->warning = "the load path crossed a fold or bifurcation " + std::to_string(crossings) +
-                   " time(s) (det of the shooting Jacobian changed sign, or the equilibrium snapped through); "
-                   "the result may lie on another branch than the start: check stability (stability_eig_min)";
-  have_solution_ = true;
-  multiple_ = true;
-  nodes_ = x;
-  R_tip_ = x.R[M];
-  tip_pos_ = sol->tip_position;
-  load_ = target;
-  det_ = det;
+  report_folds(folds, sol);
+  commit_multiple(ms.x, target, ms.det, *sol);
   return true;
 }
 
-bool ShootingSolver::ms_compliance(Mat6* C) const {
+void ShootingSolver::commit_multiple(const Nodes& x, const Load& load, double det, const RodSolution& sol) {
+  have_solution_ = true;
+  multiple_ = true;
+  nodes_ = x;
+  R_tip_ = x.R[x.segments];
+  tip_pos_ = sol.tip_position;
+  load_ = load;
+  det_ = det;
+}
+
+bool ShootingSolver::ms_compliance(Mat6* C) {
   MsEval e;
   int rhs = 0;
   if (!ms_assemble<true>(nodes_, load_, &e, &rhs)) return false;

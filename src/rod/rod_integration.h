@@ -17,7 +17,7 @@ namespace hydrojet {
 namespace rod {
 namespace internal {
 
-/// Why a fixed-step solve is refused by the accuracy check (ShootingSettings::accuracy_tolerance).
+/// Why a fixed-step solve is refused by the accuracy check (ShootingOptions::accuracy_tolerance).
 inline std::string accuracy_refusal(double estimate, IntegratorType type, int steps, int segments, double allowed) {
   const std::string how = std::string(integrator_name(type)) + " with " + std::to_string(steps) + " steps" +
                           (segments > 1 ? " over " + std::to_string(segments) + " segments" : "");
@@ -87,11 +87,11 @@ void augmented_jacobian(const void* o, double s, const double* yp, double* J) {
 
 /// CVODE on the augmented state.
 template <class Ode>
-IntegrationStats cvode_augmented(CvodeWorkspace& ws, const IntegratorSettings& is, const Ode& ode, double s0, double s1,
-                                 typename Ode::State* y, const char** error) {
+IntegrationStats cvode_augmented(CvodeWorkspace& ws, const IntegratorOptions& is, const Ode& ode, double s0, double s1,
+                                 typename Ode::State* y) {
   OdeFunctions f = ode_functions(ode);
   if (is.type == IntegratorType::kCvodeBdf) f.jac = &augmented_jacobian<Ode>;
-  return ws.integrate(is, f, s0, s1, y->data(), nullptr, error);
+  return ws.integrate(is, f, s0, s1, y->data());
 }
 
 /// CVODES forward sensitivities: the base state (15) plus D sensitivity vectors in plain state
@@ -121,8 +121,8 @@ struct SensitivityProblem {
 };
 
 template <class Ode>
-IntegrationStats cvodes_sensitivities(CvodeWorkspace& ws, const IntegratorSettings& is, const Ode& ode, double s0,
-                                      double s1, typename Ode::State* y, const char** error) {
+IntegrationStats cvodes_sensitivities(CvodeWorkspace& ws, const IntegratorOptions& is, const Ode& ode, double s0,
+                                      double s1, typename Ode::State* y) {
   constexpr int D = Ode::kDirections;
   SensitivityProblem<Ode> p;
   copy_parameters(ode, &p.base);
@@ -145,7 +145,7 @@ IntegrationStats cvodes_sensitivities(CvodeWorkspace& ws, const IntegratorSettin
   if (is.type == IntegratorType::kCvodeBdf) f.jac = &SensitivityProblem<Ode>::jac;
   f.ns = D;
   f.sens_rhs = &SensitivityProblem<Ode>::sens;
-  const IntegrationStats st = ws.integrate(is, f, s0, s1, yb.data(), ys.data(), error);
+  const IntegrationStats st = ws.integrate(is, f, s0, s1, yb.data(), ys.data());
   if (!st.ok) return st;
   y->template head<15>() = yb;
   const Eigen::Map<const Mat3> R0(yb.data() + 3);
@@ -161,8 +161,8 @@ IntegrationStats cvodes_sensitivities(CvodeWorkspace& ws, const IntegratorSettin
 
 /// Integrates any RodOde with the integrator of `is`.
 template <class Ode>
-IntegrationStats integrate_rod(const IntegratorSettings& is, CvodeWorkspace* ws, const Ode& ode, double s0, double s1,
-                               typename Ode::State* y, const char** error) {
+IntegrationStats integrate_rod(const IntegratorOptions& is, CvodeWorkspace* ws, const Ode& ode, double s0, double s1,
+                               typename Ode::State* y) {
   switch (is.type) {
     case IntegratorType::kRk4:
     case IntegratorType::kRk8:
@@ -170,9 +170,9 @@ IntegrationStats integrate_rod(const IntegratorSettings& is, CvodeWorkspace* ws,
     case IntegratorType::kCvodeAdams:
     case IntegratorType::kCvodeBdf:
       if constexpr (Ode::kDirections > 0) {
-        if (is.cvodes_sensitivities) return cvodes_sensitivities(*ws, is, ode, s0, s1, y, error);
+        if (is.cvodes_sensitivities) return cvodes_sensitivities(*ws, is, ode, s0, s1, y);
       }
-      return cvode_augmented(*ws, is, ode, s0, s1, y, error);
+      return cvode_augmented(*ws, is, ode, s0, s1, y);
   }
   IntegrationStats st;
   st.ok = false;

@@ -3,65 +3,38 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 
 #include "hydrojet_control/rod/cvode_integrator.h"
 #include "kinsol_workspace.h"
+#include "load_path.h"
 #include "rod_integration.h"
 #include "solver_templates.h"
 
 namespace hydrojet {
 namespace rod {
 
-using internal::init_tip_state;
+using internal::FoldTracker;
 
-const char* integrator_name(IntegratorType t) {
-  switch (t) {
-    case IntegratorType::kRk4: return "rk4";
-    case IntegratorType::kRk8: return "rk8";
-    case IntegratorType::kDopri5: return "dopri5";
-    case IntegratorType::kCvodeAdams: return "cvode-adams";
-    case IntegratorType::kCvodeBdf: return "cvode-bdf";
-  }
-  return "unknown";
-}
+ShootingSolver::Workspace::Workspace() = default;
+ShootingSolver::Workspace::~Workspace() = default;
 
-const char* integrator_names() { return "rk4, rk8, dopri5, cvode-adams, cvode-bdf"; }
-
-bool parse_integrator(const std::string& name, IntegratorType* out) {
-  for (IntegratorType t : {IntegratorType::kRk4, IntegratorType::kRk8, IntegratorType::kDopri5,
-                           IntegratorType::kCvodeAdams, IntegratorType::kCvodeBdf}) {
-    if (name == integrator_name(t)) {
-      *out = t;
-      return true;
-    }
-  }
-  return false;
-}
-
-ShootingSolver::Scratch::Scratch() = default;
-ShootingSolver::Scratch::~Scratch() = default;
-CvodeWorkspace& ShootingSolver::Scratch::cvode() {
-  if (!cvode_) cvode_.reset(new CvodeWorkspace);
-  return *cvode_;
-}
-
-ShootingSolver::ShootingSolver(const RodModel& model, const ShootingSettings& settings)
+ShootingSolver::ShootingSolver(const RodModel& model, const ShootingOptions& settings)
     : model_(model), settings_(settings) {
   select_kernels();
+  update_unloaded_shape();
 }
 
 void ShootingSolver::set_model(const RodModel& model) {
   model_ = model;
-  have_unloaded_det_ = false;
   select_kernels();
+  update_unloaded_shape();
   reset();
 }
 
-void ShootingSolver::set_settings(const ShootingSettings& settings) {
+void ShootingSolver::set_settings(const ShootingOptions& settings) {
   settings_ = settings;
-  have_unloaded_det_ = false;
   select_kernels();
+  update_unloaded_shape();
 }
 
 void ShootingSolver::reset() {
@@ -71,65 +44,24 @@ void ShootingSolver::reset() {
   nodes_ = Nodes();
 }
 
-const char* ShootingSolver::variant_name() const { return kernels_->name; }
-
-// One compiled right-hand side per combination of terms; the scene's combination is chosen here,
-// once, so the integration loop runs without branches on the model's terms.
-void ShootingSolver::select_kernels() {
-#define HJ_KERNEL(C, W, P, NAME)                                                                      \
-  Kernels {                                                                                           \
-    &ShootingSolver::evaluate_t<RodTerms<C, W, P>>, &ShootingSolver::compliance_t<RodTerms<C, W, P>>, \
-        &ShootingSolver::error_t<RodTerms<C, W, P>>, NAME                                             \
-  }
-  static const Kernels table[8] = {
-      HJ_KERNEL(false, false, false, "kirchhoff"),       HJ_KERNEL(false, false, true, "kirchhoff+precurved"),
-      HJ_KERNEL(false, true, false, "kirchhoff+weight"), HJ_KERNEL(false, true, true, "kirchhoff+weight+precurved"),
-      HJ_KERNEL(true, false, false, "cosserat"),         HJ_KERNEL(true, false, true, "cosserat+precurved"),
-      HJ_KERNEL(true, true, false, "cosserat+weight"),   HJ_KERNEL(true, true, true, "cosserat+weight+precurved"),
-  };
-  static const Kernels general = HJ_KERNEL(true, true, true, "general");
-#undef HJ_KERNEL
-  if (!settings_.specialize_model) {
-    kernels_ = &general;
-    return;
-  }
-  const RodTermSet t = needed_terms(model_);
-  kernels_ = &table[(t.cosserat ? 4 : 0) + (t.distributed_load ? 2 : 0) + (t.precurved ? 1 : 0)];
-}
-
-Mat3 ShootingSolver::unloaded_tip_rotation() const {
+void ShootingSolver::update_unloaded_shape() {
   // With no load u(s) = ũ solves eq. (14), so the unloaded tip frame is exp(L ũ^).
-  return so3::exp(model_.rod.length * model_.rod.precurvature);
-}
-
-double ShootingSolver::unloaded_det() const {
-  // det ∂r/∂x at the unloaded shape under zero load: where every cold load path starts.
-  if (!have_unloaded_det_) {
-    Load zero;
-    zero.gravity_scale = 0.0;
-    int rhs = 0;
-    const Eval u = evaluate(unloaded_tip_rotation(), zero, &rhs);
-    unloaded_det_ = u.ok ? u.J.determinant() : std::nan("");
-    unloaded_tip_ = u.ok ? Vec3(-u.R0.transpose() * u.p0) : Vec3::Zero();
-    have_unloaded_det_ = true;
-  }
-  return unloaded_det_;
-}
-
-Vec3 ShootingSolver::unloaded_tip_position() const {
-  unloaded_det();
-  return unloaded_tip_;
+  unloaded_.tip_rotation = so3::exp(model_.rod.length * model_.rod.precurvature);
+  int rhs = 0;
+  const Eval u = evaluate(unloaded_.tip_rotation, Load::none(), &rhs);
+  unloaded_.det = u.ok ? u.J.determinant() : std::nan("");
+  unloaded_.tip_position = u.ok ? Vec3(-u.R0.transpose() * u.p0) : Vec3::Zero();
 }
 
 double ShootingSolver::growth_estimate(const TipWrench& w) const {
-  const RodParameters& rod = model_.rod;
+  const ElasticRod& rod = model_.rod;
   const double g = model_.gravity.norm();
   const double n = w.force.norm() + model_.tip_mass * g + rod.linear_density * g * rod.length;
   const double ei = std::min(rod.stiffness.x(), rod.stiffness.y());
   return rod.length * std::sqrt(n / ei);
 }
 
-bool ShootingSolver::newton(Mat3* R_tip, const Load& load, RodSolution* sol, Eval* last) const {
+bool ShootingSolver::newton(Mat3* R_tip, const Load& load, RodSolution* sol, Eval* last) {
   if (settings_.newton == NewtonBackend::kKinsol) return newton_kinsol(R_tip, load, sol, last);
   Eval e = evaluate(*R_tip, load, &sol->rhs_evaluations);
   for (int it = 0;; ++it) {
@@ -178,215 +110,178 @@ bool ShootingSolver::newton(Mat3* R_tip, const Load& load, RodSolution* sol, Eva
   }
 }
 
-namespace {
-/// Continuation steps (fractions of the load change) below which a persisting jump of the solution
-/// counts as a snap-through at a fold rather than a step that is too long.
-constexpr double kSnapStep = 1.0 / 256.0;
+/// Single shooting on the load path (load_path.h): the unknown is the tip orientation R(L) (the x
+/// of eq. 15); Newton's last evaluation `e` describes the equilibrium reached.
+struct ShootingSolver::SingleShooting {
+  using Unknowns = Mat3;
+  using Load = ShootingSolver::Load;
+  using Point = internal::PathPoint<Mat3, Load>;
+  using Saved = Eval;
+  static constexpr bool kNewtonFromUnloaded = true;
 
-/// Counts a sign change of det ∂r/∂x between consecutive equilibria of a load path.
-struct FoldTracker {
-  double det = std::nan("");
-  int crossings = 0;
-  void start(double d) {
-    det = d;
-    crossings = 0;
+  ShootingSolver& solver;
+  Load target;
+  RodSolution* sol;
+  Mat3 x = Mat3::Identity();
+  double det = 0.0;
+  Vec3 tip = Vec3::Zero();
+  Eval e;
+
+  const ShootingOptions& options() const { return solver.settings_; }
+  double length() const { return solver.model_.rod.length; }
+  double growth() const { return solver.growth_estimate(target.wrench); }
+  bool newton(Mat3* R, const Load& load, double* d, Vec3* p) {
+    if (!solver.newton(R, load, sol, &e)) return false;
+    *d = e.J.determinant();
+    *p = -e.R0.transpose() * e.p0;
+    return true;
   }
-  void note(double d) {
-    if (!std::isfinite(d) || d == 0.0) return;
-    if (std::isfinite(det) && det != 0.0 && (d > 0.0) != (det > 0.0)) ++crossings;
-    det = d;
+  bool turned_far(const Mat3& a, const Mat3& b) const {
+    return so3::log(a.transpose() * b).norm() > options().max_step;
+  }
+  Saved save() const { return e; }
+  void restore(const Saved& direct) {
+    e = direct;
+    sol->residual = e.r.norm();
+    sol->message.clear();
+  }
+
+  /// Newton from the warm solution (or the unloaded shape) → load continuation from the warm
+  /// solution → from the unloaded shape.
+  bool reach_equilibrium(FoldTracker* folds) {
+    const ShootingSolver& s = solver;
+    const Point unloaded{s.unloaded_.tip_rotation, Load::none(), s.unloaded_.tip_position, s.unloaded_.det};
+    const Point start = s.have_solution_ ? Point{s.R_tip_, s.load_, s.tip_pos_, s.det_} : unloaded;
+    return internal::reach_equilibrium(*this, start, s.have_solution_, unloaded, folds);
+  }
+  /// The tip pose and det ∂r/∂x of the last evaluation.
+  void describe_tip() {
+    if (!e.ok) return;
+    sol->tip_rotation = so3::orthonormalize(e.R0.transpose() * x);
+    sol->tip_position = -e.R0.transpose() * e.p0;
+    sol->jacobian_det = e.J.determinant();
+  }
+  /// The accuracy check of a fixed-step solve (Richardson estimate of the compiled variant).
+  bool accurate_enough() {
+    if (!solver.accuracy_check_applies()) return true;
+    sol->error_estimate = (solver.*solver.kernels_->error)(x, target, e);
+    return solver.accurate_enough(sol, 1);
+  }
+  /// Convergence test; a converged equilibrium ends the load path (its det noted) and becomes the
+  /// warm start.
+  void finish(bool ok, FoldTracker* folds) {
+    sol->converged = solver.converged(ok && e.ok, *sol);
+    if (!sol->converged) {
+      if (sol->message.empty()) sol->message = "did not converge";
+      return;
+    }
+    folds->note(sol->jacobian_det);
+    sol->message.clear();
+    solver.commit_single(x, target, e, *sol);
   }
 };
-}  // namespace
 
 RodSolution ShootingSolver::solve(const TipWrench& wrench) {
-  RodSolution sol;
-  Load target;
-  target.wrench = wrench;
-  target.gravity_scale = 1.0;
-  if (!wrench.force.allFinite() || !wrench.moment.allFinite()) {
-    sol.message = "non-finite tip wrench";
-    sol.residual = std::nan("");
-    last_ = sol;
-    return sol;
+  if (!wrench.force.allFinite() || !wrench.moment.allFinite()) return remember(non_finite_wrench());
+  const Load target{wrench, 1.0};
+  // Multiple shooting first when forced, warm from a multiple-shooting solution, or ill-conditioned.
+  if (multiple_shooting_first(wrench)) {
+    RodSolution ms;
+    if (ms_solve(target, first_segments(target), &ms) || settings_.shooting_segments >= 2) return remember(ms);
   }
+  // Single shooting: Newton from the warm solution → load continuation from the warm solution →
+  // from the unloaded shape.
+  RodSolution sol;
   FoldTracker folds;
-  auto finish = [&](bool ok, const Eval& e, const Mat3& R) {
-    if (e.ok) {
-      sol.tip_rotation = so3::orthonormalize(e.R0.transpose() * R);
-      sol.tip_position = -e.R0.transpose() * e.p0;
-      sol.jacobian_det = e.J.determinant();
-    }
-    sol.converged = ok && e.ok && std::isfinite(sol.residual) && sol.residual <= settings_.residual_tolerance &&
-                    sol.tip_position.allFinite();
-    if (sol.converged) {
-      folds.note(sol.jacobian_det);
-      sol.message.clear();
-      have_solution_ = true;
-      det_ = sol.jacobian_det;
-      tip_pos_ = sol.tip_position;
-      multiple_ = false;
-      R_tip_ = R;
-      load_ = target;
-      eval_ = e;
-    } else if (sol.message.empty()) {
-      sol.message = "did not converge";
-    }
-  };
-  auto report_folds = [&]() {
-    sol.fold_crossings = folds.crossings;
-    if (folds.crossings > 0)
-      sol.warning = "the load path crossed a fold or bifurcation " + std::to_string(folds.crossings) +
-                    " time(s) (det of the shooting Jacobian changed sign, or the equilibrium snapped through); "
-                    "the result may lie on another branch than the start: check stability (stability_eig_min)";
-    last_ = sol;
-    return sol;
-  };
+  SingleShooting single{*this, target, &sol};
+  const bool ok = single.reach_equilibrium(&folds);
+  single.describe_tip();
+  // Accuracy check. A refused solve gets no multiple-shooting retry: it would use the same steps.
+  if (ok && !single.accurate_enough()) return remember(report_folds(folds, &sol));
+  single.finish(ok, &folds);
+  // Multiple shooting when single shooting failed (automatic mode).
+  if (!sol.converged && settings_.shooting_segments == 0 && fall_back_to_multiple(target, &sol)) return remember(sol);
+  return remember(report_folds(folds, &sol));
+}
 
+RodSolution ShootingSolver::remember(const RodSolution& sol) {
+  last_ = sol;
+  return sol;
+}
+
+RodSolution ShootingSolver::non_finite_wrench() {
+  RodSolution sol;
+  sol.message = "non-finite tip wrench";
+  sol.residual = std::nan("");
+  return sol;
+}
+
+bool ShootingSolver::multiple_shooting_first(const TipWrench& wrench) const {
   const int seg = settings_.shooting_segments;
   // Single shooting loses about λL/ln 10 digits to the growth of its sensitivities; past λL ≈ 12 its
   // Newton iteration and load continuation become unreliable (they drift onto other, better
   // conditioned branches), so the automatic mode goes to multiple shooting directly.
   const bool ill_conditioned = seg == 0 && growth_estimate(wrench) > kSingleShootingGrowthLimit;
-  if (seg >= 2 || (seg == 0 && ((multiple_ && have_solution_) || ill_conditioned))) {
-    // Multiple shooting: forced, warm from a multiple-shooting solution, or ill-conditioned.
-    int M = seg >= 2 ? seg : auto_segments(target);
-    if (seg == 0 && multiple_ && have_solution_ && nodes_.segments >= M) M = nodes_.segments;
-    const bool ok = ms_solve(target, M, &sol);
-    if (ok || seg >= 2) {
-      last_ = sol;
-      return sol;
-    }
-    sol = RodSolution();  // fall through to single shooting, then a fresh multiple-shooting attempt
-  }
+  return seg >= 2 || (seg == 0 && ((multiple_ && have_solution_) || ill_conditioned));
+}
 
-  folds.start(have_solution_ ? det_ : unloaded_det());
-  Eval e;
-  Mat3 R = have_solution_ ? R_tip_ : unloaded_tip_rotation();
-  Load zero;
-  zero.gravity_scale = 0.0;
+int ShootingSolver::first_segments(const Load& target) const {
+  const int seg = settings_.shooting_segments;
+  const int M = seg >= 2 ? seg : auto_segments(target);
+  // Warm from a multiple-shooting solution: keep its finer nodes.
+  return seg == 0 && multiple_ && have_solution_ && nodes_.segments >= M ? nodes_.segments : M;
+}
 
-  // Load continuation from `from` (an equilibrium at R_from) to the target load.
-  // Tip position of an evaluation (base frame).
-  auto tip_of = [](const Eval& x) { return Vec3(-x.R0.transpose() * x.p0); };
-  // Two equilibria are "far" apart when the tip turned by more than max_step or moved by more than
-  // L/4: more than a load step of a path should do; a jump to another branch or a snap-through.
-  const double far_move = 0.25 * model_.rod.length;
-  auto far_apart = [&](const Mat3& Ra, const Vec3& pa, const Mat3& Rb, const Vec3& pb) {
-    return so3::log(Ra.transpose() * Rb).norm() > settings_.max_step || (pa - pb).norm() > far_move;
-  };
-  auto continuation = [&](const Load& from, const Mat3& R_from, const Vec3& p_from) {
-    Mat3 Rc = R_from;
-    Vec3 pc = p_from;
-    double lambda = 0.0, dl = 0.25;
-    while (lambda < 1.0) {
-      if (sol.continuation_steps >= settings_.max_continuation_steps || dl < 1e-6) return false;
-      const double ln = std::min(1.0, lambda + dl);
-      Load l;
-      l.wrench.force = from.wrench.force + ln * (target.wrench.force - from.wrench.force);
-      l.wrench.moment = from.wrench.moment + ln * (target.wrench.moment - from.wrench.moment);
-      l.gravity_scale = from.gravity_scale + ln * (target.gravity_scale - from.gravity_scale);
-      Mat3 Rt = Rc;
-      ++sol.continuation_steps;
-      // A step is taken when Newton stays near the previous equilibrium (far_apart() false); a
-      // larger change is a jump to another branch: the step is halved, and if the jump persists down
-      // to a tiny step the path has reached a fold and snaps through (taken and reported as a fold
-      // crossing).
-      if (newton(&Rt, l, &sol, &e)) {
-        const Vec3 pt = tip_of(e);
-        const bool jump = far_apart(Rc, pc, Rt, pt);
-        if (jump && dl > kSnapStep) {
-          dl *= 0.5;
-          continue;
-        }
-        if (jump) {
-          ++folds.crossings;
-          folds.det = std::nan("");  // a new branch: its det starts a new comparison
-        }
-        Rc = Rt;
-        pc = pt;
-        lambda = ln;
-        dl = std::min(2.0 * dl, 0.5);
-        if (ln < 1.0) folds.note(e.J.determinant());
-      } else {
-        dl *= 0.5;
-      }
-    }
-    R = Rc;
+bool ShootingSolver::fall_back_to_multiple(const Load& target, RodSolution* sol) {
+  RodSolution ms;
+  ms.iterations = sol->iterations;
+  ms.continuation_steps = sol->continuation_steps;
+  ms.rhs_evaluations = sol->rhs_evaluations;
+  if (ms_solve(target, auto_segments(target), &ms)) {
+    *sol = ms;
     return true;
-  };
+  }
+  sol->message += "; multiple shooting (" + std::to_string(auto_segments(target)) + " segments): " + ms.message;
+  return false;
+}
 
-  const Mat3 R_start = R;
-  const Vec3 p_start = have_solution_ ? tip_pos_ : unloaded_tip_position();
-  bool ok = newton(&R, target, &sol, &e);
-  if (ok && e.ok) {
-    // The direct Newton result is the equilibrium connected to the start along the load path unless
-    // Newton (a) went across a singular shooting Jacobian (det changed sign), or (b) moved far: a
-    // warm start whose tip turned by more than max_step or moved by more than L/4 (a snap, or another
-    // branch), or a cold start of a strongly loaded rod (λL > 4, where several equilibria exist)
-    // that did. Then follow the
-    // load path instead (it reports folds and snap-throughs on the way); keep the direct result
-    // only if the path fails.
-    const double start = folds.det, d = e.J.determinant();
-    const bool crossed = std::isfinite(start) && start != 0.0 && d != 0.0 && (d > 0.0) != (start > 0.0);
-    const bool far = far_apart(R_start, p_start, R, tip_of(e)) && (have_solution_ || growth_estimate(wrench) > 4.0);
-    if (crossed || far) {
-      const Mat3 R_direct = R;
-      const Eval e_direct = e;
-      const bool path = have_solution_ ? continuation(load_, R_tip_, tip_pos_)
-                                       : continuation(zero, unloaded_tip_rotation(), unloaded_tip_position());
-      if (!path) {
-        // The path breaks down (Newton fails near a fold): the far direct result is where the rod
-        // snaps to. Keep it, and report the snap (a det sign change is counted by finish()).
-        R = R_direct;
-        e = e_direct;
-        sol.residual = e.r.norm();
-        sol.message.clear();
-        folds.start(start);
-        if (!crossed) ++folds.crossings;
-      }
-    }
-  }
-  if (!ok && have_solution_) {
-    folds.start(det_);
-    ok = continuation(load_, R_tip_, tip_pos_);
-  }
-  if (!ok) {
-    folds.start(unloaded_det());
-    ok = continuation(zero, unloaded_tip_rotation(), unloaded_tip_position());
-  }
-  if (ok && e.ok && settings_.accuracy_tolerance > 0.0 && !is_adaptive(settings_.integrator.type)) {
-    // A fixed-step solve is only as good as its steps: estimate the tip error and refuse to call
-    // an under-resolved solve converged (no silent inaccuracy under extreme loads). No multiple-
-    // shooting fallback here: it would use the same steps.
-    sol.error_estimate = (this->*kernels_->error)(R, target, e);
-    const double allowed = settings_.accuracy_tolerance * model_.rod.length;
-    if (!(sol.error_estimate <= allowed)) {
-      sol.message = internal::accuracy_refusal(sol.error_estimate, settings_.integrator.type,
-                                               settings_.integrator.steps, 1, allowed);
-      sol.residual = e.r.norm();
-      sol.tip_rotation = so3::orthonormalize(e.R0.transpose() * R);
-      sol.tip_position = -e.R0.transpose() * e.p0;
-      sol.jacobian_det = e.J.determinant();
-      sol.converged = false;
-      return report_folds();
-    }
-  }
-  finish(ok, e, R);
-  if (!sol.converged && seg == 0) {
-    // Single shooting failed: multiple shooting, which also handles ill-conditioned (long, soft) rods.
-    RodSolution ms;
-    ms.iterations = sol.iterations;
-    ms.continuation_steps = sol.continuation_steps;
-    ms.rhs_evaluations = sol.rhs_evaluations;
-    if (ms_solve(target, auto_segments(target), &ms)) {
-      sol = ms;
-      last_ = sol;
-      return sol;
-    }
-    sol.message += "; multiple shooting (" + std::to_string(auto_segments(target)) + " segments): " + ms.message;
-  }
-  return report_folds();
+bool ShootingSolver::accuracy_check_applies() const {
+  return settings_.accuracy_tolerance > 0.0 && !is_adaptive(settings_.integrator.type);
+}
+
+bool ShootingSolver::accurate_enough(RodSolution* sol, int segments) const {
+  // A fixed-step solve is only as good as its steps: refuse to call an under-resolved solve
+  // converged (no silent inaccuracy under extreme loads).
+  const double allowed = settings_.accuracy_tolerance * model_.rod.length;
+  if (sol->error_estimate <= allowed) return true;
+  sol->message = internal::accuracy_refusal(sol->error_estimate, settings_.integrator.type, settings_.integrator.steps,
+                                            segments, allowed);
+  sol->converged = false;
+  return false;
+}
+
+bool ShootingSolver::converged(bool ok, const RodSolution& sol) const {
+  return ok && std::isfinite(sol.residual) && sol.residual <= settings_.residual_tolerance &&
+         sol.tip_position.allFinite();
+}
+
+const RodSolution& ShootingSolver::report_folds(const FoldTracker& folds, RodSolution* sol) {
+  sol->fold_crossings = folds.crossings;
+  if (folds.crossings > 0)
+    sol->warning = "the load path crossed a fold or bifurcation " + std::to_string(folds.crossings) +
+                   " time(s) (det of the shooting Jacobian changed sign, or the equilibrium snapped through); "
+                   "the result may lie on another branch than the start: check stability (stability_eig_min)";
+  return *sol;
+}
+
+void ShootingSolver::commit_single(const Mat3& R_tip, const Load& load, const Eval& e, const RodSolution& sol) {
+  have_solution_ = true;
+  multiple_ = false;
+  R_tip_ = R_tip;
+  load_ = load;
+  eval_ = e;
+  det_ = sol.jacobian_det;
+  tip_pos_ = sol.tip_position;
 }
 
 Compliance ShootingSolver::compliance() {
@@ -403,7 +298,7 @@ std::vector<Vec3> ShootingSolver::shape(int segments) const {
   Ode ode;
   setup_ode(&ode, R_tip_, load_);
   Ode::State y;
-  init_tip_state(ode, R_tip_, load_.wrench.moment, &y);
+  internal::init_tip_state(ode, R_tip_, load_.wrench.moment, &y);
   const double L = model_.rod.length;
   // Break points: the output points and, for a multiple-shooting solution, the nodes, where the
   // integration restarts from the node's (R, u) (p carries on).
@@ -414,6 +309,7 @@ std::vector<Vec3> ShootingSolver::shape(int segments) const {
   std::sort(br.begin(), br.end(), std::greater<double>());
   br.erase(std::unique(br.begin(), br.end(), [L](double a, double b) { return std::abs(a - b) <= 1e-14 * L; }),
            br.end());
+  Workspace ws;  // shape() is const: its own integrator memory
   std::vector<Vec3> from_tip{Vec3::Zero()};
   for (size_t i = 0; i + 1 < br.size(); ++i) {
     const double s0 = br[i], s1 = br[i + 1];
@@ -424,9 +320,9 @@ std::vector<Vec3> ShootingSolver::shape(int segments) const {
         y.segment<3>(12) = nodes_.u[k];
       }
     }
-    IntegratorSettings seg = settings_.integrator;
+    IntegratorOptions seg = settings_.integrator;
     seg.steps = std::max(1, static_cast<int>(std::ceil(settings_.integrator.steps * (s0 - s1) / L - 1e-9)));
-    integrate_ode(ode, s0, s1, &y, seg);
+    ws.integrate(ode, s0, s1, &y, seg);
     // keep only the requested output points
     const double f = (L - s1) / L * segments;
     if (std::abs(f - std::round(f)) <= 1e-9) from_tip.push_back(y.segment<3>(0));

@@ -11,7 +11,7 @@ namespace rod {
 
 template <class Ode>
 void ShootingSolver::setup_ode(Ode* ode, const Mat3& R_tip, const Load& load) const {
-  const RodParameters& rod = model_.rod;
+  const ElasticRod& rod = model_.rod;
   ode->k_diag = rod.stiffness;
   ode->k_inv = rod.stiffness.cwiseInverse();
   ode->u_tilde = rod.precurvature;
@@ -24,11 +24,11 @@ void ShootingSolver::setup_ode(Ode* ode, const Mat3& R_tip, const Load& load) co
 }
 
 template <class Ode>
-IntegrationStats ShootingSolver::integrate_ode(const Ode& ode, double s0, double s1, typename Ode::State* y,
-                                               const IntegratorSettings& is) const {
-  CvodeWorkspace* ws =
-      is.type == IntegratorType::kCvodeAdams || is.type == IntegratorType::kCvodeBdf ? &scratch_.cvode() : nullptr;
-  return internal::integrate_rod(is, ws, ode, s0, s1, y, &scratch_.last_error);
+IntegrationStats ShootingSolver::Workspace::integrate(const Ode& ode, double s0, double s1, typename Ode::State* y,
+                                                      const IntegratorOptions& is) {
+  const bool cvode = is.type == IntegratorType::kCvodeAdams || is.type == IntegratorType::kCvodeBdf;
+  if (cvode && !cvode_) cvode_.reset(new CvodeWorkspace);
+  return internal::integrate_rod(is, cvode ? cvode_.get() : nullptr, ode, s0, s1, y);
 }
 
 }  // namespace rod

@@ -9,7 +9,7 @@
 // a lockstep plant (which owns /clock and waits for a command per sample) advances with it.
 // When done: ~result_file gets calibrate's last JSON line, ~report_file its whole report, and the
 // JSON is also published (latched) on calibration/result. Parameters: see read_options() and
-// README "Calibration".
+// docs/calibration.md.
 #include <ros/ros.h>
 #include <rosbag/bag.h>
 #include <std_msgs/String.h>
@@ -31,6 +31,9 @@
 #include "hydrojet_control/config/scene.h"
 #include "hydrojet_control/ros/params.h"
 #include "hydrojet_control/util/json_writer.h"
+#include "hydrojet_control/ros/names.h"
+
+namespace names = hydrojet::names;
 
 namespace hydrojet {
 namespace {
@@ -49,7 +52,7 @@ struct RecorderOptions {
   double min_net_force = 0.0;           ///< |A q| ≥ this [N]
   bool calibrate = true;
   bool exit_when_done = true;
-  actuation::FlowRegulatorParameters flow;
+  actuation::FlowRegulatorOptions flow;
 };
 
 RecorderOptions read_options(const ros::NodeHandle& pnh) {
@@ -107,16 +110,16 @@ class Recorder {
     if (!scene_.has_jets) throw config::SceneError("jets", "missing (the recorder needs the jet geometry and nozzles)");
     make_targets();
     bag_.open(o_.bag, rosbag::bagmode::Write);
-    cmd_pub_ = nh.advertise<hydrojet_control::JetCommand>("jets/command", 10);
-    result_pub_ = nh.advertise<std_msgs::String>("calibration/result", 1, true);
-    jet_sub_ = nh.subscribe("jets/state", 100, &Recorder::jets, this, ros::TransportHints().tcpNoDelay());
+    cmd_pub_ = nh.advertise<hydrojet_control::JetCommand>(names::kJetCommand, 10);
+    result_pub_ = nh.advertise<std_msgs::String>(names::kCalibrationResult, 1, true);
+    jet_sub_ = nh.subscribe(names::kJetState, 100, &Recorder::jets, this, ros::TransportHints().tcpNoDelay());
     tip_sub_ = nh.subscribe<geometry_msgs::PoseStamped>(
-        "tracker/tip_pose", 100,
-        [this](const geometry_msgs::PoseStamped::ConstPtr& m) { pose(m, "tracker/tip_pose", &have_tip_); },
+        names::kTipPose, 100,
+        [this](const geometry_msgs::PoseStamped::ConstPtr& m) { pose(m, names::kTipPose, &have_tip_); },
         ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
     base_sub_ = nh.subscribe<geometry_msgs::PoseStamped>(
-        "tracker/base_pose", 100,
-        [this](const geometry_msgs::PoseStamped::ConstPtr& m) { pose(m, "tracker/base_pose", &have_base_); },
+        names::kBasePose, 100,
+        [this](const geometry_msgs::PoseStamped::ConstPtr& m) { pose(m, names::kBasePose, &have_base_); },
         ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
     timer_ = nh.createTimer(ros::Duration(1.0 / o_.rate), &Recorder::tick, this);
     ROS_INFO("calibration recorder: %d jet-force combinations, %.1f s each, |net force| <= %.3f N, bag %s", o_.samples,
@@ -149,7 +152,7 @@ class Recorder {
 
   void jets(const hydrojet_control::JetState::ConstPtr& m) {
     if (!recording_) return;
-    bag_.write("jets/state", bag_time(m->header.stamp), *m);
+    bag_.write(names::kJetState, bag_time(m->header.stamp), *m);
     flow_ = Eigen::Vector3d(m->flow[0], m->flow[1], m->flow[2]);
     have_jets_ = true;
   }
@@ -202,7 +205,7 @@ class Recorder {
     c.header.stamp = now;
     for (int i = 0; i < 3; ++i) c.valve_command[i] = duty[i], c.jet_force[i] = force[i], c.flow[i] = flow[i];
     cmd_pub_.publish(c);
-    if (recording_) bag_.write("jets/command", bag_time(now), c);
+    if (recording_) bag_.write(names::kJetCommand, bag_time(now), c);
   }
 
   void finish() {

@@ -37,9 +37,9 @@ YAML::Node private_params_as_yaml(const ros::NodeHandle& pnh) {
   return to_yaml(v);
 }
 
-config::ControllerOptions read_controller_options(const ros::NodeHandle& pnh) {
+config::ControllerNodeOptions read_controller_options(const ros::NodeHandle& pnh) {
   try {
-    config::ControllerOptions o = config::parse_controller_options(private_params_as_yaml(pnh));
+    config::ControllerNodeOptions o = config::parse_controller_options(private_params_as_yaml(pnh));
     if (o.scene.empty()) throw config::ParamError("scene", "missing (path of the scene YAML)");
     return o;
   } catch (const config::ParamError& e) {  // private parameters: name them ~key

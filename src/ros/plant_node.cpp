@@ -16,6 +16,9 @@
 #include "hydrojet_control/actuation/thrust.h"
 #include "hydrojet_control/config/plant_config.h"
 #include "hydrojet_control/ros/params.h"
+#include "hydrojet_control/ros/names.h"
+
+namespace names = hydrojet::names;
 
 namespace hydrojet {
 namespace {
@@ -74,17 +77,17 @@ class PlantNode {
  public:
   PlantNode(ros::NodeHandle& nh, ros::NodeHandle& pnh) : o_(read_options(pnh)) {
     const config::Scene scene = config::load_scene(o_.scene);
-    params_ = config::load_plant(scene, o_.plant_file);
-    plant_.reset(new plant::Plant(params_, static_cast<unsigned>(o_.seed)));
+    model_ = config::load_plant(scene, o_.plant_file);
+    plant_.reset(new plant::Plant(model_, static_cast<unsigned>(o_.seed)));
     if (!plant_->error().empty()) throw std::runtime_error(plant_->error());
     if (o_.tracker_dropout_at >= 0) plant_->tracker().force_dropout(o_.tracker_dropout_at, o_.tracker_dropout_duration);
-    if (o_.lockstep) clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", 10);
-    tip_pub_ = nh.advertise<geometry_msgs::PoseStamped>("tracker/tip_pose", 10);
-    base_pub_ = nh.advertise<geometry_msgs::PoseStamped>("tracker/base_pose", 10);
-    jet_pub_ = nh.advertise<hydrojet_control::JetState>("jets/state", 10);
-    truth_pub_ = nh.advertise<hydrojet_control::RodState>("plant/rod_state", 10);
-    cmd_sub_ = nh.subscribe("jets/command", 10, &PlantNode::command, this, ros::TransportHints().tcpNoDelay());
-    ROS_INFO("plant: scene %s, base tilt %.1f deg, seed %d, %s", o_.scene.c_str(), params_.base_tilt * 180 / M_PI,
+    if (o_.lockstep) clock_pub_ = nh.advertise<rosgraph_msgs::Clock>(names::kClock, 10);
+    tip_pub_ = nh.advertise<geometry_msgs::PoseStamped>(names::kTipPose, 10);
+    base_pub_ = nh.advertise<geometry_msgs::PoseStamped>(names::kBasePose, 10);
+    jet_pub_ = nh.advertise<hydrojet_control::JetState>(names::kJetState, 10);
+    truth_pub_ = nh.advertise<hydrojet_control::RodState>(names::kPlantRodState, 10);
+    cmd_sub_ = nh.subscribe(names::kJetCommand, 10, &PlantNode::command, this, ros::TransportHints().tcpNoDelay());
+    ROS_INFO("plant: scene %s, base tilt %.1f deg, seed %d, %s", o_.scene.c_str(), model_.base_tilt * 180 / M_PI,
              o_.seed, o_.lockstep ? "lockstep (owns /clock)" : "real time");
   }
 
@@ -168,7 +171,7 @@ class PlantNode {
     for (int i = 0; i < 3; ++i) {
       js.flow[i] = q[i];
       js.flow_valid[i] = true;  // the plant reports what its sensors read; checks are the reader's job
-      js.force[i] = actuation::force_from_flow(q[i], params_.nozzle);
+      js.force[i] = actuation::force_from_flow(q[i], model_.nozzle);
       js.valve_command[i] = duty[i];
     }
     jet_pub_.publish(js);
@@ -204,7 +207,7 @@ class PlantNode {
   }
 
   PlantNodeOptions o_;
-  plant::PlantParameters params_;
+  plant::PlantModel model_;
   std::unique_ptr<plant::Plant> plant_;
   ros::Publisher clock_pub_, tip_pub_, base_pub_, jet_pub_, truth_pub_;
   ros::Subscriber cmd_sub_;

@@ -1,5 +1,5 @@
 // Wires the HydroJet testbed's devices (ROS-free drivers in include/hydrojet_control/devices/: NDI
-// Aurora, three flow sensors, valve board) to the topics of the topic contract (README, "Topics"),
+// Aurora, three flow sensors, valve board) to the topics of the topic contract (docs/ros_api.md),
 // the same topics the simulated plant speaks. Health goes to /diagnostics; every device thread
 // lives in the core, this file only converts and publishes.
 #include <diagnostic_updater/diagnostic_updater.h>
@@ -20,6 +20,9 @@
 #include "hydrojet_control/config/scene.h"
 #include "hydrojet_control/devices/rig_config.h"
 #include "hydrojet_control/ros/params.h"
+#include "hydrojet_control/ros/names.h"
+
+namespace names = hydrojet::names;
 
 namespace hydrojet {
 namespace {
@@ -29,11 +32,11 @@ using devices::HandlePose;
 using devices::SteadyClock;
 using devices::SteadyTime;
 
-devices::RigConfig read_config(const ros::NodeHandle& pnh) {
+devices::RigOptions read_options(const ros::NodeHandle& pnh) {
   try {
-    return devices::parse_rig_config(ros_bridge::private_params_as_yaml(pnh));
-  } catch (const devices::RigConfigError& e) {
-    throw devices::RigConfigError(std::string("~") + e.what());
+    return devices::parse_rig_options(ros_bridge::private_params_as_yaml(pnh));
+  } catch (const devices::RigOptionsError& e) {
+    throw devices::RigOptionsError(std::string("~") + e.what());
   }
 }
 
@@ -62,7 +65,7 @@ std::string fmt(const char* f, double x) {
 class RigNode {
  public:
   RigNode(ros::NodeHandle& nh, ros::NodeHandle& pnh)
-      : cfg_(read_config(pnh)),
+      : cfg_(read_options(pnh)),
         nozzle_(config::load_scene(cfg_.scene).nozzle),
         diag_(nh, pnh),
         tracker_min_hz_(0.8 * cfg_.tracker.rate),
@@ -83,50 +86,12 @@ class RigNode {
         flows_(cfg_.flow[0].timeout, cfg_.invalidate_on_reject) {
     if (!actuation::validate(nozzle_).empty())
       throw std::runtime_error("scene " + cfg_.scene + ": " + actuation::validate(nozzle_));
-    for (int i = 0; i < 3; ++i)
-      flow_freq_[i].reset(new diagnostic_updater::FrequencyStatus(
-          diagnostic_updater::FrequencyStatusParam(&flow_min_hz_, &flow_max_hz_, 0.1, 10),
-          cfg_.flow[i].name + " rate"));
-
-    tip_pub_ = nh.advertise<geometry_msgs::PoseStamped>("tracker/tip_pose", 10);
-    base_pub_ = nh.advertise<geometry_msgs::PoseStamped>("tracker/base_pose", 10);
-    tip_rms_pub_ = nh.advertise<std_msgs::Float64>("tracker/tip_rms", 10);
-    base_rms_pub_ = nh.advertise<std_msgs::Float64>("tracker/base_rms", 10);
-    jet_pub_ = nh.advertise<hydrojet_control::JetState>("jets/state", 10);
-
-    diag_.setHardwareID("hydrojet_rig");
-    diag_.add("tracker", this, &RigNode::diagnoseTracker);
-    diag_.add("tip sensor", [this](diagnostic_updater::DiagnosticStatusWrapper& s) { diagnoseHandle(s, true); });
-    diag_.add("base sensor", [this](diagnostic_updater::DiagnosticStatusWrapper& s) { diagnoseHandle(s, false); });
-    for (int i = 0; i < 3; ++i)
-      diag_.add(cfg_.flow[i].name, [this, i](diagnostic_updater::DiagnosticStatusWrapper& s) { diagnoseFlow(s, i); });
-    diag_.add("valve board", this, &RigNode::diagnoseValveBoard);
-    diag_.add("valves", this, &RigNode::diagnoseGate);
-    diag_.add(tip_freq_);
-    diag_.add(base_freq_);
-    diag_.add(jets_freq_);
-    for (auto& f : flow_freq_) diag_.add(*f);
-    diag_.add(valve_freq_);
-
-    auto log = [](devices::LogLevel level, const std::string& m) {
-      if (level == devices::LogLevel::kInfo)
-        ROS_INFO("rig: %s", m.c_str());
-      else
-        ROS_WARN("rig: %s", m.c_str());
-    };
-    tracker_.reset(new devices::AuroraClient(
-        cfg_.tracker, [this](const devices::AuroraSample& s) { onTracker(s); }, log));
-    for (size_t i = 0; i < 3; ++i)
-      flow_[i].reset(new devices::FlowSensor(
-          cfg_.flow[i], [this, i](const devices::FlowReading& r) { onFlow(i, r); }, log));
-    valves_.reset(new devices::ValveLoop(
-        std::unique_ptr<devices::ValveDriver>(new devices::SerialValveBoard(cfg_.valves)), cfg_.valve_loop,
-        [this](std::string* why) { return devicesHealthy(SteadyClock::now(), why); },
-        [this](const devices::Duty&, SteadyTime) { valve_freq_.tick(); }, log));
-
-    cmd_sub_ = nh.subscribe("jets/command", 10, &RigNode::onCommand, this, ros::TransportHints().tcpNoDelay());
-    jets_timer_ = nh.createWallTimer(ros::WallDuration(1.0 / cfg_.flow_publish_rate), &RigNode::publishJets, this);
-    diag_timer_ = nh.createWallTimer(ros::WallDuration(0.05), &RigNode::updateDiagnostics, this);
+    advertise(nh);
+    add_diagnostics();
+    create_devices();
+    cmd_sub_ = nh.subscribe(names::kJetCommand, 10, &RigNode::on_command, this, ros::TransportHints().tcpNoDelay());
+    jets_timer_ = nh.createWallTimer(ros::WallDuration(1.0 / cfg_.flow_publish_rate), &RigNode::publish_jets, this);
+    diag_timer_ = nh.createWallTimer(ros::WallDuration(0.05), &RigNode::update_diagnostics, this);
 
     valves_->start();
     tracker_->start();
@@ -148,24 +113,73 @@ class RigNode {
   }
 
  private:
+  // -- set-up -----------------------------------------------------------------------------------
+
+  void advertise(ros::NodeHandle& nh) {
+    tip_pub_ = nh.advertise<geometry_msgs::PoseStamped>(names::kTipPose, 10);
+    base_pub_ = nh.advertise<geometry_msgs::PoseStamped>(names::kBasePose, 10);
+    tip_rms_pub_ = nh.advertise<std_msgs::Float64>(names::kTipRms, 10);
+    base_rms_pub_ = nh.advertise<std_msgs::Float64>(names::kBaseRms, 10);
+    jet_pub_ = nh.advertise<hydrojet_control::JetState>(names::kJetState, 10);
+  }
+
+  void add_diagnostics() {
+    for (int i = 0; i < 3; ++i)
+      flow_freq_[i].reset(new diagnostic_updater::FrequencyStatus(
+          diagnostic_updater::FrequencyStatusParam(&flow_min_hz_, &flow_max_hz_, 0.1, 10),
+          cfg_.flow[i].name + " rate"));
+    diag_.setHardwareID("hydrojet_rig");
+    diag_.add("tracker", this, &RigNode::diagnose_tracker);
+    diag_.add("tip sensor", [this](diagnostic_updater::DiagnosticStatusWrapper& s) { diagnose_handle(s, true); });
+    diag_.add("base sensor", [this](diagnostic_updater::DiagnosticStatusWrapper& s) { diagnose_handle(s, false); });
+    for (int i = 0; i < 3; ++i)
+      diag_.add(cfg_.flow[i].name, [this, i](diagnostic_updater::DiagnosticStatusWrapper& s) { diagnose_flow(s, i); });
+    diag_.add("valve board", this, &RigNode::diagnose_valve_board);
+    diag_.add("valves", this, &RigNode::diagnose_gate);
+    diag_.add(tip_freq_);
+    diag_.add(base_freq_);
+    diag_.add(jets_freq_);
+    for (auto& f : flow_freq_) diag_.add(*f);
+    diag_.add(valve_freq_);
+  }
+
+  /// The device clients (threads not started yet); they log through ROS.
+  void create_devices() {
+    auto log = [](devices::LogLevel level, const std::string& m) {
+      if (level == devices::LogLevel::kInfo)
+        ROS_INFO("rig: %s", m.c_str());
+      else
+        ROS_WARN("rig: %s", m.c_str());
+    };
+    tracker_.reset(new devices::AuroraClient(
+        cfg_.tracker, [this](const devices::AuroraSample& s) { on_tracker(s); }, log));
+    for (size_t i = 0; i < 3; ++i)
+      flow_[i].reset(new devices::FlowSensor(
+          cfg_.flow[i], [this, i](const devices::FlowReading& r) { on_flow(i, r); }, log));
+    valves_.reset(new devices::ValveLoop(
+        std::unique_ptr<devices::ValveDriver>(new devices::SerialValveBoard(cfg_.valves)), cfg_.valve_loop,
+        [this](std::string* why) { return devices_healthy(SteadyClock::now(), why); },
+        [this](const devices::Duty&, SteadyTime) { valve_freq_.tick(); }, log));
+  }
+
   // -- device threads -------------------------------------------------------------------------
 
-  void onTracker(const devices::AuroraSample& s) {
+  void on_tracker(const devices::AuroraSample& s) {
     const ros::Time stamp = to_ros(s.received);
     std::vector<geometry_msgs::TransformStamped> tfs;
     if (s.tip_new && s.tip.status == HandlePose::kValid) {
-      publishPose(s.tip, stamp, tip_pub_, tip_rms_pub_, cfg_.tip_frame, &tfs);
+      publish_pose(s.tip, stamp, tip_pub_, tip_rms_pub_, cfg_.tip_frame, &tfs);
       tip_freq_.tick();
     }
     if (s.base_new && s.base.status == HandlePose::kValid) {
-      publishPose(s.base, stamp, base_pub_, base_rms_pub_, cfg_.base_frame, &tfs);
+      publish_pose(s.base, stamp, base_pub_, base_rms_pub_, cfg_.base_frame, &tfs);
       base_freq_.tick();
     }
     if (!tfs.empty()) tf_.sendTransform(tfs);
   }
 
-  void publishPose(const HandlePose& h, const ros::Time& stamp, ros::Publisher& pose_pub, ros::Publisher& rms_pub,
-                   const std::string& child, std::vector<geometry_msgs::TransformStamped>* tfs) {
+  void publish_pose(const HandlePose& h, const ros::Time& stamp, ros::Publisher& pose_pub, ros::Publisher& rms_pub,
+                    const std::string& child, std::vector<geometry_msgs::TransformStamped>* tfs) {
     geometry_msgs::PoseStamped p;
     p.header.stamp = stamp;
     p.header.frame_id = cfg_.tracker_frame;
@@ -184,18 +198,18 @@ class RigNode {
     tfs->push_back(t);
   }
 
-  void onFlow(size_t jet, const devices::FlowReading& r) {
+  void on_flow(size_t jet, const devices::FlowReading& r) {
     flows_.add(jet, r);
     if (r.accepted) flow_freq_[jet]->tick();
   }
 
   // -- ROS callbacks ----------------------------------------------------------------------------
 
-  void onCommand(const hydrojet_control::JetCommand::ConstPtr& m) {
+  void on_command(const hydrojet_control::JetCommand::ConstPtr& m) {
     valves_->command({m->valve_command[0], m->valve_command[1], m->valve_command[2]});
   }
 
-  void publishJets(const ros::WallTimerEvent&) {
+  void publish_jets(const ros::WallTimerEvent&) {
     devices::FlowAggregator::Sample s;
     if (!flows_.take(SteadyClock::now(), &s)) return;  // nothing new: never republish
     const devices::ValveStatus v = valves_->status();
@@ -211,10 +225,10 @@ class RigNode {
     jets_freq_.tick();
   }
 
-  void updateDiagnostics(const ros::WallTimerEvent&) {
+  void update_diagnostics(const ros::WallTimerEvent&) {
     // Publish at once when a device's health changes; otherwise at the updater's period.
     std::string why;
-    const bool ok = devicesHealthy(SteadyClock::now(), &why);
+    const bool ok = devices_healthy(SteadyClock::now(), &why);
     const bool valves_ok = valves_->status().healthy;
     const std::string signature = (ok ? std::string("ok") : why.substr(0, why.find(':'))) + (valves_ok ? "+v" : "-v");
     if (signature != last_signature_) {
@@ -235,7 +249,7 @@ class RigNode {
 
   // -- health ----------------------------------------------------------------------------------
 
-  std::string handleProblem(const devices::HandleStats& h, SteadyTime now) const {
+  std::string handle_problem(const devices::HandleStats& h, SteadyTime now) const {
     if (AuroraStatus::handle_ok(h, now, cfg_.tracker.timeout)) return "";
     if (!h.ever_valid && h.last_status == HandlePose::kValid) return "no pose yet";
     if (h.last_status != HandlePose::kValid) return to_string(h.last_status);
@@ -243,37 +257,40 @@ class RigNode {
   }
 
   /// Whether every device other than the valve board is healthy; *why names the first that is not.
-  bool devicesHealthy(SteadyTime now, std::string* why) const {
+  bool devices_healthy(SteadyTime now, std::string* why) const {
     const AuroraStatus a = tracker_->status();
     if (!a.healthy(now, cfg_.tracker.timeout)) {
       *why = "tracker (NDI Aurora, " + cfg_.tracker.port + "): " + (a.message.empty() ? "not tracking" : a.message);
       return false;
     }
-    std::string p = handleProblem(a.tip, now);
+    std::string p = handle_problem(a.tip, now);
     if (!p.empty()) {
       *why = "tip sensor (handle " + hex(cfg_.tracker.tip_handle) + "): " + p;
       return false;
     }
-    p = handleProblem(a.base, now);
+    p = handle_problem(a.base, now);
     if (!p.empty()) {
       *why = "base sensor (handle " + hex(cfg_.tracker.base_handle) + "): " + p;
       return false;
     }
     for (size_t i = 0; i < 3; ++i) {
-      const devices::FlowSensorStatus f = flow_[i]->status();
-      if (!f.healthy(now, cfg_.flow[i].timeout)) {
-        *why =
-            cfg_.flow[i].name + " (" + cfg_.flow[i].port + "): " +
-            (f.state == devices::LinkState::kRunning || f.state == devices::LinkState::kConnecting
-                 ? (f.ever_accepted
-                        ? fmt("no valid reading for %.2f s", devices::seconds_between(f.last_accepted, now))
-                        : std::string("no valid reading yet") + (f.last_error.empty() ? "" : " (" + f.last_error + ")"))
-                 : f.message);
+      p = flow_problem(i, now);
+      if (!p.empty()) {
+        *why = cfg_.flow[i].name + " (" + cfg_.flow[i].port + "): " + p;
         return false;
       }
     }
     why->clear();
     return true;
+  }
+
+  /// Why flow sensor `i` is unhealthy ("" when it is healthy).
+  std::string flow_problem(size_t i, SteadyTime now) const {
+    const devices::FlowSensorStatus f = flow_[i]->status();
+    if (f.healthy(now, cfg_.flow[i].timeout)) return "";
+    if (f.state != devices::LinkState::kRunning && f.state != devices::LinkState::kConnecting) return f.message;
+    if (f.ever_accepted) return fmt("no valid reading for %.2f s", devices::seconds_between(f.last_accepted, now));
+    return std::string("no valid reading yet") + (f.last_error.empty() ? "" : " (" + f.last_error + ")");
   }
 
   static std::string hex(uint8_t h) {
@@ -284,7 +301,7 @@ class RigNode {
 
   // -- diagnostics -----------------------------------------------------------------------------
 
-  void diagnoseTracker(diagnostic_updater::DiagnosticStatusWrapper& s) {
+  void diagnose_tracker(diagnostic_updater::DiagnosticStatusWrapper& s) {
     using diagnostic_msgs::DiagnosticStatus;
     const SteadyTime now = SteadyClock::now();
     const AuroraStatus a = tracker_->status();
@@ -308,14 +325,14 @@ class RigNode {
     s.add("connect_failures", a.connect_failures);
   }
 
-  void diagnoseHandle(diagnostic_updater::DiagnosticStatusWrapper& s, bool tip) {
+  void diagnose_handle(diagnostic_updater::DiagnosticStatusWrapper& s, bool tip) {
     using diagnostic_msgs::DiagnosticStatus;
     const SteadyTime now = SteadyClock::now();
     const AuroraStatus a = tracker_->status();
     const devices::HandleStats& h = tip ? a.tip : a.base;
     const std::string name = std::string(tip ? "tip" : "base") + " sensor (handle " +
                              hex(tip ? cfg_.tracker.tip_handle : cfg_.tracker.base_handle) + ")";
-    const std::string p = handleProblem(h, now);
+    const std::string p = handle_problem(h, now);
     if (p.empty())
       s.summary(DiagnosticStatus::OK, name + ": valid");
     else if (!a.healthy(now, cfg_.tracker.timeout))
@@ -330,7 +347,7 @@ class RigNode {
     s.add("disabled", h.disabled);
   }
 
-  void diagnoseFlow(diagnostic_updater::DiagnosticStatusWrapper& s, int i) {
+  void diagnose_flow(diagnostic_updater::DiagnosticStatusWrapper& s, int i) {
     using diagnostic_msgs::DiagnosticStatus;
     const SteadyTime now = SteadyClock::now();
     const devices::FlowSensorStatus f = flow_[i]->status();
@@ -354,7 +371,7 @@ class RigNode {
     s.add("connects", f.connects);
   }
 
-  void diagnoseValveBoard(diagnostic_updater::DiagnosticStatusWrapper& s) {
+  void diagnose_valve_board(diagnostic_updater::DiagnosticStatusWrapper& s) {
     using diagnostic_msgs::DiagnosticStatus;
     const devices::ValveStatus v = valves_->status();
     const std::string name = "valve board (" + cfg_.valves.port + ")";
@@ -374,11 +391,11 @@ class RigNode {
     s.add("connects", v.connects);
   }
 
-  void diagnoseGate(diagnostic_updater::DiagnosticStatusWrapper& s) {
+  void diagnose_gate(diagnostic_updater::DiagnosticStatusWrapper& s) {
     using diagnostic_msgs::DiagnosticStatus;
     const devices::ValveStatus v = valves_->status();
     std::string why;
-    const bool ok = devicesHealthy(SteadyClock::now(), &why);
+    const bool ok = devices_healthy(SteadyClock::now(), &why);
     if (!v.healthy)
       s.summary(DiagnosticStatus::ERROR, "valves: state unknown, valve board unhealthy");
     else if (!ok)
@@ -390,8 +407,8 @@ class RigNode {
     s.add("bad_commands", v.bad_commands);
   }
 
-  const devices::RigConfig cfg_;
-  const actuation::NozzleParameters nozzle_;
+  const devices::RigOptions cfg_;
+  const actuation::Nozzle nozzle_;
   diagnostic_updater::Updater diag_;
   double tracker_min_hz_, tracker_max_hz_, flow_min_hz_, flow_max_hz_, jets_min_hz_, jets_max_hz_, valve_min_hz_,
       valve_max_hz_;

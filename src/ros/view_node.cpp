@@ -1,9 +1,13 @@
 // What a person on the rig looks at: the model's backbone as a tube of the rod's real diameter, the
-// capsule, the three jet forces, the desired and measured tip directions and the stability margin,
-// as a visualization_msgs/MarkerArray on view/markers; and the frames on tf2:
+// capsule, the three jet forces, the desired and measured tip directions, the stability margin, the
+// camera's field of view at the capsule's front and the reachable set of tip directions (a translucent
+// cap on a sphere of twice the rod's length about the base origin), as a visualization_msgs/MarkerArray
+// on view/markers; and the frames on tf2:
 //   world → tracker (static), tracker → base_sensor (driver/plant), base_sensor → base (static,
 //   the sensor is aligned with the base frame), base → tip_model (the model's tip).
-// Fixed namespaces and ids; a DELETEALL goes out first and whenever the controller resets.
+// Fixed namespaces and ids; a DELETEALL goes out first and whenever the controller resets. The
+// reachable set is sent once per controller/reachable_set message and again after each DELETEALL (it
+// is large and rarely changes); everything else with each rod/state.
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
@@ -12,18 +16,29 @@
 #include <visualization_msgs/MarkerArray.h>
 
 #include <Eigen/Geometry>
+#include <cmath>
 #include <cstdio>
 
 #include "hydrojet_control/ControllerStatus.h"
 #include "hydrojet_control/JetState.h"
+#include "hydrojet_control/ReachableSet.h"
 #include "hydrojet_control/RodState.h"
 #include "hydrojet_control/actuation/jet_map.h"
 #include "hydrojet_control/config/scene.h"
+#include "hydrojet_control/config/yaml_tree.h"
+#include "hydrojet_control/ros/names.h"
+
+namespace names = hydrojet::names;
 
 namespace hydrojet {
 namespace {
 
 constexpr int kBackboneSegments = 20;  ///< fixed number of tube pieces (ids 0..19)
+constexpr int kReachableRings = 8;     ///< rings of the reachable-set surface from its centre to its edge
+
+/// The camera: field of view [rad] and length of the drawn pyramid [m].
+constexpr double kCameraFieldOfView = M_PI / 2;
+constexpr double kCameraFrustumLength = 0.015;
 
 geometry_msgs::Point point(const Eigen::Vector3d& v) {
   geometry_msgs::Point p;
@@ -56,26 +71,54 @@ void cylinder_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double
   m->scale.z = std::max(len, 1e-6);
 }
 
+Eigen::Vector3d vector(const geometry_msgs::Vector3& v) { return Eigen::Vector3d(v.x, v.y, v.z); }
+
+/// The unit direction a fraction t of the way from unit a to unit b along the great circle.
+Eigen::Vector3d slerp(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double t) {
+  const double angle = std::acos(std::max(-1.0, std::min(1.0, a.dot(b))));
+  if (angle < 1e-9) return a;
+  return (std::sin((1 - t) * angle) * a + std::sin(t * angle) * b) / std::sin(angle);
+}
+
+/// Unit, finite directions: the set's centre and its boundary loop (false when unusable).
+bool reachable_directions(const hydrojet_control::ReachableSet& m, Eigen::Vector3d* center,
+                          std::vector<Eigen::Vector3d>* boundary) {
+  *center = vector(m.center);
+  if (!center->allFinite() || center->norm() < 0.5 || m.boundary.size() < 3) return false;
+  center->normalize();
+  boundary->clear();
+  for (const auto& b : m.boundary) {
+    const Eigen::Vector3d d = vector(b);
+    if (!d.allFinite() || d.norm() < 0.5) return false;
+    boundary->push_back(d.normalized());
+  }
+  return true;
+}
+
 class ViewNode {
  public:
   ViewNode(ros::NodeHandle& nh, ros::NodeHandle& pnh) {
     std::string scene_path;
-    if (!pnh.getParam("scene", scene_path)) throw std::runtime_error("~scene: missing (path of the scene YAML)");
+    if (!pnh.getParam("scene", scene_path)) throw config::KeyError("~scene", "missing (path of the scene YAML)");
     const config::Scene scene = config::load_scene(scene_path);
-    if (!scene.has_jets) throw std::runtime_error("jets: the scene has no jets section");
+    if (!scene.has_jets) throw config::SceneError("jets", "the scene has no jets section");
     jets_ = actuation::JetMap(scene.jets).planar();
     pnh.param("rod_diameter", rod_diameter_, 0.008);           // [m] (paper §6.2: 8 mm outer)
     pnh.param("capsule_length", capsule_length_, 0.028);       // [m] (§6.1: 28 mm)
     pnh.param("capsule_diameter", capsule_diameter_, 0.0098);  // [m] (§6.1: 9.8 mm)
     pnh.param("force_scale", force_scale_, 0.15);              // arrow length per jet force [m/N]
+    // The reachable set is drawn on a sphere beyond the camera (2 L: the capsule's front stays within
+    // L + 28 mm of the base), so that rviz's Publish Point on it gives a point the camera can look at.
+    pnh.param("reachable_radius", reachable_radius_, 2 * scene.model.rod.length);  // [m]
     pnh.param<std::string>("world_frame", world_frame_, "world");
     pnh.param<std::string>("tracker_frame", tracker_frame_, "tracker");
     pnh.param<std::string>("base_frame", base_frame_, "base");
 
-    markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>("view/markers", 2, true);
-    rod_sub_ = nh.subscribe("rod/state", 2, &ViewNode::rod, this);
-    status_sub_ = nh.subscribe("controller/status", 2, &ViewNode::status, this);
-    jets_sub_ = nh.subscribe("jets/state", 2, &ViewNode::jetState, this);
+    markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>(names::kViewMarkers, 2, true);
+    rod_sub_ = nh.subscribe(names::kRodState, 2, &ViewNode::on_rod_state, this);
+    status_sub_ = nh.subscribe(names::kControllerStatus, 2, &ViewNode::on_status, this);
+    jets_sub_ = nh.subscribe(names::kJetState, 2, &ViewNode::on_jet_state, this);
+    reachable_sub_ = nh.subscribe(names::kReachableSet, 1, &ViewNode::on_reachable_set, this);
 
     // Static frames: world → tracker (the tracker is fixed in the lab) and base_sensor → base.
     geometry_msgs::TransformStamped a, b;
@@ -91,132 +134,255 @@ class ViewNode {
   }
 
  private:
+  /// Clears every marker, then draws the reachable set again (in the same message, so rviz keeps it).
   void delete_all() {
     visualization_msgs::MarkerArray arr;
     visualization_msgs::Marker m;
     m.action = visualization_msgs::Marker::DELETEALL;
     arr.markers.push_back(m);
+    arr.markers.insert(arr.markers.end(), reachable_markers_.begin(), reachable_markers_.end());
     markers_pub_.publish(arr);
   }
 
-  void status(const hydrojet_control::ControllerStatus::ConstPtr& m) {
+  /// A new reachable set: its markers replace the previous ones (or delete them when it is empty).
+  void on_reachable_set(const hydrojet_control::ReachableSet::ConstPtr& m) {
+    // Stamp 0: the latest transform (the set is latched and re-sent long after its stamp).
+    const MarkerStamp stamp{m->header.frame_id.empty() ? base_frame_ : m->header.frame_id, ros::Time()};
+    Eigen::Vector3d center;
+    std::vector<Eigen::Vector3d> boundary;
+    visualization_msgs::MarkerArray arr;
+    reachable_markers_.clear();
+    if (reachable_directions(*m, &center, &boundary)) {
+      reachable_markers_.push_back(reachable_surface(stamp, center, boundary));
+      reachable_markers_.push_back(reachable_edge(stamp, boundary));
+      arr.markers = reachable_markers_;
+    } else {
+      for (int id = 0; id < 2; ++id) {
+        visualization_msgs::Marker k = stamp.make("reachable_set", id);
+        k.action = visualization_msgs::Marker::DELETE;
+        arr.markers.push_back(k);
+      }
+    }
+    markers_pub_.publish(arr);
+  }
+
+  void on_status(const hydrojet_control::ControllerStatus::ConstPtr& m) {
     const bool reset = (m->state == "idle" || m->state == "aborted") && last_state_ != m->state;
     last_state_ = m->state;
     status_ = *m;
     if (reset) delete_all();
   }
 
-  void jetState(const hydrojet_control::JetState::ConstPtr& m) {
+  void on_jet_state(const hydrojet_control::JetState::ConstPtr& m) {
     jet_force_ = Eigen::Vector3d(m->force[0], m->force[1], m->force[2]);
   }
 
-  void rod(const hydrojet_control::RodState::ConstPtr& m) {
-    if (m->backbone.size() < 2) return;
-    const std::string frame = m->header.frame_id.empty() ? base_frame_ : m->header.frame_id;
-    const Eigen::Quaterniond qt(m->tip_pose.orientation.w, m->tip_pose.orientation.x, m->tip_pose.orientation.y,
-                                m->tip_pose.orientation.z);
-    const Eigen::Vector3d pt(m->tip_pose.position.x, m->tip_pose.position.y, m->tip_pose.position.z);
-    if (!qt.coeffs().allFinite() || !pt.allFinite() || qt.norm() < 0.5) return;
-    const Eigen::Matrix3d Rt = qt.normalized().toRotationMatrix();
-
-    // base → tip_model on tf2.
-    geometry_msgs::TransformStamped tf;
-    tf.header.stamp = m->header.stamp;
-    tf.header.frame_id = frame;
-    tf.child_frame_id = "tip_model";
-    tf.transform.translation.x = pt.x(), tf.transform.translation.y = pt.y(), tf.transform.translation.z = pt.z();
-    tf.transform.rotation = quaternion(qt.normalized());
-    tf_.sendTransform(tf);
-
-    visualization_msgs::MarkerArray arr;
-    auto make = [&](const std::string& ns, int id) {
+  /// Frame and stamp of every marker of one rod message.
+  struct MarkerStamp {
+    std::string frame;
+    ros::Time stamp;
+    visualization_msgs::Marker make(const std::string& ns, int id) const {
       visualization_msgs::Marker k;
       k.header.frame_id = frame;
-      k.header.stamp = m->header.stamp;
+      k.header.stamp = stamp;
       k.ns = ns;
       k.id = id;
       k.action = visualization_msgs::Marker::ADD;
       k.pose.orientation.w = 1.0;
       return k;
+    }
+  };
+  /// The model's tip: position [m] and orientation in the base frame.
+  struct Tip {
+    Eigen::Vector3d p;
+    Eigen::Matrix3d R;
+  };
+
+  /// The model's rod: tip frame on tf2, then the markers drawn from it.
+  void on_rod_state(const hydrojet_control::RodState::ConstPtr& m) {
+    if (m->backbone.size() < 2) return;
+    const Eigen::Quaterniond qt(m->tip_pose.orientation.w, m->tip_pose.orientation.x, m->tip_pose.orientation.y,
+                                m->tip_pose.orientation.z);
+    const Eigen::Vector3d pt(m->tip_pose.position.x, m->tip_pose.position.y, m->tip_pose.position.z);
+    if (!qt.coeffs().allFinite() || !pt.allFinite() || qt.norm() < 0.5) return;
+    const MarkerStamp stamp{m->header.frame_id.empty() ? base_frame_ : m->header.frame_id, m->header.stamp};
+    publish_tip_frame(stamp, pt, qt.normalized());
+
+    const Tip tip{pt, qt.normalized().toRotationMatrix()};
+    const std_msgs::ColorRGBA tube = stability_color(*m);
+    visualization_msgs::MarkerArray arr;
+    add_backbone(stamp, *m, tube, &arr);
+    add_capsule(stamp, tip, &arr);
+    add_jet_forces(stamp, tip, &arr);
+    add_directions(stamp, tip, &arr);
+    add_stability_text(stamp, tip, m->stability_margin, tube, &arr);
+    add_camera_frustum(stamp, tip, &arr);
+    markers_pub_.publish(arr);
+  }
+
+  /// base → tip_model on tf2.
+  void publish_tip_frame(const MarkerStamp& s, const Eigen::Vector3d& pt, const Eigen::Quaterniond& q) {
+    geometry_msgs::TransformStamped tf;
+    tf.header.stamp = s.stamp;
+    tf.header.frame_id = s.frame;
+    tf.child_frame_id = "tip_model";
+    tf.transform.translation.x = pt.x(), tf.transform.translation.y = pt.y(), tf.transform.translation.z = pt.z();
+    tf.transform.rotation = quaternion(q);
+    tf_.sendTransform(tf);
+  }
+
+  /// Green: stiff, red: near instability (red as well when the smallest eigenvalue is not positive).
+  static std_msgs::ColorRGBA stability_color(const hydrojet_control::RodState& m) {
+    const double g = std::max(0.0, std::min(1.0, m.stability_margin / 3.0));
+    return m.stability_eig_min > 0 ? color(1.0 - g, 0.4 + 0.6 * g, 0.2) : color(1, 0, 0);
+  }
+
+  /// kBackboneSegments tube pieces, resampled from the published samples, coloured by the margin.
+  void add_backbone(const MarkerStamp& s, const hydrojet_control::RodState& m, const std_msgs::ColorRGBA& tube,
+                    visualization_msgs::MarkerArray* arr) const {
+    const size_t n = m.backbone.size();
+    auto at = [&](double u) {  // piecewise-linear point at fraction u of the samples
+      const double x = u * (n - 1);
+      const size_t j = std::min(n - 2, static_cast<size_t>(x));
+      const double f = x - j;
+      const auto& a = m.backbone[j];
+      const auto& b = m.backbone[j + 1];
+      return Eigen::Vector3d(a.x + f * (b.x - a.x), a.y + f * (b.y - a.y), a.z + f * (b.z - a.z));
     };
-    // Backbone: kBackboneSegments tube pieces, resampled from the published samples, coloured by
-    // the stability margin (green: stiff, red: near instability).
-    const double margin = m->stability_margin;
-    const double g = std::max(0.0, std::min(1.0, margin / 3.0));
-    const std_msgs::ColorRGBA tube = m->stability_eig_min > 0 ? color(1.0 - g, 0.4 + 0.6 * g, 0.2) : color(1, 0, 0);
-    const size_t n = m->backbone.size();
     for (int i = 0; i < kBackboneSegments; ++i) {
-      auto at = [&](double u) {  // piecewise-linear point at fraction u of the samples
-        const double x = u * (n - 1);
-        const size_t j = std::min(n - 2, static_cast<size_t>(x));
-        const double f = x - j;
-        const auto& a = m->backbone[j];
-        const auto& b = m->backbone[j + 1];
-        return Eigen::Vector3d(a.x + f * (b.x - a.x), a.y + f * (b.y - a.y), a.z + f * (b.z - a.z));
-      };
-      visualization_msgs::Marker k = make("backbone", i);
+      visualization_msgs::Marker k = s.make("backbone", i);
       cylinder_between(at(double(i) / kBackboneSegments), at(double(i + 1) / kBackboneSegments), rod_diameter_, &k);
       k.color = tube;
-      arr.markers.push_back(k);
+      arr->markers.push_back(k);
     }
-    // Capsule: a cylinder from the tip along the tip z-axis.
-    {
-      visualization_msgs::Marker k = make("capsule", 0);
-      cylinder_between(pt, pt + capsule_length_ * Rt.col(2), capsule_diameter_, &k);
-      k.color = color(0.85, 0.85, 0.9, 0.9);
-      arr.markers.push_back(k);
-    }
-    // Jet forces: arrows from the capsule centre along each jet's force direction (eq. 24),
-    // length proportional to the measured jet force.
-    const Eigen::Vector3d centre = pt + 0.5 * capsule_length_ * Rt.col(2);
+  }
+
+  /// The capsule: a cylinder from the tip along the tip z-axis.
+  void add_capsule(const MarkerStamp& s, const Tip& tip, visualization_msgs::MarkerArray* arr) const {
+    visualization_msgs::Marker k = s.make("capsule", 0);
+    cylinder_between(tip.p, tip.p + capsule_length_ * tip.R.col(2), capsule_diameter_, &k);
+    k.color = color(0.85, 0.85, 0.9, 0.9);
+    arr->markers.push_back(k);
+  }
+
+  /// Arrows from the capsule centre along each jet's force direction (eq. 24), length
+  /// proportional to the measured jet force.
+  void add_jet_forces(const MarkerStamp& s, const Tip& tip, visualization_msgs::MarkerArray* arr) const {
+    const Eigen::Vector3d centre = tip.p + 0.5 * capsule_length_ * tip.R.col(2);
     for (int i = 0; i < 3; ++i) {
-      visualization_msgs::Marker k = make("jets", i);
+      visualization_msgs::Marker k = s.make("jets", i);
       k.type = visualization_msgs::Marker::ARROW;
-      const Eigen::Vector3d dir = Rt * Eigen::Vector3d(jets_(0, i), jets_(1, i), 0.0);
+      const Eigen::Vector3d dir = tip.R * Eigen::Vector3d(jets_(0, i), jets_(1, i), 0.0);
       const double f = std::isfinite(jet_force_[i]) ? std::max(0.0, jet_force_[i]) : 0.0;
       k.points.push_back(point(centre));
       k.points.push_back(point(centre + (0.002 + force_scale_ * f) * dir));
       k.scale.x = 0.0015, k.scale.y = 0.003, k.scale.z = 0.004;
       k.color = i == 0 ? color(0.9, 0.3, 0.3) : (i == 1 ? color(0.3, 0.9, 0.3) : color(0.3, 0.4, 0.95));
-      arr.markers.push_back(k);
+      arr->markers.push_back(k);
     }
-    // Desired (green) and measured (orange) tip directions, side by side from the tip.
+  }
+
+  /// Desired (green) and measured (orange) tip directions, side by side from the tip.
+  void add_directions(const MarkerStamp& s, const Tip& tip, visualization_msgs::MarkerArray* arr) const {
     const Eigen::Vector3d des(status_.desired_direction.x, status_.desired_direction.y, status_.desired_direction.z);
     const Eigen::Vector3d mea(status_.measured_direction.x, status_.measured_direction.y, status_.measured_direction.z);
-    const Eigen::Vector3d dirs[2] = {des.allFinite() && des.norm() > 0.5 ? des.normalized() : Rt.col(2),
-                                     mea.allFinite() && mea.norm() > 0.5 ? mea.normalized() : Rt.col(2)};
+    const Eigen::Vector3d dirs[2] = {des.allFinite() && des.norm() > 0.5 ? des.normalized() : tip.R.col(2),
+                                     mea.allFinite() && mea.norm() > 0.5 ? mea.normalized() : tip.R.col(2)};
     for (int i = 0; i < 2; ++i) {
-      visualization_msgs::Marker k = make("direction", i);
+      visualization_msgs::Marker k = s.make("direction", i);
       k.type = visualization_msgs::Marker::ARROW;
-      k.points.push_back(point(pt));
-      k.points.push_back(point(pt + 0.05 * dirs[i]));
+      k.points.push_back(point(tip.p));
+      k.points.push_back(point(tip.p + 0.05 * dirs[i]));
       k.scale.x = 0.001, k.scale.y = 0.0025, k.scale.z = 0.004;
       k.color = i == 0 ? color(0.1, 0.8, 0.1) : color(1.0, 0.55, 0.0);
-      arr.markers.push_back(k);
+      arr->markers.push_back(k);
     }
-    // Stability margin as text.
-    {
-      visualization_msgs::Marker k = make("stability", 0);
-      k.type = visualization_msgs::Marker::TEXT_VIEW_FACING;
-      k.pose.position = point(pt + Eigen::Vector3d(0.0, 0.0, -0.02));
-      k.scale.z = 0.006;
-      char buf[160];
-      std::snprintf(buf, sizeof(buf), "sigma_c %.2f N/m  %s  err %.3f rad", margin,
-                    status_.state.empty() ? "" : status_.state.c_str(), status_.error_geodesic);
-      k.text = buf;
-      k.color = tube;
-      arr.markers.push_back(k);
+  }
+
+  /// The stability margin, the controller's state and its error as text below the tip.
+  void add_stability_text(const MarkerStamp& s, const Tip& tip, double margin, const std_msgs::ColorRGBA& tube,
+                          visualization_msgs::MarkerArray* arr) const {
+    visualization_msgs::Marker k = s.make("stability", 0);
+    k.type = visualization_msgs::Marker::TEXT_VIEW_FACING;
+    k.pose.position = point(tip.p + Eigen::Vector3d(0.0, 0.0, -0.02));
+    k.scale.z = 0.006;
+    char buf[160];
+    std::snprintf(buf, sizeof(buf), "sigma_c %.2f N/m  %s  err %.3f rad", margin,
+                  status_.state.empty() ? "" : status_.state.c_str(), status_.error_geodesic);
+    k.text = buf;
+    k.color = tube;
+    arr->markers.push_back(k);
+  }
+
+  /// The camera's field of view: a pyramid from the capsule's front along the tip z-axis, its image
+  /// axes those of a camera optical frame (tip x right, tip y down), with a small roof on the top
+  /// edge (tip −y) so that "up" on the screen can be told in rviz.
+  void add_camera_frustum(const MarkerStamp& s, const Tip& tip, visualization_msgs::MarkerArray* arr) const {
+    visualization_msgs::Marker k = s.make("camera", 0);
+    k.type = visualization_msgs::Marker::LINE_LIST;
+    const Eigen::Vector3d apex = tip.p + capsule_length_ * tip.R.col(2);
+    const double h = kCameraFrustumLength * std::tan(0.5 * kCameraFieldOfView);
+    const double L = kCameraFrustumLength;
+    auto at = [&](double x, double y, double z) -> Eigen::Vector3d { return apex + tip.R * Eigen::Vector3d(x, y, z); };
+    const Eigen::Vector3d corner[4] = {at(-h, -h, L), at(h, -h, L), at(h, h, L), at(-h, h, L)};
+    auto line = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+      k.points.push_back(point(a));
+      k.points.push_back(point(b));
+    };
+    for (int i = 0; i < 4; ++i) {
+      line(apex, corner[i]);
+      line(corner[i], corner[(i + 1) % 4]);
     }
-    markers_pub_.publish(arr);
+    line(corner[0], at(0, -1.4 * h, L));  // the roof: image up is the tip's −y
+    line(at(0, -1.4 * h, L), corner[1]);
+    k.scale.x = 0.0005;
+    k.color = color(0.2, 0.9, 0.9, 0.9);
+    arr->markers.push_back(k);
+  }
+
+  /// The set as a translucent cap on the sphere of radius reachable_radius_ about the base origin: a
+  /// triangle fan from the centre to the boundary, each spoke cut into kReachableRings pieces along its
+  /// great circle so that the cap follows the sphere. The triangles face the base (clockwise seen from
+  /// outside): rviz lights the front face, and one looks into the cap from the robot's side.
+  visualization_msgs::Marker reachable_surface(const MarkerStamp& s, const Eigen::Vector3d& center,
+                                               const std::vector<Eigen::Vector3d>& boundary) const {
+    visualization_msgs::Marker k = s.make("reachable_set", 0);
+    k.type = visualization_msgs::Marker::TRIANGLE_LIST;
+    k.scale.x = k.scale.y = k.scale.z = 1.0;
+    k.color = color(0.3, 0.6, 1.0, 0.25);
+    auto at = [&](const Eigen::Vector3d& b, int ring) {
+      return point(reachable_radius_ * slerp(center, b, double(ring) / kReachableRings));
+    };
+    const size_t n = boundary.size();
+    for (size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3d& a = boundary[i];
+      const Eigen::Vector3d& b = boundary[(i + 1) % n];
+      k.points.insert(k.points.end(), {at(a, 0), at(b, 1), at(a, 1)});
+      for (int r = 1; r < kReachableRings; ++r)
+        k.points.insert(k.points.end(), {at(a, r), at(b, r + 1), at(a, r + 1), at(a, r), at(b, r), at(b, r + 1)});
+    }
+    return k;
+  }
+
+  /// The set's edge: the boundary loop, closed, on the same sphere.
+  visualization_msgs::Marker reachable_edge(const MarkerStamp& s, const std::vector<Eigen::Vector3d>& boundary) const {
+    visualization_msgs::Marker k = s.make("reachable_set", 1);
+    k.type = visualization_msgs::Marker::LINE_STRIP;
+    k.scale.x = 0.0008;
+    k.color = color(0.3, 0.6, 1.0, 0.8);
+    for (const auto& b : boundary) k.points.push_back(point(reachable_radius_ * b));
+    k.points.push_back(k.points.front());
+    return k;
   }
 
   Eigen::Matrix<double, 2, 3> jets_;
-  double rod_diameter_, capsule_length_, capsule_diameter_, force_scale_;
+  double rod_diameter_, capsule_length_, capsule_diameter_, force_scale_, reachable_radius_;
   std::string world_frame_, tracker_frame_, base_frame_, last_state_;
   hydrojet_control::ControllerStatus status_;
   Eigen::Vector3d jet_force_ = Eigen::Vector3d::Zero();
   ros::Publisher markers_pub_;
-  ros::Subscriber rod_sub_, status_sub_, jets_sub_;
+  std::vector<visualization_msgs::Marker> reachable_markers_;  ///< the last set's markers (empty: none)
+  ros::Subscriber rod_sub_, status_sub_, jets_sub_, reachable_sub_;
   tf2_ros::TransformBroadcaster tf_;
   tf2_ros::StaticTransformBroadcaster static_tf_;
 };

@@ -17,17 +17,62 @@ double quantile(std::vector<double> v, double q) {
   return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
 }
 
+/// The sensors at time t as the rig driver would deliver them: the tracker's tip orientation in
+/// the base frame (when valid) and the flows, stamped now.
+void read_sensors(plant::Plant& plant, double t, control::ControllerInputs& in) {
+  const plant::TrackerSample ts = plant.tracker_sample();
+  if (ts.valid) {
+    in.tip_valid = true;
+    in.tip_stamp = ts.stamp;
+    in.tip_rotation = (ts.base.orientation.toRotationMatrix().transpose() * ts.tip.orientation.toRotationMatrix());
+  }
+  in.flows = plant.flow_sample();
+  in.flow_valid = true;
+  in.flow_stamp = t;
+  in.t = t;
+}
+
+/// One cycle of the path (path time t [s]): what the controller saw and the plant's truth.
+RunSample record(const plant::Plant& plant, const control::ControllerOutput& out, double t) {
+  RunSample s;
+  s.t = t;
+  s.desired = out.desired_direction;
+  s.measured = out.measured_direction;
+  s.tip_position = plant.tip_position();
+  s.error_geodesic = out.error_geodesic;
+  s.error_pitch_yaw = out.error_pitch_yaw;
+  s.jet_force = plant.jet_forces();
+  return s;
+}
+
+/// The error statistics of the recorded samples.
+void summarize(RunResult& r) {
+  std::vector<double> e;
+  double s2 = 0.0, p2 = 0.0;
+  for (const RunSample& s : r.samples) {
+    e.push_back(s.error_geodesic);
+    s2 += s.error_geodesic * s.error_geodesic;
+    p2 += s.error_pitch_yaw * s.error_pitch_yaw;
+  }
+  if (e.empty()) return;
+  r.rms = std::sqrt(s2 / e.size());
+  r.rms_pitch_yaw = std::sqrt(p2 / e.size());
+  r.median = quantile(e, 0.5);
+  r.q1 = quantile(e, 0.25);
+  r.q3 = quantile(e, 0.75);
+  r.max = *std::max_element(e.begin(), e.end());
+}
+
 }  // namespace
 
-RunResult run_path(const control::ControllerModel& model, const control::ControllerParams& params,
-                   const plant::PlantParameters& plant_params, unsigned seed, double dt, double settle) {
+RunResult run_path(const control::RobotModel& model, const control::ControllerOptions& params,
+                   const plant::PlantModel& plant_params, unsigned seed, double dt, double settle) {
   const auto wall0 = std::chrono::steady_clock::now();
   RunResult r;
   plant::Plant plant(plant_params, seed);
   control::Controller controller(model, params);
   const int settle_steps = static_cast<int>(std::lround(settle / dt));
   const int path_steps = static_cast<int>(std::lround(params.path.duration / dt));
-  Eigen::Vector3d last_flows = Eigen::Vector3d::Zero();
   control::ControllerInputs in;
   for (int k = 0; k <= settle_steps + path_steps; ++k) {
     const double t = k * dt;
@@ -37,18 +82,7 @@ RunResult run_path(const control::ControllerModel& model, const control::Control
       break;
     }
     if (k == settle_steps) controller.start(t);
-    // Sensors, as the rig driver would deliver them.
-    const plant::TrackerSample ts = plant.tracker_sample();
-    if (ts.valid) {
-      in.tip_valid = true;
-      in.tip_stamp = ts.stamp;
-      in.tip_rotation = (ts.base.orientation.toRotationMatrix().transpose() * ts.tip.orientation.toRotationMatrix());
-    }
-    last_flows = plant.flow_sample();
-    in.flow_valid = true;
-    in.flow_stamp = t;
-    in.flows = last_flows;
-    in.t = t;
+    read_sensors(plant, t, in);
     const control::ControllerOutput out = controller.update(in);
     plant.command(out.valve_command, t);
     if (k < settle_steps) continue;
@@ -57,35 +91,13 @@ RunResult run_path(const control::ControllerModel& model, const control::Control
       r.reason = out.reason;
       break;
     }
-    RunSample s;
-    s.t = t - settle;
-    s.desired = out.desired_direction;
-    s.measured = out.measured_direction;
-    s.tip_position = plant.tip_position();
-    s.error_geodesic = out.error_geodesic;
-    s.error_pitch_yaw = out.error_pitch_yaw;
-    s.jet_force = plant.jet_forces();
-    r.samples.push_back(s);
+    r.samples.push_back(record(plant, out, t - settle));
     if (out.state == control::ControllerState::kFinished) {
       r.completed = true;
       break;
     }
   }
-  std::vector<double> e;
-  double s2 = 0.0, p2 = 0.0;
-  for (const RunSample& s : r.samples) {
-    e.push_back(s.error_geodesic);
-    s2 += s.error_geodesic * s.error_geodesic;
-    p2 += s.error_pitch_yaw * s.error_pitch_yaw;
-  }
-  if (!e.empty()) {
-    r.rms = std::sqrt(s2 / e.size());
-    r.rms_pitch_yaw = std::sqrt(p2 / e.size());
-    r.median = quantile(e, 0.5);
-    r.q1 = quantile(e, 0.25);
-    r.q3 = quantile(e, 0.75);
-    r.max = *std::max_element(e.begin(), e.end());
-  }
+  summarize(r);
   r.simulated_seconds = r.samples.empty() ? 0.0 : r.samples.back().t + settle;
   r.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   return r;

@@ -1,5 +1,5 @@
 // calibrate: offline Ceres calibration of ζ = [ux, uy, E, G, δα, δβ, δγ] (paper §6.2, eq. 27).
-// See README "Calibration" and hydrojet_control/calibration/app.h.
+// See docs/calibration.md and hydrojet_control/calibration/app.h.
 #include <iostream>
 #include <string>
 #include <vector>

@@ -3,8 +3,10 @@
 // table like §7.5–7.7, writes CSV per run and a summary, and as its last line one JSON object:
 //   {"runs": [{"mode", "tilt_deg", "seed", "rms_rad", "completed", "aborted_at_s"}, ...],
 //    "realtime_factor": r}
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <mutex>
@@ -48,81 +50,106 @@ void write_run_csv(const std::string& path, const sim::RunResult& r) {
   }
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+/// The command line.
+struct Args {
   std::string scene0, scene30, plant_file, controller_file, out = ".build/experiment";
   bool quick = false;
   int seeds = 5, threads = 2;
-  double duration = 0.0;
+  double duration = 0.0;  ///< path duration [s]; 0 = the controller file's
+};
+
+/// The two configurations (0° and 30° base tilt): controller options, model and plant of each.
+struct Setup {
+  config::ControllerNodeOptions copt;
+  control::RobotModel model[2];
+  plant::PlantModel plant[2];
+};
+
+/// Parses the command line into *a; returns false (after printing why) on a usage error.
+bool parse_args(int argc, char** argv, Args* a) {
   for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
+    const std::string arg = argv[i];
     auto next = [&]() -> std::string {
       if (i + 1 >= argc) {
-        std::cerr << "experiment: " << a << ": expects a value\n";
+        std::cerr << "experiment: " << arg << ": expects a value\n";
         std::exit(2);
       }
       return argv[++i];
     };
-    if (a == "--scene0")
-      scene0 = next();
-    else if (a == "--scene30")
-      scene30 = next();
-    else if (a == "--plant")
-      plant_file = next();
-    else if (a == "--controller")
-      controller_file = next();
-    else if (a == "--out")
-      out = next();
-    else if (a == "--quick")
-      quick = true;
-    else if (a == "--seeds")
-      seeds = std::atoi(next().c_str());
-    else if (a == "--duration")
-      duration = std::atof(next().c_str());
-    else if (a == "--threads")
-      threads = std::atoi(next().c_str());
+    if (arg == "--scene0")
+      a->scene0 = next();
+    else if (arg == "--scene30")
+      a->scene30 = next();
+    else if (arg == "--plant")
+      a->plant_file = next();
+    else if (arg == "--controller")
+      a->controller_file = next();
+    else if (arg == "--out")
+      a->out = next();
+    else if (arg == "--quick")
+      a->quick = true;
+    else if (arg == "--seeds")
+      a->seeds = std::atoi(next().c_str());
+    else if (arg == "--duration")
+      a->duration = std::atof(next().c_str());
+    else if (arg == "--threads")
+      a->threads = std::atoi(next().c_str());
     else {
-      std::cerr << "experiment: " << a << ": unknown argument\n";
+      std::cerr << "experiment: " << arg << ": unknown argument\n";
       usage();
-      return 2;
+      return false;
     }
   }
-  if (scene0.empty() || scene30.empty() || controller_file.empty()) {
-    usage();
-    return 2;
-  }
-  if (seeds < 1 || threads < 1 || duration < 0) {
-    std::cerr << "experiment: --seeds, --threads must be >= 1 and --duration >= 0\n";
-    return 2;
-  }
-  if (quick) {
-    seeds = std::min(seeds, 2);
-    if (duration == 0.0) duration = 120.0;
-  }
+  return true;
+}
 
-  config::ControllerOptions copt;
-  control::ControllerModel model[2];
-  plant::PlantParameters plant[2];
+/// Checks the arguments and applies --quick; returns false (after printing why) when unusable.
+bool check_args(Args* a) {
+  if (a->scene0.empty() || a->scene30.empty() || a->controller_file.empty()) {
+    usage();
+    return false;
+  }
+  if (a->seeds < 1 || a->threads < 1 || a->duration < 0) {
+    std::cerr << "experiment: --seeds, --threads must be >= 1 and --duration >= 0\n";
+    return false;
+  }
+  if (a->quick) {
+    a->seeds = std::min(a->seeds, 2);
+    if (a->duration == 0.0) a->duration = 120.0;
+  }
+  return true;
+}
+
+/// Loads the controller options, both scenes and the plant; returns false (after printing why) on
+/// a configuration error.
+bool load_setup(const Args& a, Setup* s) {
   try {
-    copt = config::load_controller_options(controller_file);
-    if (duration > 0.0) copt.controller.path.duration = duration;
-    const std::string scenes[2] = {scene0, scene30};
+    s->copt = config::load_controller_options(a.controller_file);
+    if (a.duration > 0.0) s->copt.controller.path.duration = a.duration;
+    const std::string scenes[2] = {a.scene0, a.scene30};
     for (int k = 0; k < 2; ++k) {
       const config::Scene sc = config::load_scene(scenes[k]);
-      model[k] = config::make_controller_model(sc, copt.flow);
-      plant[k] = config::load_plant(sc, plant_file);
+      s->model[k] = config::make_controller_model(sc, s->copt.flow_regulator);
+      s->plant[k] = config::load_plant(sc, a.plant_file);
     }
   } catch (const std::exception& e) {
     std::cerr << "experiment: " << e.what() << "\n";
-    return 2;
+    return false;
   }
+  return true;
+}
 
+/// Open and closed loop at 0° and 30°, seeds 1..seeds each.
+std::vector<Job> make_jobs(int seeds) {
   std::vector<Job> jobs;
   for (int tilt = 0; tilt < 2; ++tilt)
     for (control::LoopMode m : {control::LoopMode::kOpen, control::LoopMode::kClosed})
       for (int s = 0; s < seeds; ++s) jobs.push_back({m, tilt ? 30 : 0, static_cast<unsigned>(s + 1), {}});
+  return jobs;
+}
 
+/// Runs the jobs on `threads` threads, reporting each on stderr as it ends.
+void run_jobs(std::vector<Job>& jobs, const Setup& setup, int threads) {
   std::mutex mu;
   size_t next_job = 0;
   auto worker = [&]() {
@@ -134,10 +161,10 @@ int main(int argc, char** argv) {
         j = next_job++;
       }
       Job& job = jobs[j];
-      control::ControllerParams p = copt.controller;
+      control::ControllerOptions p = setup.copt.controller;
       p.mode = job.mode;
       const int k = job.tilt_deg == 30 ? 1 : 0;
-      job.result = sim::run_path(model[k], p, plant[k], job.seed, 1.0 / copt.rate);
+      job.result = sim::run_path(setup.model[k], p, setup.plant[k], job.seed, 1.0 / setup.copt.rate);
       std::lock_guard<std::mutex> lock(mu);
       std::fprintf(stderr, "  %-6s %2d deg seed %u: rms %.4f rad, %s (%.1f s simulated in %.1f s)\n",
                    control::to_string(job.mode), job.tilt_deg, job.seed, job.result.rms,
@@ -148,7 +175,11 @@ int main(int argc, char** argv) {
   std::vector<std::thread> pool;
   for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
   for (auto& t : pool) t.join();
+}
 
+/// Writes a CSV per run and summary.csv into out; returns the JSON array of the runs and the
+/// realtime factor (simulated / wall seconds over all runs).
+std::string write_results(const std::vector<Job>& jobs, const std::string& out, double* realtime_factor) {
   mkdir(out.c_str(), 0755);
   std::ofstream summary(out + "/summary.csv");
   summary << "mode,tilt_deg,seed,completed,aborted_at_s,rms_rad,median_rad,q1_rad,q3_rad,max_rad,rms_pitch_yaw_rad,"
@@ -175,9 +206,12 @@ int main(int argc, char** argv) {
       o.add_null("aborted_at_s");
     runs += (j ? ", " : "") + o.str();
   }
-  runs += "]";
+  *realtime_factor = wall_s > 0 ? sim_s / wall_s : 0.0;
+  return runs + "]";
+}
 
-  // Table like §7.5–7.7: per configuration, RMS / median / IQR over the seeds' samples.
+/// Table like §7.5–7.7: per configuration, RMS / median / IQR over the seeds' samples.
+void print_table(const std::vector<Job>& jobs, const Args& a, double path_duration) {
   std::printf("\n%-8s %-5s %-6s %-10s %-10s %-10s %-10s %s\n", "mode", "tilt", "seed", "RMS [rad]", "median", "IQR",
               "max", "outcome");
   for (const Job& job : jobs) {
@@ -191,9 +225,23 @@ int main(int argc, char** argv) {
                 job.seed, r.rms, r.median, r.q3 - r.q1, r.max, outcome);
   }
   std::printf("paper (hardware): open 0.09 / 0.18 rad, closed 0.03 / 0.035 rad RMS at 0° / 30°\n");
-  std::printf("path %.0f s, %d seeds; CSV in %s\n", copt.controller.path.duration, seeds, out.c_str());
+  std::printf("path %.0f s, %d seeds; CSV in %s\n", path_duration, a.seeds, a.out.c_str());
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args args;
+  if (!parse_args(argc, argv, &args) || !check_args(&args)) return 2;
+  Setup setup;
+  if (!load_setup(args, &setup)) return 2;
+  std::vector<Job> jobs = make_jobs(args.seeds);
+  run_jobs(jobs, setup, args.threads);
+  double realtime_factor = 0.0;
+  const std::string runs = write_results(jobs, args.out, &realtime_factor);
+  print_table(jobs, args, setup.copt.controller.path.duration);
   util::JsonObject last;
-  last.raw("runs", runs).add("realtime_factor", wall_s > 0 ? sim_s / wall_s : 0.0);
+  last.raw("runs", runs).add("realtime_factor", realtime_factor);
   std::printf("%s\n", last.str().c_str());
   return 0;
 }

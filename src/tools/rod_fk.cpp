@@ -1,5 +1,5 @@
 // rod_fk: solves the HydroJet rod model for tip wrenches and prints one JSON object per solve.
-// The interface is a contract other tools rely on (README, "rod_fk"); keep it stable.
+// The interface is a contract other tools rely on (docs/numerics.md, "rod_fk"); keep it stable.
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -140,6 +140,75 @@ std::vector<hydrojet::rod::TipWrench> read_batch(const std::string& src) {
   return out;
 }
 
+/// The scene with the command line's integrator overrides; --jets turned into opt->wrench through
+/// the scene's jet map.
+hydrojet::config::Scene load_scene(Options* opt) {
+  hydrojet::config::Scene scene = hydrojet::config::load_scene(opt->scene);
+  if (!opt->integrator.empty() && !hydrojet::rod::parse_integrator(opt->integrator, &scene.solver.integrator.type))
+    throw BadInput{"--integrator: unknown integrator '" + opt->integrator + "' (" + hydrojet::rod::integrator_names() +
+                   ")"};
+  if (opt->steps) scene.solver.integrator.steps = opt->steps;
+  if (opt->tol > 0.0) scene.solver.integrator.tolerance = opt->tol;
+  if (opt->have_jets) {
+    if (!scene.has_jets) throw BadInput{"--jets: scene " + opt->scene + " has no jets section"};
+    const hydrojet::rod::Vec6 w = hydrojet::actuation::JetMap(scene.jets).wrench(opt->jets);
+    opt->wrench.force = w.head<3>();
+    opt->wrench.moment = w.tail<3>();
+  }
+  return scene;
+}
+
+/// --compliance: the body compliance C^b and the stability margin (null when not converged).
+void add_compliance(hydrojet::rod::ShootingSolver& solver, const hydrojet::config::Scene& scene, bool converged,
+                    JsonObject* j) {
+  if (!converged) {
+    j->add_null("compliance").add_null("stability_margin").add_null("stability_eig_min");
+    return;
+  }
+  const auto tc0 = std::chrono::steady_clock::now();
+  const hydrojet::rod::Compliance c = solver.compliance();
+  const auto tc1 = std::chrono::steady_clock::now();
+  const auto st = hydrojet::rod::stability(c.body, scene.actuated);
+  j->add("compliance", c.body)
+      .add("stability_margin", st.margin)
+      .add("stability_eig_min", st.eig_min)
+      .add("compliance_time_us", std::chrono::duration<double, std::micro>(tc1 - tc0).count());
+}
+
+/// One solve for the tip wrench w as its JSON line.
+std::string solve_json(hydrojet::rod::ShootingSolver& solver, const hydrojet::config::Scene& scene, const Options& opt,
+                       const hydrojet::rod::TipWrench& w, bool* converged) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const hydrojet::rod::RodSolution sol = solver.solve(w);
+  const auto t1 = std::chrono::steady_clock::now();
+  *converged = sol.converged;
+
+  JsonObject j;
+  j.add("converged", sol.converged)
+      .add("iterations", sol.iterations)
+      .add("residual", sol.residual)
+      .add("tip_position", sol.tip_position)
+      .add("tip_quaternion_wxyz", hydrojet::so3::quaternion_wxyz(sol.tip_rotation))
+      .add("solve_time_us", std::chrono::duration<double, std::micro>(t1 - t0).count())
+      .add("rhs_evaluations", sol.rhs_evaluations)
+      .add("continuation_steps", sol.continuation_steps)
+      .add("shooting_jacobian_det", sol.jacobian_det)
+      .add("integrator", hydrojet::rod::integrator_name(scene.solver.integrator.type));
+  if (!sol.converged) j.add("message", sol.message);
+  if (opt.compliance) add_compliance(solver, scene, sol.converged, &j);
+  if (opt.shape > 0) {
+    if (sol.converged) {
+      std::string pts = "[";
+      const auto shape = solver.shape(opt.shape);
+      for (size_t i = 0; i < shape.size(); ++i) pts += (i ? ", " : "") + JsonObject::matrix(shape[i]);
+      j.raw("shape", pts + "]");
+    } else {
+      j.add_null("shape");
+    }
+  }
+  return j.str();
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -148,18 +217,7 @@ int main(int argc, char** argv) {
   std::vector<hydrojet::rod::TipWrench> wrenches;
   try {
     opt = parse_args(argc, argv);
-    scene = hydrojet::config::load_scene(opt.scene);
-    if (!opt.integrator.empty() && !hydrojet::rod::parse_integrator(opt.integrator, &scene.solver.integrator.type))
-      throw BadInput{"--integrator: unknown integrator '" + opt.integrator + "' (" + hydrojet::rod::integrator_names() +
-                     ")"};
-    if (opt.steps) scene.solver.integrator.steps = opt.steps;
-    if (opt.tol > 0.0) scene.solver.integrator.tolerance = opt.tol;
-    if (opt.have_jets) {
-      if (!scene.has_jets) throw BadInput{"--jets: scene " + opt.scene + " has no jets section"};
-      const hydrojet::rod::Vec6 w = hydrojet::actuation::JetMap(scene.jets).wrench(opt.jets);
-      opt.wrench.force = w.head<3>();
-      opt.wrench.moment = w.tail<3>();
-    }
+    scene = load_scene(&opt);
     wrenches = opt.batch.empty() ? std::vector<hydrojet::rod::TipWrench>{opt.wrench} : read_batch(opt.batch);
   } catch (const BadInput& e) {
     std::cerr << "rod_fk: " << e.what << "\n";
@@ -172,48 +230,9 @@ int main(int argc, char** argv) {
   hydrojet::rod::ShootingSolver solver(scene.model, scene.solver);
   bool all_converged = true;
   for (const auto& w : wrenches) {
-    const auto t0 = std::chrono::steady_clock::now();
-    const hydrojet::rod::RodSolution sol = solver.solve(w);
-    const auto t1 = std::chrono::steady_clock::now();
-    all_converged = all_converged && sol.converged;
-
-    JsonObject j;
-    j.add("converged", sol.converged)
-        .add("iterations", sol.iterations)
-        .add("residual", sol.residual)
-        .add("tip_position", sol.tip_position)
-        .add("tip_quaternion_wxyz", hydrojet::so3::quaternion_wxyz(sol.tip_rotation))
-        .add("solve_time_us", std::chrono::duration<double, std::micro>(t1 - t0).count())
-        .add("rhs_evaluations", sol.rhs_evaluations)
-        .add("continuation_steps", sol.continuation_steps)
-        .add("shooting_jacobian_det", sol.jacobian_det)
-        .add("integrator", hydrojet::rod::integrator_name(scene.solver.integrator.type));
-    if (!sol.converged) j.add("message", sol.message);
-    if (opt.compliance) {
-      if (sol.converged) {
-        const auto tc0 = std::chrono::steady_clock::now();
-        const hydrojet::rod::Compliance c = solver.compliance();
-        const auto tc1 = std::chrono::steady_clock::now();
-        const auto st = hydrojet::rod::stability(c.body, scene.actuated);
-        j.add("compliance", c.body)
-            .add("stability_margin", st.margin)
-            .add("stability_eig_min", st.eig_min)
-            .add("compliance_time_us", std::chrono::duration<double, std::micro>(tc1 - tc0).count());
-      } else {
-        j.add_null("compliance").add_null("stability_margin").add_null("stability_eig_min");
-      }
-    }
-    if (opt.shape > 0) {
-      if (sol.converged) {
-        std::string pts = "[";
-        const auto shape = solver.shape(opt.shape);
-        for (size_t i = 0; i < shape.size(); ++i) pts += (i ? ", " : "") + JsonObject::matrix(shape[i]);
-        j.raw("shape", pts + "]");
-      } else {
-        j.add_null("shape");
-      }
-    }
-    std::cout << j.str() << "\n";
+    bool converged = false;
+    std::cout << solve_json(solver, scene, opt, w, &converged) << "\n";
+    all_converged = all_converged && converged;
   }
   std::cout.flush();
   return all_converged ? 0 : 1;

@@ -61,7 +61,7 @@ TEST(CalibrationPlant, RecoversPlantZeta) {
 
   // Truth: the plant's parameters. Estimate: the fitted scene as the scene library reads it.
   const hydrojet::config::Scene nominal = hydrojet::config::load_scene(scene_path);
-  const hydrojet::plant::PlantParameters truth = hydrojet::config::load_plant(nominal, plant_path);
+  const hydrojet::plant::PlantModel truth = hydrojet::config::load_plant(nominal, plant_path);
   hydrojet::config::Scene fitted;
   ASSERT_NO_THROW(fitted = hydrojet::config::load_scene(out)) << out;
 

@@ -10,6 +10,9 @@
 #include <string>
 
 #include "hydrojet_control/JetCommand.h"
+#include "hydrojet_control/ros/names.h"
+
+namespace names = hydrojet::names;
 
 namespace {
 
@@ -41,7 +44,7 @@ void set_good(ros::NodeHandle& nh, const std::string& name) {
 
 }  // namespace
 
-TEST(ControllerParams, BadParametersAreRejectedByName) {
+TEST(ControllerOptions, BadParametersAreRejectedByName) {
   ros::NodeHandle nh;
   struct Case {
     std::string name, key;
@@ -83,13 +86,13 @@ TEST(ControllerParams, BadParametersAreRejectedByName) {
   EXPECT_NE(e2.err.find("rod.lenght"), std::string::npos) << e2.err;
 }
 
-TEST(ControllerParams, GoodParametersRunWithJetsAtZero) {
+TEST(ControllerOptions, GoodParametersRunWithJetsAtZero) {
   ros::NodeHandle nh;
   set_good(nh, "good");
   int n = 0;
   bool all_zero = true;
   ros::Subscriber sub = nh.subscribe<hydrojet_control::JetCommand>(
-      "jets/command", 100, [&](const hydrojet_control::JetCommand::ConstPtr& m) {
+      names::kJetCommand, 100, [&](const hydrojet_control::JetCommand::ConstPtr& m) {
         ++n;
         for (double v : m->valve_command) all_zero = all_zero && v == 0.0;
       });

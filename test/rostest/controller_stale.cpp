@@ -10,6 +10,9 @@
 #include "hydrojet_control/ControllerStatus.h"
 #include "hydrojet_control/JetCommand.h"
 #include "hydrojet_control/JetState.h"
+#include "hydrojet_control/ros/names.h"
+
+namespace names = hydrojet::names;
 
 namespace {
 
@@ -27,7 +30,7 @@ TEST(ControllerStale, TrackerSilenceZeroesJets) {
   Recorder r;
   ros::Time cut;  // when the tracker stops
   ros::Subscriber cs = nh.subscribe<hydrojet_control::JetCommand>(
-      "jets/command", 100, [&](const hydrojet_control::JetCommand::ConstPtr& m) {
+      names::kJetCommand, 100, [&](const hydrojet_control::JetCommand::ConstPtr& m) {
         r.cmd = *m;
         r.have_cmd = true;
         r.cmd_time = ros::Time::now();
@@ -35,16 +38,16 @@ TEST(ControllerStale, TrackerSilenceZeroesJets) {
         if (!cut.isZero() && zero && r.first_zero_after_cut.isZero()) r.first_zero_after_cut = ros::Time::now();
       });
   ros::Subscriber ss = nh.subscribe<hydrojet_control::ControllerStatus>(
-      "controller/status", 100, [&](const hydrojet_control::ControllerStatus::ConstPtr& m) { r.status = *m; });
+      names::kControllerStatus, 100, [&](const hydrojet_control::ControllerStatus::ConstPtr& m) { r.status = *m; });
   ros::Subscriber ds = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
-      "/diagnostics", 100, [&](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
+      names::kDiagnostics, 100, [&](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
         for (const auto& s : m->status)
           if (s.level == diagnostic_msgs::DiagnosticStatus::ERROR && s.message.find("tracker") != std::string::npos)
             r.diag_error = true;
       });
-  ros::Publisher tip = nh.advertise<geometry_msgs::PoseStamped>("tracker/tip_pose", 10);
-  ros::Publisher base = nh.advertise<geometry_msgs::PoseStamped>("tracker/base_pose", 10);
-  ros::Publisher jets = nh.advertise<hydrojet_control::JetState>("jets/state", 10);
+  ros::Publisher tip = nh.advertise<geometry_msgs::PoseStamped>(names::kTipPose, 10);
+  ros::Publisher base = nh.advertise<geometry_msgs::PoseStamped>(names::kBasePose, 10);
+  ros::Publisher jets = nh.advertise<hydrojet_control::JetState>(names::kJetState, 10);
 
   ros::Rate rate(100.0);
   const ros::Time t0 = ros::Time::now();

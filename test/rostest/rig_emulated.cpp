@@ -23,6 +23,9 @@
 #include "hydrojet_control/ControllerStatus.h"
 #include "hydrojet_control/JetState.h"
 #include "../emulator_process.h"
+#include "hydrojet_control/ros/names.h"
+
+namespace names = hydrojet::names;
 
 namespace {
 
@@ -89,27 +92,27 @@ TEST(RigEmulated, PoseToControllerCommandToBoardTrackerLossClosesValves) {
   ros::WallTime last_tip;
   std::string tracker_error, valves_error;
   ros::Subscriber s1 = nh.subscribe<hydrojet_control::ControllerStatus>(
-      "controller/status", 100, [&](const hydrojet_control::ControllerStatus::ConstPtr& m) { status = *m; });
+      names::kControllerStatus, 100, [&](const hydrojet_control::ControllerStatus::ConstPtr& m) { status = *m; });
   ros::Subscriber s2 = nh.subscribe<geometry_msgs::PoseStamped>(
-      "tracker/tip_pose", 100, [&](const geometry_msgs::PoseStamped::ConstPtr& m) {
+      names::kTipPose, 100, [&](const geometry_msgs::PoseStamped::ConstPtr& m) {
         ++tip_poses;
         last_tip = ros::WallTime::now();
         EXPECT_EQ(m->header.frame_id, "tracker");
         EXPECT_NEAR(m->pose.position.z, -0.150, 1e-5);  // the emulator's tip [mm -> m]
       });
   ros::Subscriber s3 =
-      nh.subscribe<std_msgs::Float64>("tracker/tip_rms", 100, [&](const std_msgs::Float64::ConstPtr& m) {
+      nh.subscribe<std_msgs::Float64>(names::kTipRms, 100, [&](const std_msgs::Float64::ConstPtr& m) {
         ++rms_msgs;
         EXPECT_NEAR(m->data, 0.30e-3, 1e-8);
       });
   ros::Subscriber s4 =
-      nh.subscribe<hydrojet_control::JetState>("jets/state", 100, [&](const hydrojet_control::JetState::ConstPtr& m) {
+      nh.subscribe<hydrojet_control::JetState>(names::kJetState, 100, [&](const hydrojet_control::JetState::ConstPtr& m) {
         jets = *m;
         ++jet_msgs;
         jets_all_valid += m->flow_valid[0] && m->flow_valid[1] && m->flow_valid[2];
       });
   ros::Subscriber s5 = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
-      "/diagnostics", 100, [&](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
+      names::kDiagnostics, 100, [&](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
         for (const auto& s : m->status) {
           if (s.level != diagnostic_msgs::DiagnosticStatus::ERROR) continue;
           if (s.name.find("tracker") != std::string::npos && s.message.find("tracker") != std::string::npos)

@@ -7,15 +7,18 @@
 
 #include "hydrojet_control/JetCommand.h"
 #include "hydrojet_control/JetState.h"
+#include "hydrojet_control/ros/names.h"
+
+namespace names = hydrojet::names;
 
 TEST(SimControllerKilled, PlantClosesValvesOnCommandTimeout) {
   ros::NodeHandle nh;
   std::vector<hydrojet_control::JetState> states;
-  ros::Publisher cmd = nh.advertise<hydrojet_control::JetCommand>("jets/command", 10);
+  ros::Publisher cmd = nh.advertise<hydrojet_control::JetCommand>(names::kJetCommand, 10);
   const double stop_at = 2.0;
   double now = 0.0;
   ros::Subscriber clock =
-      nh.subscribe<rosgraph_msgs::Clock>("/clock", 100, [&](const rosgraph_msgs::Clock::ConstPtr& c) {
+      nh.subscribe<rosgraph_msgs::Clock>(names::kClock, 100, [&](const rosgraph_msgs::Clock::ConstPtr& c) {
         now = c->clock.toSec();
         if (now > 0.0 && now <= stop_at) {  // the "controller": answer every step until it dies
           hydrojet_control::JetCommand m;
@@ -25,7 +28,7 @@ TEST(SimControllerKilled, PlantClosesValvesOnCommandTimeout) {
         }
       });
   ros::Subscriber js = nh.subscribe<hydrojet_control::JetState>(
-      "jets/state", 1000, [&](const hydrojet_control::JetState::ConstPtr& m) { states.push_back(*m); });
+      names::kJetState, 1000, [&](const hydrojet_control::JetState::ConstPtr& m) { states.push_back(*m); });
   const ros::WallTime until = ros::WallTime::now() + ros::WallDuration(120.0);
   while (ros::ok() && ros::WallTime::now() < until && now < stop_at + 1.0) {
     ros::spinOnce();

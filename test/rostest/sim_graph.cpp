@@ -13,6 +13,9 @@
 
 #include "hydrojet_control/ControllerStatus.h"
 #include "hydrojet_control/JetCommand.h"
+#include "hydrojet_control/ros/names.h"
+
+namespace names = hydrojet::names;
 
 namespace {
 
@@ -32,19 +35,19 @@ bool zero(const hydrojet_control::JetCommand& c) {
 void run(Log& log, double wall_limit) {
   ros::NodeHandle nh;
   ros::Subscriber s1 = nh.subscribe<hydrojet_control::ControllerStatus>(
-      "controller/status", 10000,
+      names::kControllerStatus, 10000,
       [&](const hydrojet_control::ControllerStatus::ConstPtr& m) { log.status.push_back(*m); });
   ros::Subscriber s2 = nh.subscribe<hydrojet_control::JetCommand>(
-      "jets/command", 10000, [&](const hydrojet_control::JetCommand::ConstPtr& m) { log.commands.push_back(*m); });
+      names::kJetCommand, 10000, [&](const hydrojet_control::JetCommand::ConstPtr& m) { log.commands.push_back(*m); });
   ros::Subscriber s3 = nh.subscribe<geometry_msgs::PoseStamped>(
-      "tracker/tip_pose", 10000, [&](const geometry_msgs::PoseStamped::ConstPtr& m) {
+      names::kTipPose, 10000, [&](const geometry_msgs::PoseStamped::ConstPtr& m) {
         const double t = m->header.stamp.toSec();
         if (log.dropout_from < 0 && log.last_tracker >= 0 && t - log.last_tracker > 0.015)
           log.dropout_from = log.last_tracker;
         log.last_tracker = t;
       });
   ros::Subscriber s4 = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
-      "/diagnostics", 1000, [&](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
+      names::kDiagnostics, 1000, [&](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
         for (const auto& s : m->status)
           if (s.level == diagnostic_msgs::DiagnosticStatus::ERROR) log.diag_errors.push_back(s.message);
       });
@@ -113,8 +116,11 @@ TEST(SimGraph, Scenario) {
     }
   }
   EXPECT_TRUE(zero_after);
-  for (const auto& s : log.status)
-    if (s.header.stamp.toSec() > t_abort) EXPECT_EQ(s.state, "aborted");
+  for (const auto& s : log.status) {
+    if (s.header.stamp.toSec() > t_abort) {
+      EXPECT_EQ(s.state, "aborted");
+    }
+  }
 
   if (scenario == "tracker_dropout") {
     EXPECT_NE(ab->reason.find("tracker"), std::string::npos) << ab->reason;

@@ -20,7 +20,7 @@
 namespace hydrojet {
 namespace actuation {
 
-struct FlowRegulatorParameters {
+struct FlowRegulatorOptions {
   double kp = 0.0;           ///< proportional gain [1/(m^3/s)] (duty per flow error)
   double ki = 0.0;           ///< integral gain [1/m^3] (duty per flow error per second)
   double feedforward = 0.0;  ///< k_ff [1/(m^3/s)]: duty per unit desired flow; 0 = none
@@ -31,13 +31,13 @@ struct FlowRegulatorParameters {
 
 /// Empty if usable, else a message naming the bad field (non-finite or negative gains, limits not
 /// within 0 ≤ output_min ≤ output_max ≤ 1).
-std::string validate(const FlowRegulatorParameters& p);
+std::string validate(const FlowRegulatorOptions& p);
 
 /// PI flow regulator for one jet.
 class FlowRegulator {
  public:
   /// Throws std::invalid_argument if validate(params) is non-empty.
-  explicit FlowRegulator(const FlowRegulatorParameters& params = FlowRegulatorParameters());
+  explicit FlowRegulator(const FlowRegulatorOptions& params = FlowRegulatorOptions());
 
   /// One control step. q_des, q_meas: desired and measured flow [m^3/s]; dt: time since the last
   /// step [s]. Returns the valve command [1] in [output_min, output_max]. On non-finite q_des or
@@ -53,10 +53,10 @@ class FlowRegulator {
   bool saturated() const { return saturated_; }      ///< last unclamped output was out of range
   bool ok() const { return error_.empty(); }         ///< false after a rejected step
   const std::string& error() const { return error_; }
-  const FlowRegulatorParameters& parameters() const { return params_; }
+  const FlowRegulatorOptions& parameters() const { return params_; }
 
  private:
-  FlowRegulatorParameters params_;
+  FlowRegulatorOptions params_;
   double integrator_ = 0.0;
   double output_ = 0.0;
   bool saturated_ = false;
@@ -66,8 +66,8 @@ class FlowRegulator {
 /// Three regulators, one per jet.
 class FlowRegulatorBank {
  public:
-  explicit FlowRegulatorBank(const FlowRegulatorParameters& params = FlowRegulatorParameters());
-  explicit FlowRegulatorBank(const std::array<FlowRegulatorParameters, 3>& params);
+  explicit FlowRegulatorBank(const FlowRegulatorOptions& params = FlowRegulatorOptions());
+  explicit FlowRegulatorBank(const std::array<FlowRegulatorOptions, 3>& params);
 
   /// Valve commands [1] for desired / measured flows [m^3/s] after dt [s]. A jet with bad input
   /// gets 0 (see FlowRegulator::update); the others are unaffected.

@@ -1,4 +1,4 @@
-// The `calibrate` command line (README "Calibration") as a function, so that the tool's main() and
+// The `calibrate` command line (docs/calibration.md) as a function, so that the tool's main() and
 // the calibration recorder node run the same code. Part of hydrojet_calibration_ros (it reads bags).
 #pragma once
 

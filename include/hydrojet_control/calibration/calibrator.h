@@ -6,7 +6,7 @@
 // Residual of sample i (3 numbers): r_i = log(R_meas,iᵀ R_model(q_i, ζ)), the rotation vector of
 // the error in the measured tip frame; |r_i| is the geodesic angle between the two orientations.
 // (Eq. 27 as printed minimises Σ⟨h_m, h_i⟩², which is smallest when the quaternions are
-// orthogonal, i.e. the orientations 180° apart; see README "Calibration".)
+// orthogonal, i.e. the orientations 180° apart; see docs/calibration.md.)
 //
 // Parameters are estimated in internal coordinates x = [u_x, u_y, ln(E/E₀), ln(G/G₀), δα, δβ, δγ]
 // (E₀, G₀ the starting moduli): the moduli stay positive and all seven are O(1). Derivatives are

@@ -14,7 +14,7 @@
 // ends end_guard before the interval does (the most settled part, clear of the next step). When
 // consecutive intervals' samples have the same jet forces within max_force_drift (a noise spike
 // or a slow creep split one hold), only the later, more settled one is kept. Defaults suit 100 Hz data with the
-// Aurora's ~0.3° and the flow sensors' ~3 mL/min noise (see README "Calibration").
+// Aurora's ~0.3° and the flow sensors' ~3 mL/min noise (see docs/calibration.md).
 #pragma once
 
 #include <string>
@@ -69,7 +69,7 @@ struct Extraction {
 /// Extracts one static sample per quasistatic interval. Records need not be sorted.
 /// Throws DataError when the options are invalid or nothing could be paired.
 Extraction extract_quasistatic(const std::vector<JetRecord>& jets, const std::vector<PoseRecord>& tip,
-                               const std::vector<PoseRecord>& base, const actuation::NozzleParameters& nozzle,
+                               const std::vector<PoseRecord>& base, const actuation::Nozzle& nozzle,
                                const QuasistaticOptions& options);
 
 }  // namespace calibration

@@ -23,21 +23,32 @@ class ParamError : public KeyError {
   explicit ParamError(const std::string& message) : KeyError("", message) {}
 };
 
-struct ControllerOptions {
+/// The rig's per-jet PI flow regulator (duty per m^3/s), as in config/controller.yaml.
+inline actuation::FlowRegulatorOptions rig_flow_regulator() {
+  actuation::FlowRegulatorOptions f;
+  f.feedforward = 62500.0;  // [1/(m^3/s)] ≈ 1 / flow at full duty
+  f.kp = 18750.0;           // [1/(m^3/s)]
+  f.ki = 312500.0;          // [1/m^3]
+  return f;
+}
+
+/// Options of controller_node and the tools that run the controller. Default values equal
+/// config/controller.yaml (checked field by field by test_controller).
+struct ControllerNodeOptions {
   std::string scene;                ///< scene YAML path (required by the node, optional for tools)
   double rate = 100.0;              ///< control rate [Hz]
   bool autostart = false;           ///< start the path as soon as data arrive
   std::string base_frame = "base";  ///< frame of the rod model (REP 105-style name)
-  control::ControllerParams controller;
-  actuation::FlowRegulatorParameters flow;
+  control::ControllerOptions controller;
+  actuation::FlowRegulatorOptions flow_regulator = rig_flow_regulator();
 };
 
 /// Parses a mapping with keys scene, rate, mode, autostart, base_frame, gains/*, limits/*,
 /// allocation_weight, integrate_from_measured, safety/*, path/*, flow_regulator/*. Unknown keys and
 /// invalid values throw ParamError("<key>: <what>").
-ControllerOptions parse_controller_options(const YAML::Node& root);
+ControllerNodeOptions parse_controller_options(const YAML::Node& root);
 /// Reads a YAML file of controller options.
-ControllerOptions load_controller_options(const std::string& path);
+ControllerNodeOptions load_controller_options(const std::string& path);
 
 }  // namespace config
 }  // namespace hydrojet

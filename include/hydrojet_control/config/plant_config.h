@@ -11,12 +11,13 @@
 namespace hydrojet {
 namespace config {
 
-/// Builds the plant's true parameters from the nominal scene and the YAML text of a file holding a
-/// `plant:` section (empty text: defaults). The base tilt is read off the scene's gravity vector
+/// Builds the true plant from the nominal scene and the YAML text of a file holding a `plant:`
+/// section (empty text: the defaults, which are config/plant.yaml's): the scene's rod, jets and
+/// nozzles with the ModelMismatch applied. The base tilt is read off the scene's gravity vector
 /// (which must lie in the base y–z plane).
-plant::PlantParameters make_plant(const Scene& nominal, const std::string& plant_yaml_text);
+plant::PlantModel make_plant(const Scene& nominal, const std::string& plant_yaml_text);
 /// Same, reading the plant file from disk ("" = defaults).
-plant::PlantParameters load_plant(const Scene& nominal, const std::string& plant_yaml_path);
+plant::PlantModel load_plant(const Scene& nominal, const std::string& plant_yaml_path);
 
 }  // namespace config
 }  // namespace hydrojet

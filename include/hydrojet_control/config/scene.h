@@ -1,4 +1,4 @@
-// Scene files: the YAML that says which rod, load and solver a run uses (README, "Scene files").
+// Scene files: the YAML that says which rod, load and solver a run uses (docs/rod_model.md, "Scene files").
 // Loaded and validated here; a missing or invalid key raises SceneError naming the key.
 // ROS-free (yaml-cpp + Eigen).
 #pragma once
@@ -25,11 +25,11 @@ class SceneError : public KeyError {
 struct Scene {
   rod::RodModel model;
   rod::ActuatedSet actuated = rod::lateral_force_actuation();
-  rod::ShootingSettings solver;
+  rod::ShootingOptions solver;
   /// The optional `jets` section (paper §6.2, Table 1).
   bool has_jets = false;
-  actuation::JetGeometry jets;         ///< misalignment (δα, δβ, δγ) [rad], nozzle offset [m]
-  actuation::NozzleParameters nozzle;  ///< A_in, A_out [m^2], water density [kg/m^3]
+  actuation::JetGeometry jets;  ///< misalignment (δα, δβ, δγ) [rad], nozzle offset [m]
+  actuation::Nozzle nozzle;     ///< A_in, A_out [m^2], water density [kg/m^3]
   Eigen::Vector3d max_jet_force = Eigen::Vector3d(0.243, 0.224, 0.244);  ///< q_max [N]
 };
 
@@ -39,7 +39,7 @@ struct Scene {
 Scene parse_scene(const std::string& yaml_text);
 /// The controller's model of the robot from a scene (its rod, solver, jets and nozzles) and the
 /// flow-regulator gains. SceneError("jets", ...) when the scene has no jets section.
-control::ControllerModel make_controller_model(const Scene& scene, const actuation::FlowRegulatorParameters& flow);
+control::RobotModel make_controller_model(const Scene& scene, const actuation::FlowRegulatorOptions& flow);
 
 /// Reads and parses a scene file; SceneError("scene", ...) when the file cannot be read.
 Scene load_scene(const std::string& path);

@@ -22,6 +22,21 @@ namespace config {
 
 /// A configuration key is missing or invalid. key() is its full path ("rod.length",
 /// "~gains/kp"; empty for errors about the input as a whole), detail() what is wrong with it.
+///
+/// The error family and who throws (every layer of the stack follows this rule):
+///   - Configuration parsing (scene and plant files, controller, rig, node and recorder options)
+///     throws a KeyError subclass naming the key: SceneError (config/scene.h), ParamError
+///     (config/controller_config.h), RigOptionsError (devices/rig_config.h).
+///   - Core numerics (rod, actuation, control, plant, sim, calibration fit) never throw on bad
+///     numbers: they return a status (RodSolution::converged/message, a bool plus error() or
+///     last_error(), CalibrationResult::converged/warnings). Descriptions and options check
+///     themselves with validate() (an empty string or "<field>: <what>"); a constructor or entry
+///     point handed one that fails validate() throws std::invalid_argument with that message
+///     before any numerics run (a programming or configuration error, not a numerical outcome).
+///     Measured data that cannot be used throw calibration::DataError.
+///   - Nodes catch at start-up, log "<node>: refusing to start: <error>" and exit non-zero; once
+///     running they report failures as status (diagnostics, ControllerStatus), never by throwing.
+///   - Tools print "<tool>: <error>" on stderr and exit non-zero (2 for bad input).
 class KeyError : public std::runtime_error {
  public:
   KeyError(const std::string& key, const std::string& detail)

@@ -17,8 +17,8 @@
 //   loop at `rate`: BX:<options> -> binary reply (BxParser), until stop or a fault
 //   TSTOP:        on stop (shutdown)
 // Every ASCII reply's CRC is checked; ERRORxx replies are decoded (describe_error) into the status
-// message. A fault (hang-up, silence, device error) closes the port; the client retries every
-// `reconnect_period` seconds with the whole session.
+// message. A fault (hang-up, silence, device error) closes the port; the client's DeviceWorker
+// (device_worker.h) retries every `reconnect_period` seconds with the whole session.
 //
 // Data rules: each BX reply is CRC-checked by BxParser (CRC errors, garbage, truncated frames are
 // counted and skipped). A handle's pose is delivered only when its frame number changed since the
@@ -27,22 +27,20 @@
 // status and no usable transform; the caller publishes kValid poses only.
 #pragma once
 
-#include <atomic>
-#include <condition_variable>
 #include <cstdint>
 #include <functional>
 #include <mutex>
 #include <string>
-#include <thread>
 
 #include "hydrojet_control/devices/aurora_protocol.h"
 #include "hydrojet_control/devices/device_status.h"
+#include "hydrojet_control/devices/device_worker.h"
 #include "hydrojet_control/devices/serial_port.h"
 
 namespace hydrojet {
 namespace devices {
 
-struct AuroraConfig {
+struct AuroraOptions {
   std::string port;               ///< serial device path (e.g. /dev/serial/by-id/...)
   int baud = 115200;              ///< tracking baud rate, set by COMM (9600 ... 921600)
   uint8_t tip_handle = 0x0A;      ///< port handle of the tip (capsule) sensor
@@ -83,10 +81,8 @@ struct HandleStats {
   bool ever_valid = false;
 };
 
-struct AuroraStatus {
-  LinkState state = LinkState::kStopped;
-  std::string message;      ///< what the client is doing or, after a fault, why it failed
-  std::string last_error;   ///< the last fault (kept after recovery)
+/// Link state, message and last fault (LinkStatus), and the tracking counters.
+struct AuroraStatus : LinkStatus {
   bool tracking = false;    ///< TSTART acknowledged and BX loop running
   SteadyTime last_frame{};  ///< last CRC-valid BX frame
   bool ever_frame = false;
@@ -109,26 +105,31 @@ struct AuroraStatus {
   static bool handle_ok(const HandleStats& h, SteadyTime now, double timeout);
 };
 
-class AuroraClient {
+class AuroraClient : private DeviceSession {
  public:
   using SampleCallback = std::function<void(const AuroraSample&)>;
 
   /// @throws std::invalid_argument when `config.validate()` fails.
-  AuroraClient(const AuroraConfig& config, SampleCallback on_sample, LogCallback log = nullptr);
-  ~AuroraClient();
+  AuroraClient(const AuroraOptions& config, SampleCallback on_sample, LogCallback log = nullptr);
+  ~AuroraClient() override;
   AuroraClient(const AuroraClient&) = delete;
   AuroraClient& operator=(const AuroraClient&) = delete;
 
   /// Starts the driver thread (connect, track, reconnect).
-  void start();
+  void start() { worker_.start(); }
   /// Stops tracking (TSTOP when the session is up), closes the port, joins the thread.
-  void stop();
+  void stop() { worker_.stop(); }
 
   AuroraStatus status() const;
-  const AuroraConfig& config() const { return cfg_; }
+  const AuroraOptions& config() const { return cfg_; }
 
  private:
-  void run();
+  // DeviceSession: one session is connect() then track().
+  bool run_session(std::string* fault) override;
+  void close_port() override { port_.close(); }
+  void shut_down() override;  ///< TSTOP when tracking, then closes the port
+  void mark_link_down() override { status_.tracking = false; }
+
   bool connect(std::string* err);
   bool reset_device(std::string* err);
   /// Sends NAME:params and reads the ASCII reply (CRC checked; ERRORxx decoded into *err).
@@ -142,16 +143,10 @@ class AuroraClient {
   BxResult request_bx(BxFrame* frame, std::string* err);
   void deliver(const BxFrame& frame, SteadyTime received);
 
-  void set_state(LinkState s, const std::string& msg);
-  void fault(const std::string& msg, bool log_it);
-  void log(LogLevel level, const std::string& msg);
-  /// Sleeps up to `s` seconds, returning early (false) when stopping.
-  bool sleep_for(double s);
-  bool stopping() const { return stop_.load(); }
+  bool stopping() const { return worker_.stopping(); }
 
-  const AuroraConfig cfg_;
+  const AuroraOptions cfg_;
   SampleCallback on_sample_;
-  LogCallback log_;
   SerialPort port_;
   BxParser parser_;
   std::string ascii_tail_;  ///< recent non-BX bytes (ERROR replies inside the BX stream)
@@ -160,12 +155,9 @@ class AuroraClient {
   uint64_t ascii_crc_errors_ = 0;
   bool closing_ = false;  ///< stopping, but waiting for the TSTOP reply
 
-  mutable std::mutex mu_;
+  mutable std::mutex mu_;  ///< guards status_
   AuroraStatus status_;
-  std::atomic<bool> stop_{false};
-  std::mutex wait_mu_;
-  std::condition_variable wait_cv_;
-  std::thread thread_;
+  DeviceWorker worker_;  ///< last: its thread uses the members above
 };
 
 }  // namespace devices

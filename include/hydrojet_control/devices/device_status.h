@@ -16,6 +16,14 @@ enum class LinkState {
   kRunning,       ///< exchanging data
 };
 
+/// The link part of a device's status (AuroraStatus, FlowSensorStatus and ValveStatus extend it),
+/// written by the client's DeviceWorker (device_worker.h).
+struct LinkStatus {
+  LinkState state = LinkState::kStopped;
+  std::string message;     ///< what the driver is doing or, after a fault, why it failed ("; retrying every X s")
+  std::string last_error;  ///< the last fault (kept after recovery)
+};
+
 /// Severity of a driver's log line: kInfo for connections, kWarn for faults.
 enum class LogLevel { kInfo, kWarn };
 /// Log lines of a driver thread (state changes, faults; a repeated fault is logged once).

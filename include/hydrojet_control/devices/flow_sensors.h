@@ -1,6 +1,6 @@
 // Flow sensors that stream one ASCII line per reading over a serial port (the HydroJet's Titan
 // Atrato sensors, one per jet), and the aggregation of three of them into one jet-state sample.
-// ROS-free; one thread per sensor.
+// ROS-free; one thread (DeviceWorker, device_worker.h) per sensor.
 //
 // No public serial protocol of the Atrato is known: every line is read with a configurable
 // FlowLineFormat (regex or field index, unit scale; line_protocols.h) and converted to [m^3/s] at
@@ -9,22 +9,20 @@
 #pragma once
 
 #include <array>
-#include <atomic>
-#include <condition_variable>
 #include <cstdint>
 #include <functional>
 #include <mutex>
 #include <string>
-#include <thread>
 
 #include "hydrojet_control/devices/device_status.h"
+#include "hydrojet_control/devices/device_worker.h"
 #include "hydrojet_control/devices/line_protocols.h"
 #include "hydrojet_control/devices/serial_port.h"
 
 namespace hydrojet {
 namespace devices {
 
-struct FlowSensorConfig {
+struct FlowSensorOptions {
   std::string name = "flow sensor";  ///< for messages ("flow sensor 1")
   std::string port;                  ///< serial device path
   int baud = 9600;
@@ -46,10 +44,8 @@ struct FlowReading {
   std::string error;      ///< why the line was rejected
 };
 
-struct FlowSensorStatus {
-  LinkState state = LinkState::kStopped;
-  std::string message;
-  std::string last_error;  ///< last fault or rejected line (kept after recovery)
+/// Link state, message and last fault or rejected line (LinkStatus), and the line counters.
+struct FlowSensorStatus : LinkStatus {
   SteadyTime last_accepted{};
   bool ever_accepted = false;
   double last_flow = 0.0;  ///< [m^3/s]
@@ -63,37 +59,40 @@ struct FlowSensorStatus {
   }
 };
 
-class FlowSensor {
+class FlowSensor : private DeviceSession {
  public:
   using ReadingCallback = std::function<void(const FlowReading&)>;
 
   /// @throws std::invalid_argument when config.validate() fails.
-  FlowSensor(const FlowSensorConfig& config, ReadingCallback on_reading, LogCallback log = nullptr);
-  ~FlowSensor();
+  FlowSensor(const FlowSensorOptions& config, ReadingCallback on_reading, LogCallback log = nullptr);
+  ~FlowSensor() override;
   FlowSensor(const FlowSensor&) = delete;
   FlowSensor& operator=(const FlowSensor&) = delete;
 
-  void start();
-  void stop();
+  void start() { worker_.start(); }
+  void stop() { worker_.stop(); }
   FlowSensorStatus status() const;
-  const FlowSensorConfig& config() const { return cfg_; }
+  const FlowSensorOptions& config() const { return cfg_; }
 
  private:
-  void run();
+  // DeviceSession: one session is open_port() then stream().
+  bool run_session(std::string* fault) override;
+  void close_port() override { port_.close(); }
+  void shut_down() override { port_.close(); }
+
+  /// Opens the port and sends the start command (if any).
+  bool open_port(std::string* err);
   /// Reads lines until stop, hang-up or silence; returns the fault.
   std::string stream();
-  bool sleep_for(double s);
+  /// Counts one line and delivers it as a reading; an accepted one sets *last_accepted.
+  void deliver_line(const std::string& line, SteadyTime* last_accepted);
 
-  const FlowSensorConfig cfg_;
+  const FlowSensorOptions cfg_;
   ReadingCallback on_reading_;
-  LogCallback log_;
   SerialPort port_;
-  mutable std::mutex mu_;
+  mutable std::mutex mu_;  ///< guards status_
   FlowSensorStatus status_;
-  std::atomic<bool> stop_{false};
-  std::mutex wait_mu_;
-  std::condition_variable wait_cv_;
-  std::thread thread_;
+  DeviceWorker worker_;  ///< last: its thread uses the members above
 };
 
 /// The three jets' latest readings, combined into samples for the jet state. Thread-safe.

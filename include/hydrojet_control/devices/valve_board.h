@@ -1,6 +1,7 @@
 // The HydroJet's three solenoid valves: a backend interface (ValveDriver), its serial valve-board
 // implementation (the line protocol of line_protocols.h), the safety gate that decides which duty
-// may be applied, and the loop (one thread) that applies it and reconnects. ROS-free.
+// may be applied, and the loop (one thread, DeviceWorker of device_worker.h) that applies it and
+// reconnects. ROS-free.
 //
 // Safety rules (CommandGate + ValveLoop):
 //  * the valves get the controller's last command only while it is at most `command_timeout` old
@@ -15,16 +16,14 @@
 #pragma once
 
 #include <array>
-#include <atomic>
-#include <condition_variable>
 #include <cstdint>
 #include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
-#include <thread>
 
 #include "hydrojet_control/devices/device_status.h"
+#include "hydrojet_control/devices/device_worker.h"
 #include "hydrojet_control/devices/serial_port.h"
 
 namespace hydrojet {
@@ -52,7 +51,7 @@ class ValveDriver {
   virtual Result apply(const Duty& duty, Duty* applied, std::string* err) = 0;
 };
 
-struct SerialValveBoardConfig {
+struct SerialValveBoardOptions {
   std::string port;
   int baud = 115200;
   double ack_timeout = 0.05;  ///< [s]
@@ -63,7 +62,7 @@ struct SerialValveBoardConfig {
 /// The echoed duties must equal the sent ones (4 decimals); anything else is kRejected.
 class SerialValveBoard : public ValveDriver {
  public:
-  explicit SerialValveBoard(const SerialValveBoardConfig& config);
+  explicit SerialValveBoard(const SerialValveBoardOptions& config);
   std::string describe() const override { return "valve board (" + cfg_.port + ")"; }
   bool open(std::string* err) override;
   void close() override { port_.close(); }
@@ -71,7 +70,7 @@ class SerialValveBoard : public ValveDriver {
   Result apply(const Duty& duty, Duty* applied, std::string* err) override;
 
  private:
-  SerialValveBoardConfig cfg_;
+  SerialValveBoardOptions cfg_;
   SerialPort port_;
 };
 
@@ -93,7 +92,7 @@ class CommandGate {
   bool have_ = false;
 };
 
-struct ValveLoopConfig {
+struct ValveLoopOptions {
   double rate = 50.0;             ///< keep-alive: minimum commands per second [Hz]
   double command_timeout = 0.1;   ///< controller command older than this: zero duty [s]
   int max_failures = 3;           ///< unacknowledged commands in a row before the board is unhealthy
@@ -101,12 +100,10 @@ struct ValveLoopConfig {
   std::string validate() const;
 };
 
-struct ValveStatus {
-  LinkState state = LinkState::kStopped;
+/// Link state, message and last fault (LinkStatus), and the command counters.
+struct ValveStatus : LinkStatus {
   bool healthy = false;  ///< open, and the last command was acknowledged
-  std::string message;
-  std::string last_error;
-  Duty acknowledged{};  ///< duty last acknowledged by the board
+  Duty acknowledged{};   ///< duty last acknowledged by the board
   bool ever_acknowledged = false;
   SteadyTime last_ack{};
   bool gate_open = false;   ///< the last command sent was the controller's (not forced zero)
@@ -116,7 +113,7 @@ struct ValveStatus {
   uint64_t connects = 0, connect_failures = 0;
 };
 
-class ValveLoop {
+class ValveLoop : private DeviceSession {
  public:
   /// Whether the other devices are healthy; sets *reason (naming the device) when not.
   using HealthFn = std::function<bool(std::string* reason)>;
@@ -124,40 +121,48 @@ class ValveLoop {
   using AppliedCallback = std::function<void(const Duty& applied, SteadyTime when)>;
 
   /// @throws std::invalid_argument when config.validate() fails or driver is null.
-  ValveLoop(std::unique_ptr<ValveDriver> driver, const ValveLoopConfig& config, HealthFn health,
+  ValveLoop(std::unique_ptr<ValveDriver> driver, const ValveLoopOptions& config, HealthFn health,
             AppliedCallback on_applied = nullptr, LogCallback log = nullptr);
-  ~ValveLoop();
+  ~ValveLoop() override;
   ValveLoop(const ValveLoop&) = delete;
   ValveLoop& operator=(const ValveLoop&) = delete;
 
   /// A controller command (thread-safe); the loop sends it (gated) at once.
   void command(const Duty& duty);
   /// Re-evaluates the gate now (e.g. a device's health changed).
-  void notify();
-  void start();
+  void notify() { worker_.wake(); }
+  void start() { worker_.start(); }
   /// Sends zero duty (best effort), closes the port, joins the thread.
-  void stop();
+  void stop() { worker_.stop(); }
   ValveStatus status() const;
 
  private:
-  void run();
-  bool wait(double s);  ///< until a command, notify() or stop; false when stopping
-  void set_fault(const std::string& msg, bool log_it);
+  // DeviceSession: one session is connect() then exchange().
+  bool run_session(std::string* fault) override;
+  void close_port() override { driver_->close(); }
+  void shut_down() override;  ///< zero duty (best effort), then closes the port
+  void mark_link_down() override { status_.healthy = false; }
+
+  /// Opens the driver; connected once it acknowledged zero duty.
+  bool connect(std::string* err);
+  /// Sends the gated duty every keep-alive period and at once on a command, until stop or a fault.
+  void exchange(std::string* fault);
+  /// The duty the gate lets through now (records the gate's verdict in the status).
+  Duty gated_duty();
+  /// Applies the gated duty and records the result.
+  ValveDriver::Result send_gated_duty(std::string* err);
+  /// Counts an acknowledged duty (status mutex held).
+  void record_ack(const Duty& applied, SteadyTime when);
 
   std::unique_ptr<ValveDriver> driver_;
-  const ValveLoopConfig cfg_;
+  const ValveLoopOptions cfg_;
   HealthFn health_;
   AppliedCallback on_applied_;
-  LogCallback log_;
 
-  mutable std::mutex mu_;
+  mutable std::mutex mu_;  ///< guards status_ and gate_
   ValveStatus status_;
   CommandGate gate_;
-  std::atomic<bool> stop_{false};
-  std::mutex wait_mu_;
-  std::condition_variable wait_cv_;
-  bool pending_ = false;
-  std::thread thread_;
+  DeviceWorker worker_;  ///< last: its thread uses the members above
 };
 
 }  // namespace devices

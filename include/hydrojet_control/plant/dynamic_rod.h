@@ -70,20 +70,22 @@ using rod::Mat6;
 using rod::Vec3;
 using rod::Vec6;
 
-/// Parameters of the dynamic rod. SI units. The RodModel supplies L, EI_x, EI_y, GJ, ũ, ρA (used
-/// for both the body weight and the body's translational inertia), m_t and g, exactly as in the
-/// quasi-static ShootingSolver, so both models share one static equilibrium (up to shear/extension).
+/// The dynamic rod: its statics and what the dynamics add (damping, drag, inertia), and the
+/// numerics of its time stepping. SI units. Defaults a plant file can set: config/plant.yaml. The RodModel supplies L,
+/// EI_x, EI_y, GJ, ũ, ρA (used for both the body weight and the body's translational inertia), m_t and g, exactly as in
+/// the quasi-static ShootingSolver, so both models share one static equilibrium (up to shear/extension).
 ///
 /// ρA = 0 (the paper's massless body) is supported: the body is then a (visco)elastic spring
 /// slaved to the capsule, whose mass and tip_inertia carry the dynamics. A small positive ρA (e.g.
 /// 1e-3 kg/m) adds the body's own (higher) modes; either way the per-step problem is well posed.
-struct DynamicRodParameters {
+struct DynamicRodModel {
   rod::RodModel model;           ///< statics: geometry, stiffness, ũ, ρA, m_t, gravity
   double shear_stiffness = 1e5;  ///< GA [N]; stiff by default (≈1e6·EI/L² for HydroJet)
   double axial_stiffness = 1e5;  ///< EA [N]; stiff by default (nearly inextensible)
   /// τ_kv [s]: B_se = τ_kv K_se, B_bt = τ_kv K_bt. Mode damping ratio ζ ≈ τ_kv ω/2: with 0.01 s
-  /// the HydroJet's first mode (≈5 Hz) has ζ ≈ 0.15 (see the flutter note above for large forces).
-  double kelvin_voigt_time = 0.01;
+  /// the HydroJet's first mode (≈5 Hz) has ζ ≈ 0.15, with the default 0.03 s (config/plant.yaml)
+  /// ζ ≈ 0.5 (see the flutter note above for large forces).
+  double kelvin_voigt_time = 0.03;
   double linear_drag = 0.0;         ///< c_lin, body drag [N s/m per m of rod] (body frame)
   double quadratic_drag = 0.0;      ///< c_quad, body drag [N s²/m² per m]: force −c_quad|q|q
   double tip_drag = 0.0;            ///< c_t, capsule linear drag [N s/m]
@@ -112,10 +114,10 @@ struct DynamicRodParameters {
 /// Dynamic Cosserat rod with BDF-α time stepping and per-step shooting. Not thread-safe.
 class DynamicRod {
  public:
-  /// Throws std::invalid_argument with DynamicRodParameters::validate()'s message if invalid.
+  /// Throws std::invalid_argument with DynamicRodModel::validate()'s message if invalid.
   /// The rod starts at rest at the static equilibrium under a zero tip wrench (reset_to_static is
   /// called); if that fails, last_error() says so and step() refuses until a reset succeeds.
-  explicit DynamicRod(const DynamicRodParameters& params);
+  explicit DynamicRod(const DynamicRodModel& model);
 
   /// Puts the rod at rest in the static equilibrium under the tip wrench `w` (same model, same
   /// grid, all velocities zero, history consistent with rest) and sets time() to 0. Initialised
@@ -139,14 +141,14 @@ class DynamicRod {
   /// Sets g [m/s²] in the base frame (a tilted base); takes effect from the next step. A
   /// non-finite vector is ignored and reported through last_error().
   void set_gravity(const Vec3& g);
-  Vec3 gravity() const { return params_.model.gravity; }
+  Vec3 gravity() const { return model_.model.gravity; }
 
   int last_iterations() const { return last_iterations_; }    ///< Newton iterations, last call
   int last_substeps() const { return last_substeps_; }        ///< substeps the last step() used
   int last_evaluations() const { return last_evaluations_; }  ///< shooting passes, last solve
   std::string last_error() const { return last_error_; }      ///< empty after a success
   double time() const { return time_; }                       ///< [s] since the last reset
-  const DynamicRodParameters& parameters() const { return params_; }
+  const DynamicRodModel& model() const { return model_; }
 
  private:
   using Vec12 = Eigen::Matrix<double, 12, 1>;
@@ -165,15 +167,35 @@ class DynamicRod {
   /// One shooting pass from the base with unknowns x = [n(0); m(0)/L]; returns the scaled tip
   /// residual. Records z at every slot into `rec` and node states into `nodes` when non-null.
   Vec6 pass(const Vec6& x, const rod::TipWrench& w, Mat12X* rec, std::vector<Vec24>* nodes);
-  bool refresh_jacobian(const Vec6& x, const Vec6& r, const rod::TipWrench& w);
+  /// Newton–Broyden solve of the base unknowns x for the current step (quasi-Newton: the Jacobian
+  /// of earlier steps is kept while c0 is unchanged, unless full_newton). False with last_error().
   bool newton(Vec6* x, const rod::TipWrench& w, bool full_newton, const Vec6* alternatives = nullptr,
               int n_alternatives = 0);
+  // Newton's steps.
+  /// The residual r at *x, or at the best of the alternatives when *x is a poor predictor (*x then
+  /// becomes it); returns |r|, *scale the size of the residual's terms there.
+  double best_start(Vec6* x, const rod::TipWrench& w, const Vec6* alternatives, int n_alternatives, Vec6* r,
+                    double* scale);
+  /// Convergence tolerance [N] for a residual whose terms have size `scale` [N].
+  double newton_tolerance(double scale) const;
+  /// Refreshes the Jacobian unless the one of earlier steps can be reused.
+  bool prepare_jacobian(const Vec6& x, const Vec6& r, const rod::TipWrench& w, bool full_newton);
+  /// Forward-difference Jacobian at x (residual r) and its LU; false (last_error()) when singular.
+  bool refresh_jacobian(const Vec6& x, const Vec6& r, const rod::TipWrench& w);
+  /// Damped Newton step along dx from x: true with the accepted trial *xt, its residual *rt and
+  /// damping *lambda; false when no trial passes (or the Jacobian is outdated and should be refreshed).
+  bool line_search(const Vec6& x, const Vec6& dx, double rn, const rod::TipWrench& w, Vec6* xt, Vec6* rt,
+                   double* lambda);
+  /// Broyden rank-one update of the Jacobian with the accepted step x → xt.
+  void broyden_update(const Vec6& x, const Vec6& xt, const Vec6& r, const Vec6& rt);
+  /// Sets last_error() and returns false.
+  bool fail(const std::string& message);
   /// One implicit time step of size dt; commits the state only on success.
   bool advance(const rod::TipWrench& w, double dt);
   void set_coefficients(const Coefficients& c);
   Vec6 kirchhoff_guess(const rod::TipWrench& w, bool* ok);
 
-  DynamicRodParameters params_;
+  DynamicRodModel model_;
   // Derived constants.
   double length_ = 0.0, h_ = 0.0, force_scale_ = 1.0;
   int steps_ = 0, slots_ = 0;

@@ -10,7 +10,8 @@
 namespace hydrojet {
 namespace plant {
 
-struct ValveParameters {
+/// One valve and its line. The defaults are jet 1's of config/plant.yaml (hydrojet_valves()).
+struct ValveModel {
   double max_flow = 1.6e-5;     ///< steady flow at full duty before saturation [m^3/s]
   double dead_zone = 0.05;      ///< duty below which no water flows [0, 1)
   double exponent = 0.8;        ///< Q_ss = max_flow · u^exponent, u the duty past the dead zone [-]
@@ -21,10 +22,14 @@ struct ValveParameters {
   std::string validate() const;
 };
 
+/// The HydroJet's three valves as config/plant.yaml describes them: they differ a little (dead
+/// zone, flow, lag), as three valves always do.
+std::array<ValveModel, 3> hydrojet_valves();
+
 /// One valve and its line.
 class Valve {
  public:
-  explicit Valve(const ValveParameters& p = ValveParameters()) : p_(p) {}
+  explicit Valve(const ValveModel& p = ValveModel()) : p_(p) {}
   /// Advances by dt [s] under valve duty `duty` (clamped to [0, 1]; NaN counts as closed).
   double step(double duty, double dt);
   /// Steady-state flow for a constant duty reached from below (hysteresis lower branch) [m^3/s].
@@ -35,7 +40,7 @@ class Valve {
   void set_stuck(double duty) { stuck_duty_ = duty; }
 
  private:
-  ValveParameters p_;
+  ValveModel p_;
   double flow_ = 0.0;
   double effective_ = 0.0;  ///< duty after the hysteresis play
   double stuck_duty_ = -1.0;
@@ -44,7 +49,7 @@ class Valve {
 /// The three jets' hydraulics.
 class Hydraulics {
  public:
-  explicit Hydraulics(const std::array<ValveParameters, 3>& p) : valves_{Valve(p[0]), Valve(p[1]), Valve(p[2])} {}
+  explicit Hydraulics(const std::array<ValveModel, 3>& p) : valves_{Valve(p[0]), Valve(p[1]), Valve(p[2])} {}
   Eigen::Vector3d step(const Eigen::Vector3d& duty, double dt) {
     Eigen::Vector3d q;
     for (int i = 0; i < 3; ++i) q[i] = valves_[i].step(duty[i], dt);

@@ -1,7 +1,10 @@
-// The simulated HydroJet: dynamic rod + jets + hydraulics + sensors, with its own "true"
-// parameters (which differ from the controller's nominal scene: model mismatch). It speaks the same
-// signals as the rig: valve duties in, tracker poses (tip and base sensors, tracker frame) and flows
-// out. ROS-free (Eigen + the rod/actuation/plant libraries). Time is passed in.
+// The simulated HydroJet: dynamic rod + jets + hydraulics + sensors, described by its own "true"
+// PlantModel (which differs from the controller's nominal scene: model mismatch). It speaks the
+// same signals as the rig: valve duties in, tracker poses (tip and base sensors, tracker frame) and
+// flows out. ROS-free (Eigen + the rod/actuation/plant libraries). Time is passed in.
+//
+// Defaults: every default below that a plant file can set equals config/plant.yaml (the test
+// PlantConfig.DefaultsMatchYaml compares them field by field).
 #pragma once
 
 #include <array>
@@ -17,11 +20,23 @@
 namespace hydrojet {
 namespace plant {
 
-struct PlantParameters {
-  DynamicRodParameters rod;     ///< the true rod (its model.gravity is set from base_tilt)
+/// How the simulated HydroJet differs from the nominal (calibrated) scene it is built from: what
+/// the calibrated model does not capture (config::make_plant applies it).
+struct ModelMismatch {
+  Eigen::Vector3d precurvature_offset = Eigen::Vector3d(1.5, -1.0, 0.0);  ///< added to ũ [1/m]
+  double bending_stiffness_scale = 0.8;    ///< EI_x, EI_y × this (the bellows is softer than calibrated)
+  double torsional_stiffness_scale = 1.0;  ///< GJ × this
+  Eigen::Vector3d misalignment_offset = Eigen::Vector3d(0.12, -0.12, 0.10);  ///< added to (δα, δβ, δγ) [rad]
+  double tip_mass_scale = 3.0;    ///< m_t × this (water in the capsule and lines)
+  double base_tilt_offset = 0.2;  ///< added to the scene's base tilt [rad] (the holder sits 11° further round)
+};
+
+/// The simulated HydroJet as it truly is.
+struct PlantModel {
+  DynamicRodModel rod;          ///< the true rod (its model.gravity is set from base_tilt)
   actuation::JetGeometry jets;  ///< the true jet misalignments
-  actuation::NozzleParameters nozzle;
-  std::array<ValveParameters, 3> valves;
+  actuation::Nozzle nozzle;
+  std::array<ValveModel, 3> valves = hydrojet_valves();
   TrackerNoise tracker;
   FlowNoise flow;
   bool sensor_noise = true;  ///< false: exact sensors (no noise, quantisation, latency)
@@ -39,7 +54,7 @@ Eigen::Matrix3d base_orientation(double tilt);
 
 class Plant {
  public:
-  Plant(const PlantParameters& p, unsigned seed);
+  Plant(const PlantModel& p, unsigned seed);
 
   /// At rest, jets off, time 0. False (with error()) if the rod could not be initialised.
   bool reset();
@@ -65,10 +80,10 @@ class Plant {
   const std::string& error() const { return error_; }
   Hydraulics& hydraulics() { return hydraulics_; }
   TrackerModel& tracker() { return tracker_; }
-  const PlantParameters& parameters() const { return p_; }
+  const PlantModel& model() const { return model_; }
 
  private:
-  PlantParameters p_;
+  PlantModel model_;
   std::unique_ptr<DynamicRod> rod_;
   actuation::JetMap jets_;
   Hydraulics hydraulics_;

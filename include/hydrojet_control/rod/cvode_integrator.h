@@ -48,7 +48,7 @@ class CvodeWorkspace {
   /// y (n numbers) is advanced in place; with f.ns > 0, ys (n·ns numbers, direction-major) too.
   /// rhs_evaluations counts calls of f (sensitivity right-hand sides are counted in
   /// sensitivity_evaluations). ok = false on any CVODE failure (the reason in *error if given).
-  IntegrationStats integrate(const IntegratorSettings& settings, const OdeFunctions& f, double s0, double s1, double* y,
+  IntegrationStats integrate(const IntegratorOptions& settings, const OdeFunctions& f, double s0, double s1, double* y,
                              double* ys = nullptr, const char** error = nullptr);
 
  private:

@@ -30,7 +30,7 @@ const char* integrator_names();
 /// True for the adaptive methods (dopri5 and the CVODE ones), which use `tolerance`, not `steps`.
 inline bool is_adaptive(IntegratorType t) { return t != IntegratorType::kRk4 && t != IntegratorType::kRk8; }
 
-struct IntegratorSettings {
+struct IntegratorOptions {
   IntegratorType type = IntegratorType::kRk8;
   int steps = 4;            ///< equal steps over the rod for rk4 / rk8
   double tolerance = 1e-9;  ///< relative and absolute local error tolerance for adaptive methods
@@ -259,7 +259,7 @@ IntegrationStats integrate_dopri5(F& f, double s0, double s1, double tol, int ma
 /// Runs the integrator chosen in `settings` from s0 to s1 (Eigen methods only; SUNDIALS methods are
 /// dispatched by the caller, which owns their memory).
 template <class F, class Vec>
-IntegrationStats integrate(const IntegratorSettings& settings, F& f, double s0, double s1, Vec& y) {
+IntegrationStats integrate(const IntegratorOptions& settings, F& f, double s0, double s1, Vec& y) {
   switch (settings.type) {
     case IntegratorType::kRk4: return integrate_rk4(f, s0, s1, settings.steps, y);
     case IntegratorType::kRk8: return integrate_rk8(f, s0, s1, settings.steps, y);

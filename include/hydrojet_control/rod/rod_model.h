@@ -7,7 +7,7 @@
 //   (8)  R' = R û                                    -> RodOde::operator(), "R'"
 //   (9)  M_b = K (u − ũ)                             -> RodOde (moment from curvature)
 //   (12) Q_b' = −û Q_b − f_b   (body frame)          -> closed form in the base frame: n(s) below
-//   (13) f = m_b g, P = m_t g                        -> RodModel::tip_force_base / distributed_weight
+//   (13) f = m_b g, P = m_t g                        -> setup_ode() (src/rod/solver_templates.h): n_tip, w_dist
 //   (14) u' = ũ' − K⁻¹((ûK + K')(u − ũ) + m_b + ê_z Q_b)   -> RodOde::operator(), "u'"
 //   (15) p(0) = 0, R(0) = I                          -> the shooting residual (ShootingSolver)
 //   (16)/(25) Q_b(L) = w_f + R(L)ᵀ m_t g, u(L) − ũ = K⁻¹ w_m -> RodOde tip values
@@ -52,7 +52,7 @@ enum class RodKind {
 
 /// Material and geometry of the rod. Uniform along s; stiffness_at()/precurvature_at() are the
 /// seam for K(s) and ũ(s) (their s-derivatives enter eq. 14 as K' and ũ').
-struct RodParameters {
+struct ElasticRod {
   double length = 0.09;                              ///< L [m]
   Vec3 stiffness = Vec3(6.01e-4, 6.01e-4, 2.23e-4);  ///< diag(E·Ix, E·Iy, G·J) [N m^2]
   Vec3 precurvature = Vec3::Zero();                  ///< ũ in the body frame [1/m]
@@ -72,7 +72,7 @@ struct RodParameters {
 
 /// Everything the static model needs besides the actuation wrench.
 struct RodModel {
-  RodParameters rod;
+  ElasticRod rod;
   double tip_mass = 0.0;        ///< m_t [kg]
   Vec3 gravity = Vec3::Zero();  ///< g in the base frame [m/s^2]
 };

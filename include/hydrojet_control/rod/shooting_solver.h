@@ -6,10 +6,15 @@
 //
 // Robustness ladder of solve(): damped Newton from the warm start (or the unloaded shape) →
 // load continuation from the warm solution → load continuation from the unloaded shape →
-// multiple shooting (shooting_segments = 0, automatic) with its own load continuation. Multiple
-// shooting cuts the rod into M segments whose node states (R_k, u_k) become unknowns, so that the
-// exponential growth exp(λL), λ ≈ √(|n|/EI), of single shooting's sensitivities is split into
-// exp(λL/M) pieces; long (L × 10) and very soft (EI × 1e-3) rods need it.
+// accuracy check → multiple shooting (shooting_segments = 0, automatic) on the same load path
+// (src/rod/load_path.h) → fold/branch report. Multiple shooting cuts the rod into M segments
+// whose node states (R_k, u_k) become unknowns, so that the exponential growth exp(λL),
+// λ ≈ √(|n|/EI), of single shooting's sensitivities is split into exp(λL/M) pieces; long (L × 10)
+// and very soft (EI × 1e-3) rods need it.
+//
+// The model (RodModel, ShootingOptions, the compiled variant, the unloaded shape) is read-only
+// between set_model()/set_settings() calls; the integrator memories live in a workspace that only
+// the non-const methods use, and const methods change nothing.
 #pragma once
 
 #include <limits>
@@ -25,6 +30,9 @@ namespace rod {
 
 class CvodeWorkspace;
 class KinsolWorkspace;
+namespace internal {
+struct FoldTracker;
+}
 
 /// Which Newton iteration solves the 3-unknown shooting problem.
 enum class NewtonBackend {
@@ -32,8 +40,8 @@ enum class NewtonBackend {
   kKinsol,  ///< SUNDIALS KINSOL (line search, exact Jacobian from the sensitivities)
 };
 
-struct ShootingSettings {
-  IntegratorSettings integrator;
+struct ShootingOptions {
+  IntegratorOptions integrator;
   double residual_tolerance = 1e-10;  ///< |log R(0)| [rad] at which the solve counts as converged
   int max_iterations = 30;            ///< Newton iterations per attempt
   double max_step = 0.8;              ///< largest Newton step in the tip rotation [rad]
@@ -55,7 +63,7 @@ struct ShootingSettings {
 };
 
 /// Result of one static solve. `converged` is true only when the final residual is finite and
-/// below ShootingSettings::residual_tolerance.
+/// below ShootingOptions::residual_tolerance.
 struct RodSolution {
   bool converged = false;
   int iterations = 0;                    ///< Newton iterations (all attempts, continuation included)
@@ -85,7 +93,7 @@ struct Compliance {
 
 class ShootingSolver {
  public:
-  ShootingSolver(const RodModel& model, const ShootingSettings& settings);
+  ShootingSolver(const RodModel& model, const ShootingOptions& settings);
 
   /// Solves for the given tip wrench, warm-started from the last converged solution (or from the
   /// unloaded shape if none). Falls back to load continuation when Newton does not converge.
@@ -100,9 +108,11 @@ class ShootingSolver {
   std::vector<Vec3> shape(int segments) const;
 
   const RodModel& model() const { return model_; }
-  const ShootingSettings& settings() const { return settings_; }
+  const ShootingOptions& settings() const { return settings_; }
+  /// A new model or new settings: the compiled variant and the unloaded shape are recomputed (one
+  /// integration); set_model() also forgets the warm start.
   void set_model(const RodModel& model);
-  void set_settings(const ShootingSettings& settings);
+  void set_settings(const ShootingOptions& settings);
   bool has_solution() const { return have_solution_; }
   const RodSolution& last_solution() const { return last_; }
   /// The compiled right-hand-side variant in use, e.g. "kirchhoff+precurved" or "general".
@@ -117,6 +127,7 @@ class ShootingSolver {
   struct Load {
     TipWrench wrench;
     double gravity_scale = 1.0;
+    static Load none() { return Load{TipWrench(), 0.0}; }
   };
   struct Eval {
     Vec3 r;  ///< residual log R(0)
@@ -135,74 +146,101 @@ class ShootingSolver {
     std::vector<Vec3> u;
   };
   struct MsEval;
-  /// Function table of one compiled model variant (chosen at set_model / set_settings).
+  /// Single and multiple shooting posed for the shared load path (src/rod/load_path.h).
+  struct SingleShooting;
+  struct MultipleShooting;
+  /// The unloaded equilibrium (zero load, u(s) = ũ), where every cold load path starts. Part of the
+  /// model: computed by the constructor, set_model and set_settings.
+  struct UnloadedShape {
+    Mat3 tip_rotation = Mat3::Identity();  ///< exp(L ũ^)
+    Vec3 tip_position = Vec3::Zero();
+    double det = 0.0;  ///< det ∂r/∂x (NaN if the evaluation failed)
+  };
+  /// Function table of one compiled model variant (src/rod/kernels/, chosen with the model).
   struct Kernels {
-    Eval (ShootingSolver::*evaluate)(const Mat3& R_tip, const Load& load, int* rhs) const;
-    bool (ShootingSolver::*compliance)(Mat6* C) const;
-    double (ShootingSolver::*error)(const Mat3& R_tip, const Load& load, const Eval& e) const;
+    Eval (ShootingSolver::*evaluate)(const Mat3& R_tip, const Load& load, int* rhs);
+    bool (ShootingSolver::*compliance)(Mat6* C);
+    double (ShootingSolver::*error)(const Mat3& R_tip, const Load& load, const Eval& e);
     const char* name;
   };
-  /// CVODE and KINSOL memories, created on first use; a copied solver starts with none.
-  struct Scratch {
-    Scratch();
-    ~Scratch();
-    Scratch(const Scratch&) : Scratch() {}
-    Scratch& operator=(const Scratch&) { return *this; }
-    CvodeWorkspace& cvode();
+  /// The mutable memory of the solves (the model and the settings are the read-only part): CVODE
+  /// and KINSOL memories, created on first use. A copied solver starts with none.
+  class Workspace {
+   public:
+    Workspace();
+    ~Workspace();
+    Workspace(const Workspace&) : Workspace() {}
+    Workspace& operator=(const Workspace&) { return *this; }
+    /// Integrates a RodOde from s0 to s1 with the integrator of `is` (src/rod/solver_templates.h).
+    template <class Ode>
+    IntegrationStats integrate(const Ode& ode, double s0, double s1, typename Ode::State* y,
+                               const IntegratorOptions& is);
+    KinsolWorkspace& kinsol();
+
+   private:
     std::unique_ptr<CvodeWorkspace> cvode_;
     std::unique_ptr<KinsolWorkspace> kinsol_;
-    const char* last_error = nullptr;
   };
 
-  Eval evaluate(const Mat3& R_tip, const Load& load, int* rhs) const {
-    return (this->*kernels_->evaluate)(R_tip, load, rhs);
-  }
+  // The steps of solve() (shooting_solver.cpp).
+  RodSolution remember(const RodSolution& sol);
+  static RodSolution non_finite_wrench();
+  bool multiple_shooting_first(const TipWrench& wrench) const;
+  int first_segments(const Load& target) const;
+  bool fall_back_to_multiple(const Load& target, RodSolution* sol);
+  bool accuracy_check_applies() const;
+  bool accurate_enough(RodSolution* sol, int segments) const;
+  bool converged(bool ok, const RodSolution& sol) const;
+  static const RodSolution& report_folds(const internal::FoldTracker& folds, RodSolution* sol);
+
+  // Single shooting (shooting_solver.cpp, kinsol_newton.cpp, kernels/).
+  Eval evaluate(const Mat3& R_tip, const Load& load, int* rhs) { return (this->*kernels_->evaluate)(R_tip, load, rhs); }
   template <class T>
-  Eval evaluate_t(const Mat3& R_tip, const Load& load, int* rhs) const;
+  Eval evaluate_t(const Mat3& R_tip, const Load& load, int* rhs);
   template <class T>
-  bool compliance_t(Mat6* C) const;
+  bool compliance_t(Mat6* C);
   template <class T>
-  double error_t(const Mat3& R_tip, const Load& load, const Eval& e) const;
-  bool newton(Mat3* R_tip, const Load& load, RodSolution* sol, Eval* last) const;
-  bool newton_kinsol(Mat3* R_tip, const Load& load, RodSolution* sol, Eval* last) const;
+  double error_t(const Mat3& R_tip, const Load& load, const Eval& e);
+  bool newton(Mat3* R_tip, const Load& load, RodSolution* sol, Eval* last);
+  bool newton_kinsol(Mat3* R_tip, const Load& load, RodSolution* sol, Eval* last);
+  void commit_single(const Mat3& R_tip, const Load& load, const Eval& e, const RodSolution& sol);
   template <class Ode>
   void setup_ode(Ode* ode, const Mat3& R_tip, const Load& load) const;
-  template <class Ode>
-  IntegrationStats integrate_ode(const Ode& ode, double s0, double s1, typename Ode::State* y,
-                                 const IntegratorSettings& settings) const;
-  Mat3 unloaded_tip_rotation() const;
-  double unloaded_det() const;
-  Vec3 unloaded_tip_position() const;
   void select_kernels();
+  void update_unloaded_shape();
 
-  // Multiple shooting (src/rod/multiple_shooting.cpp).
+  // Multiple shooting (multiple_shooting.cpp).
   int auto_segments(const Load& load) const;
   bool ms_solve(const Load& target, int segments, RodSolution* sol);
-  bool ms_newton(Nodes* x, const Load& load, RodSolution* sol, double* det) const;
+  Nodes ms_stored_nodes(int segments);
+  bool ms_newton(Nodes* x, const Load& load, RodSolution* sol, double* det);
   template <bool kWithWrench>
-  bool ms_assemble(const Nodes& x, const Load& load, MsEval* e, int* rhs, int steps_per_segment = 0) const;
-  double ms_error_estimate(const Nodes& x, const Load& load) const;
-  bool ms_compliance(Mat6* C) const;
+  bool ms_assemble(const Nodes& x, const Load& load, MsEval* e, int* rhs, int steps_per_segment = 0);
+  double ms_error_estimate(const Nodes& x, const Load& load);
+  bool ms_compliance(Mat6* C);
+  void commit_multiple(const Nodes& x, const Load& load, double det, const RodSolution& sol);
   Nodes ms_unloaded_nodes(int segments) const;
-  Nodes ms_nodes_from_tip(const Mat3& R_tip, const Load& load, int segments) const;
-  Nodes ms_resample(const Nodes& x, const Load& load, int segments) const;
+  Nodes ms_nodes_from_tip(const Mat3& R_tip, const Load& load, int segments);
+  Nodes ms_resample(const Nodes& x, const Load& load, int segments);
 
+  // The model (read-only outside the constructor, set_model and set_settings).
   RodModel model_;
-  ShootingSettings settings_;
+  ShootingOptions settings_;
   const Kernels* kernels_ = nullptr;
+  UnloadedShape unloaded_;
+  // The workspace.
+  Workspace workspace_;
+  // The last converged equilibrium: the warm start of the next solve, and where compliance() and
+  // shape() are evaluated.
   bool have_solution_ = false;
   Mat3 R_tip_ = Mat3::Identity();
   Load load_;
   Eval eval_;
-  RodSolution last_;
   double det_ = 0.0;             ///< det ∂r/∂x of the stored solution (fold tracking)
   Vec3 tip_pos_ = Vec3::Zero();  ///< tip position of the stored solution (jump detection)
   bool multiple_ = false;        ///< the stored solution came from multiple shooting (nodes_ holds it)
   Nodes nodes_;
-  mutable double unloaded_det_ = 0.0;  ///< det ∂r/∂x at the unloaded shape (cached per model)
-  mutable Vec3 unloaded_tip_ = Vec3::Zero();
-  mutable bool have_unloaded_det_ = false;
-  mutable Scratch scratch_;
+  RodSolution last_;  ///< the result of the last solve (converged or not)
 };
 
 }  // namespace rod

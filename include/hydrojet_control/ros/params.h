@@ -14,7 +14,7 @@ namespace ros_bridge {
 YAML::Node private_params_as_yaml(const ros::NodeHandle& pnh);
 
 /// Controller options from ~ (see config/controller.yaml); throws config::ParamError("~key: ...").
-config::ControllerOptions read_controller_options(const ros::NodeHandle& pnh);
+config::ControllerNodeOptions read_controller_options(const ros::NodeHandle& pnh);
 
 }  // namespace ros_bridge
 }  // namespace hydrojet

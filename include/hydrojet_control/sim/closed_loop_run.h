@@ -37,9 +37,8 @@ struct RunResult {
 
 /// Runs the controller's path (params.path) on the plant from rest until the path ends (plus
 /// `settle` seconds before starting) or an abort. The error statistics cover the path only.
-RunResult run_path(const control::ControllerModel& model, const control::ControllerParams& params,
-                   const plant::PlantParameters& plant, unsigned seed, double control_period = 0.01,
-                   double settle = 1.0);
+RunResult run_path(const control::RobotModel& model, const control::ControllerOptions& params,
+                   const plant::PlantModel& plant, unsigned seed, double control_period = 0.01, double settle = 1.0);
 
 }  // namespace sim
 }  // namespace hydrojet

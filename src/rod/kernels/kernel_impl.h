@@ -1,10 +1,16 @@
 // Internal to hydrojet_rod: the hot kernels of single shooting (one integration with the 3 Newton
-// directions; one with the 6 compliance directions), templated on the model's terms. Each variant
-// is instantiated in its own translation unit (kernel_*.cpp): with all of them in one, GCC's
+// directions; one with the 6 compliance directions; the Richardson error estimate), templated on
+// the model's terms (RodTerms: Kirchhoff or Cosserat, with or without distributed weight, straight
+// or precurved).
+//
+// Why the variants exist: the right-hand side of eq. (14) is compiled once per combination of
+// terms, and the scene's combination is chosen once per model (kernel_table.cpp), so the
+// integration loop runs without branches on terms the scene does not have. Why one translation
+// unit per variant (kernel_*.cpp, which only instantiate): with all of them in one, GCC's
 // inlining budget ran out and the hot loop became 2× slower. Not installed.
 #pragma once
 
-#include "solver_templates.h"
+#include "../solver_templates.h"
 
 namespace hydrojet {
 namespace rod {
@@ -12,7 +18,7 @@ namespace rod {
 using internal::init_tip_state;
 
 template <class T>
-ShootingSolver::Eval ShootingSolver::evaluate_t(const Mat3& R_tip, const Load& load, int* rhs) const {
+ShootingSolver::Eval ShootingSolver::evaluate_t(const Mat3& R_tip, const Load& load, int* rhs) {
   using Ode = RodOde<3, T>;
   Ode ode;
   setup_ode(&ode, R_tip, load);
@@ -23,7 +29,7 @@ ShootingSolver::Eval ShootingSolver::evaluate_t(const Mat3& R_tip, const Load& l
     y[Ode::kBase + Ode::kPerDir * i + i] = 1.0;
     ode.dn.col(i) = R_tip * Vec3::Unit(i).cross(load.wrench.force);
   }
-  const IntegrationStats st = integrate_ode(ode, model_.rod.length, 0.0, &y, settings_.integrator);
+  const IntegrationStats st = workspace_.integrate(ode, model_.rod.length, 0.0, &y, settings_.integrator);
   *rhs += st.rhs_evaluations;
   Eval e;
   e.ok = st.ok && y.allFinite();
@@ -43,7 +49,7 @@ ShootingSolver::Eval ShootingSolver::evaluate_t(const Mat3& R_tip, const Load& l
 }
 
 template <class T>
-bool ShootingSolver::compliance_t(Mat6* C) const {
+bool ShootingSolver::compliance_t(Mat6* C) {
   // Directions 0–2: f_b,i (n(L) changes by R(L) e_i); 3–5: l_b,i (u(L) changes by K⁻¹ e_i, no δn).
   using Ode = RodOde<6, T>;
   Ode ode;
@@ -54,7 +60,7 @@ bool ShootingSolver::compliance_t(Mat6* C) const {
     ode.dn.col(i) = R_tip_.col(i);
     y[Ode::kBase + Ode::kPerDir * (3 + i) + 3 + i] = ode.k_inv[i];
   }
-  const IntegrationStats st = integrate_ode(ode, model_.rod.length, 0.0, &y, settings_.integrator);
+  const IntegrationStats st = workspace_.integrate(ode, model_.rod.length, 0.0, &y, settings_.integrator);
   if (!st.ok || !y.allFinite()) return false;
   Eigen::Matrix<double, 3, 6> eta_w, dp_w;
   for (int d = 0; d < 6; ++d) {
@@ -74,15 +80,15 @@ bool ShootingSolver::compliance_t(Mat6* C) const {
 }
 
 template <class T>
-double ShootingSolver::error_t(const Mat3& R_tip, const Load& load, const Eval& e) const {
+double ShootingSolver::error_t(const Mat3& R_tip, const Load& load, const Eval& e) {
   // Richardson estimate of the discretisation error of the converged N-step solve: integrate the
   // state alone with N/2 steps (or 2N when N is odd), compare R(0), p(0), and carry the difference
   // through the shooting problem: the exact integrator would leave the residual δr ≈ f·log(R0ᵀR0'),
   // which Newton removes with δx = −J⁻¹δr, moving the tip by δp ≈ f·(p0' − p0) + ∂p0/∂x·δx.
-  const IntegratorSettings& is = settings_.integrator;
+  const IntegratorOptions& is = settings_.integrator;
   const int N = is.steps;
   const double q = is.type == IntegratorType::kRk4 ? 16.0 : 256.0;  // 2^order
-  IntegratorSettings other = is;
+  IntegratorOptions other = is;
   double f;
   if (N % 2 == 0) {
     other.steps = N / 2;
@@ -96,7 +102,7 @@ double ShootingSolver::error_t(const Mat3& R_tip, const Load& load, const Eval& 
   setup_ode(&ode, R_tip, load);
   typename Ode::State y;
   init_tip_state(ode, R_tip, load.wrench.moment, &y);
-  const IntegrationStats st = integrate_ode(ode, model_.rod.length, 0.0, &y, other);
+  const IntegrationStats st = workspace_.integrate(ode, model_.rod.length, 0.0, &y, other);
   if (!st.ok || !y.allFinite()) return std::numeric_limits<double>::infinity();
   const Mat3 R0o = Eigen::Map<const Mat3>(y.data() + 3);
   const Vec3 dr = f * so3::log(so3::orthonormalize(e.R0.transpose() * R0o));
@@ -109,11 +115,11 @@ double ShootingSolver::error_t(const Mat3& R_tip, const Load& load, const Eval& 
 }  // namespace hydrojet
 
 /// Explicit instantiation of one variant's kernels (in a kernel_*.cpp).
-#define HYDROJET_ROD_KERNELS(C, W, P)                                                                                \
-  namespace hydrojet {                                                                                               \
-  namespace rod {                                                                                                    \
-  template ShootingSolver::Eval ShootingSolver::evaluate_t<RodTerms<C, W, P>>(const Mat3&, const Load&, int*) const; \
-  template bool ShootingSolver::compliance_t<RodTerms<C, W, P>>(Mat6*) const;                                        \
-  template double ShootingSolver::error_t<RodTerms<C, W, P>>(const Mat3&, const Load&, const Eval&) const;           \
-  }                                                                                                                  \
+#define HYDROJET_ROD_KERNELS(C, W, P)                                                                          \
+  namespace hydrojet {                                                                                         \
+  namespace rod {                                                                                              \
+  template ShootingSolver::Eval ShootingSolver::evaluate_t<RodTerms<C, W, P>>(const Mat3&, const Load&, int*); \
+  template bool ShootingSolver::compliance_t<RodTerms<C, W, P>>(Mat6*);                                        \
+  template double ShootingSolver::error_t<RodTerms<C, W, P>>(const Mat3&, const Load&, const Eval&);           \
+  }                                                                                                            \
   }

@@ -1,0 +1,52 @@
+// One control cycle's inputs (the latest tracker and flow samples) and result (valve duties and
+// everything worth publishing). Per-jet vectors are JetVectors sized by the model's jet map.
+// ROS-free (Eigen, the rod library).
+#pragma once
+
+#include <string>
+
+#include "hydrojet_control/control/robot_model.h"
+#include "hydrojet_control/control/task_space.h"
+
+namespace hydrojet {
+namespace control {
+
+enum class ControllerState { kIdle, kRunning, kFinished, kAborted };
+const char* to_string(ControllerState s);
+
+/// One control cycle's inputs: the latest tracker and flow samples with their stamps.
+struct ControllerInputs {
+  double t = 0.0;                        ///< now [s]
+  bool tip_valid = false;                ///< a tracker sample has arrived and is marked valid
+  double tip_stamp = -1e300;             ///< [s]
+  Mat3 tip_rotation = Mat3::Identity();  ///< measured tip frame in the base frame
+  bool flow_valid = false;
+  double flow_stamp = -1e300;  ///< [s]
+  JetVector flows;             ///< measured flow per jet [m^3/s] (one entry per jet)
+};
+
+/// One control cycle's result. valve_command is what goes to the valves.
+struct ControllerOutput {
+  ControllerState state = ControllerState::kIdle;
+  std::string reason;                             ///< why it aborted (empty otherwise)
+  JetVector valve_command;                        ///< valve duty per jet [0, 1]
+  JetVector jet_force_command;                    ///< q from eq. (20) [N]
+  JetVector flow_command;                         ///< flow for q by the thrust equation (26) [m^3/s]
+  JetVector jet_force_observed;                   ///< q_obs from measured flow [N]
+  rod::Vec6 wrench_observed = rod::Vec6::Zero();  ///< w_a = A q_obs (Algorithm 1, line 4)
+  rod::Vec6 wrench_command = rod::Vec6::Zero();   ///< w_a + ẇ^b after limits
+  Vec3 desired_direction = Vec3::UnitZ();         ///< x_des: tip z-axis, base frame
+  Vec3 observed_direction = Vec3::UnitZ();        ///< x_obs used by the loop (tracker or model)
+  Vec3 measured_direction = Vec3::UnitZ();        ///< from the tracker (for metrics, both modes)
+  Mat3 model_tip_rotation = Mat3::Identity();
+  double error_geodesic = 0.0;   ///< ∠(x_des, measured) [rad]
+  double error_pitch_yaw = 0.0;  ///< the paper's norm of the (pitch, yaw) difference [rad]
+  double path_time = 0.0;        ///< [s] since start
+  bool solver_converged = false;
+  double stability_margin = 0.0;   ///< σ_c [N/m]
+  double stability_eig_min = 0.0;  ///< min Re eig(S) [N/m]
+  bool force_reachable = true;
+};
+
+}  // namespace control
+}  // namespace hydrojet

@@ -1,0 +1,84 @@
+#include "hydrojet_control/control/safety_monitor.h"
+
+#include <cmath>
+
+namespace hydrojet {
+namespace control {
+namespace {
+
+std::string jet_name(int i) { return "jet " + std::to_string(i + 1); }
+
+}  // namespace
+
+SafetyMonitor::SafetyMonitor(const ControllerOptions& options, int jet_count)
+    : options_(options),
+      flow_fault_integral_(JetVector::Zero(jet_count)),
+      last_flow_command_(JetVector::Zero(jet_count)) {}
+
+void SafetyMonitor::reset() {
+  solver_failures_ = 0;
+  oscillation_armed_ = false;
+  flow_fault_integral_.setZero();
+  last_flow_command_.setZero();
+}
+
+std::string SafetyMonitor::check_sensors(const ControllerInputs& in) const {
+  const double stale_after = options_.stale_periods * options_.sample_period + 1e-9;
+  if (!in.tip_valid) return "tracker: no valid tip pose";
+  if (in.t - in.tip_stamp > stale_after)
+    return "tracker: tip pose stale (" + std::to_string(in.t - in.tip_stamp) + " s old)";
+  if (!in.tip_rotation.allFinite()) return "tracker: non-finite tip pose";
+  if (!in.flow_valid) return "flow: no valid flow sample";
+  if (in.t - in.flow_stamp > stale_after)
+    return "flow: samples stale (" + std::to_string(in.t - in.flow_stamp) + " s old)";
+  if (in.flows.size() != flow_fault_integral_.size())
+    return "flow: " + std::to_string(in.flows.size()) + " readings for " + std::to_string(flow_fault_integral_.size()) +
+           " jets";
+  for (int i = 0; i < in.flows.size(); ++i)
+    if (!std::isfinite(in.flows[i]) || in.flows[i] < 0.0)
+      return "flow: " + jet_name(i) + " reading invalid (" + std::to_string(in.flows[i]) + " m^3/s)";
+  return "";
+}
+
+std::string SafetyMonitor::check_flow_faults(const JetVector& flows, double dt) {
+  for (int i = 0; i < flows.size(); ++i) {
+    const double excess = std::abs(flows[i] - last_flow_command_[i]) - options_.flow_fault_tolerance;
+    flow_fault_integral_[i] = excess > 0.0 ? flow_fault_integral_[i] + excess * dt : 0.0;
+    if (flow_fault_integral_[i] >= options_.flow_fault_tolerance * options_.flow_fault_time)
+      return "flow: " + jet_name(i) + " does not follow its command (measured " + std::to_string(flows[i]) +
+             " m^3/s, commanded " + std::to_string(last_flow_command_[i]) + " m^3/s): valve stuck or line blocked";
+  }
+  return "";
+}
+
+std::string SafetyMonitor::check_solver(const rod::RodSolution& solution) {
+  if (solution.converged) {
+    solver_failures_ = 0;
+    return "";
+  }
+  if (++solver_failures_ < options_.max_solver_failures) return "";
+  return "model: rod solver did not converge " + std::to_string(solver_failures_) + " times in a row (" +
+         solution.message + ")";
+}
+
+std::string SafetyMonitor::check_stability(const rod::Compliance& compliance,
+                                           const rod::StabilityReport& report) const {
+  if (!compliance.ok || !report.ok) return "model: compliance not finite";
+  if (report.eig_min <= 0.0)
+    return "stability: equilibrium unstable (min Re eig S = " + std::to_string(report.eig_min) + ")";
+  if (report.margin < options_.min_stability_margin)
+    return "stability: sigma_c = " + std::to_string(report.margin) + " N/m below margin " +
+           std::to_string(options_.min_stability_margin);
+  return "";
+}
+
+std::string SafetyMonitor::check_oscillation(double error_geodesic) {
+  if (error_geodesic <= options_.max_oscillation) oscillation_armed_ = true;
+  if (oscillation_armed_ && error_geodesic > options_.max_oscillation)
+    return "oscillation: tip " + std::to_string(error_geodesic) + " rad from the commanded direction (limit " +
+           std::to_string(options_.max_oscillation) + ")";
+  return "";
+}
+
+}  // namespace control
+}  // namespace hydrojet

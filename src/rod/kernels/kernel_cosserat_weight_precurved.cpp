@@ -1,0 +1,3 @@
+#include "kernel_impl.h"
+
+HYDROJET_ROD_KERNELS(true, true, true)
