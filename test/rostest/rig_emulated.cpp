@@ -100,13 +100,12 @@ TEST(RigEmulated, PoseToControllerCommandToBoardTrackerLossClosesValves) {
         EXPECT_EQ(m->header.frame_id, "tracker");
         EXPECT_NEAR(m->pose.position.z, -0.150, 1e-5);  // the emulator's tip [mm -> m]
       });
-  ros::Subscriber s3 =
-      nh.subscribe<std_msgs::Float64>(names::kTipRms, 100, [&](const std_msgs::Float64::ConstPtr& m) {
-        ++rms_msgs;
-        EXPECT_NEAR(m->data, 0.30e-3, 1e-8);
-      });
-  ros::Subscriber s4 =
-      nh.subscribe<hydrojet_control::JetState>(names::kJetState, 100, [&](const hydrojet_control::JetState::ConstPtr& m) {
+  ros::Subscriber s3 = nh.subscribe<std_msgs::Float64>(names::kTipRms, 100, [&](const std_msgs::Float64::ConstPtr& m) {
+    ++rms_msgs;
+    EXPECT_NEAR(m->data, 0.30e-3, 1e-8);
+  });
+  ros::Subscriber s4 = nh.subscribe<hydrojet_control::JetState>(
+      names::kJetState, 100, [&](const hydrojet_control::JetState::ConstPtr& m) {
         jets = *m;
         ++jet_msgs;
         jets_all_valid += m->flow_valid[0] && m->flow_valid[1] && m->flow_valid[2];
