@@ -8,17 +8,24 @@
 //   BM_StabilityMap3000/0, /30
 //                            σ_c over 3000 jet-force combinations (paper Figs. 12–13), 0° and 30°
 //                            scenes, warm-started along a serpentine: solve + C^b + stability
+//   BM_LookAt                one warm look-at solve (control/look_at.h) toward a point 60 mm beyond
+//                            the tip that moves by 0.2 mm per call (one control cycle)
+//   BM_ReachableClip         ReachableSet::clip of a random direction outside the set
+//   BM_ReachableSetCompute   ReachableSet::compute (the controller's start), 30° scene
 // The path benchmarks report the counter tip_error_m: the largest tip-position error along the
 // path against a reference (RK8, 256 steps, residual 1e-13).
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <random>
 #include <string>
 #include <vector>
 
 #include "../bench/numerics_cases.h"
 #include "hydrojet_control/actuation/jet_map.h"
 #include "hydrojet_control/config/scene.h"
+#include "hydrojet_control/control/look_at.h"
+#include "hydrojet_control/control/reachable_set.h"
 #include "hydrojet_control/rod/shooting_solver.h"
 #include "hydrojet_control/rod/stability.h"
 
@@ -154,6 +161,50 @@ void BM_StabilityMap3000(benchmark::State& state) {
   state.counters["min_eig"] = min_eig;
 }
 
+hydrojet::control::RobotModel robot_model() {
+  return hydrojet::config::make_controller_model(scene(), hydrojet::actuation::FlowRegulatorOptions());
+}
+
+void BM_LookAt(benchmark::State& state) {
+  using hydrojet::control::Vec3;
+  hydrojet::control::LookAtSolver solver(robot_model());
+  hydrojet::rod::ShootingSolver rest(scene().model, scene().solver);
+  const hydrojet::rod::RodSolution s = rest.solve(TipWrench());
+  const Vec3 d = s.tip_rotation.col(2), side = d.cross(Vec3::UnitX()).normalized(), up = d.cross(side);
+  int i = 0, failures = 0, iterations = 0;
+  for (auto _ : state) {
+    const double a = 0.01 * i++;  // 0.2 mm per call on a circle of 20 mm radius
+    const hydrojet::control::LookAtResult r =
+        solver.solve(s.tip_position + 0.06 * d + 0.02 * (std::cos(a) * side + std::sin(a) * up));
+    failures += r.ok ? 0 : 1;
+    iterations += r.iterations;
+  }
+  state.counters["failures"] = failures;
+  state.counters["iterations"] = static_cast<double>(iterations) / std::max(1, i);
+}
+
+void BM_ReachableClip(benchmark::State& state) {
+  using hydrojet::control::Vec3;
+  const hydrojet::control::ReachableSet set = hydrojet::control::ReachableSet::compute(robot_model(), {});
+  std::mt19937 rng(3);
+  std::normal_distribution<double> n;
+  std::vector<Vec3> outside;
+  while (outside.size() < 1000) {
+    const Vec3 v = Vec3(n(rng), n(rng), n(rng)).normalized();
+    if (!set.contains(v)) outside.push_back(v);
+  }
+  size_t i = 0;
+  double moved = 0.0;
+  for (auto _ : state) benchmark::DoNotOptimize(set.clip(outside[i++ % outside.size()], &moved));
+}
+
+void BM_ReachableSetCompute(benchmark::State& state) {
+  const hydrojet::control::RobotModel m = robot_model();
+  size_t samples = 0;
+  for (auto _ : state) samples = hydrojet::control::ReachableSet::compute(m, {}).samples().size();
+  state.counters["samples"] = static_cast<double>(samples);
+}
+
 }  // namespace
 
 BENCHMARK(BM_ColdSolve)->Unit(benchmark::kMicrosecond);
@@ -162,4 +213,7 @@ BENCHMARK(BM_WarmSolveCompliance)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_WarmSolveGeneral)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_WarmSolveComplianceGeneral)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_StabilityMap3000)->Arg(0)->Arg(30)->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_LookAt)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ReachableClip)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ReachableSetCompute)->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK_MAIN();

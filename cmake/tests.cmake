@@ -28,6 +28,8 @@ foreach(t test_rod_closed_form test_rod_compliance test_scene test_rod_fk_cli te
   hydrojet_gtest(${t} LIBS hydrojet_config)
 endforeach()
 add_dependencies(test_rod_fk_cli rod_fk)
+# Operator control's core pieces: paths, reachable set, look-at solver.
+hydrojet_gtest(test_operator_core LIBS hydrojet_config)
 hydrojet_gtest(test_plant LIBS hydrojet_sim hydrojet_config)
 hydrojet_gtest(test_devices LIBS hydrojet_devices hydrojet_config)
 # Rig core (line splitter, serial port on a pty pair, gate, aggregator, valve loop, rig.yaml) and the
@@ -68,12 +70,15 @@ endfunction()
 foreach(t controller_params controller_stale sim_graph sim_controller_killed)
   hydrojet_rostest_binary(${t} DEPENDS controller_node plant_node)
 endforeach()
+hydrojet_rostest_binary(operator_control DEPENDS controller_node plant_node LIBS Eigen3::Eigen)
 hydrojet_rostest_binary(rig_emulated DEPENDS rig_node controller_node)
 hydrojet_rostest_binary(view_markers DEPENDS view_node)
 hydrojet_rostest_binary(joystick_fifo DEPENDS joystick_node)
 hydrojet_rostest_binary(calibration_plant DEPENDS plant_node calibration_recorder_node calibrate
   LIBS hydrojet_calibration)
 foreach(f controller_params controller_stale sim_closed_loop sim_tracker_dropout sim_flow_fault sim_stuck_jet
-          sim_controller_killed rig_emulated view_markers calibration_plant joystick_fifo)
+          sim_controller_killed rig_emulated view_markers calibration_plant joystick_fifo
+          teleop_keyboard operator_target_direction operator_look_at operator_joy operator_follow_path
+          operator_clipped operator_rejected)
   add_rostest(test/rostest/${f}.test)
 endforeach()

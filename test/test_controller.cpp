@@ -167,6 +167,143 @@ TEST(Controller, FollowsShortenedSpiral) {
   EXPECT_EQ(c.state(), ControllerState::kFinished);
 }
 
+// --- Reference and operator sources -------------------------------------------------------------
+
+// A new target is not a step: the reference moves along the great circle at most max_angular_rate.
+TEST(Reference, MovesTowardANewTargetAlongTheGreatCircleAtTheRateLimit) {
+  control::Reference ref(0.2, nullptr);
+  ref.hold();
+  ref.start(Vec3::UnitZ(), 0.0);
+  const Vec3 target = control::direction(0.4, 0.0);
+  ref.aim(2.0 * target, control::Source::kDirection);  // not unit: normalised
+  Vec3 prev = ref.direction();
+  for (int k = 1; k <= 250; ++k) {
+    const Vec3 d = ref.advance(k * kDt, kDt, control::Mat3::Identity());
+    EXPECT_LE(control::geodesic_error(prev, d), 0.2 * kDt + 1e-12) << k;
+    EXPECT_NEAR(d.y(), 0.0, 1e-12);  // on the great circle through z and the target
+    EXPECT_NEAR(d.norm(), 1.0, 1e-12);
+    if (k == 100) EXPECT_NEAR(control::bend_angle(d), 0.2, 1e-9);
+    prev = d;
+  }
+  EXPECT_LT(control::geodesic_error(ref.direction(), target), 1e-12);  // there after 0.4 / 0.2 = 2 s
+  EXPECT_EQ(ref.source(), control::Source::kDirection);
+}
+
+// Rate sources turn about the tip frame's axes (up = +x, right = +y) and hold once they expire.
+TEST(Reference, RatesTurnAboutTheTipAxesAndHoldWhenTheyExpire) {
+  const control::Mat3 tip = Eigen::AngleAxisd(0.3, Vec3::UnitZ()).toRotationMatrix();  // camera rolled 0.3 rad
+  for (int axis = 0; axis < 2; ++axis) {
+    control::Reference ref(0.2, nullptr);
+    ref.start(Vec3::UnitZ(), 0.0);
+    const Eigen::Vector2d rates = axis == 0 ? Eigen::Vector2d(0.1, 0.0) : Eigen::Vector2d(0.0, 0.1);
+    ref.turn(rates, control::Source::kJoy, 1.0);
+    for (int k = 1; k <= 100; ++k) ref.advance(k * kDt, kDt, tip);
+    // Up turns z toward the tip's −y, right toward the tip's +x, by 0.1 rad/s × 1 s.
+    const Vec3 expected = axis == 0 ? Vec3(-tip.col(1) * std::sin(0.1) + Vec3::UnitZ() * std::cos(0.1))
+                                    : Vec3(tip.col(0) * std::sin(0.1) + Vec3::UnitZ() * std::cos(0.1));
+    EXPECT_LT(control::geodesic_error(ref.direction(), expected), 1e-9) << axis;
+    const Vec3 held = ref.direction();
+    for (int k = 101; k <= 400; ++k) ref.advance(k * kDt, kDt, tip);  // no new message: expired at 1 s
+    EXPECT_EQ(ref.source(), control::Source::kHold);
+    EXPECT_LT(control::geodesic_error(ref.direction(), held), 0.1 * 2 * kDt);
+  }
+}
+
+namespace {
+/// A controller holding on the exact-model static plant (path/type none).
+struct OperatorRig {
+  config::Scene sc = test::scene("hydrojet_0deg");
+  Controller c;
+  StaticPlant plant;
+  double t = 0.0;
+  OperatorRig()
+      : c(config::make_controller_model(sc, flow_gains()),
+          [] {
+            control::ControllerOptions p = tuned_gains();
+            p.path_type = control::PathType::kNone;
+            return p;
+          }()),
+        plant(sc, sc.model) {}
+  ControllerOutput run_for(double seconds) {
+    const ControllerOutput out = run(c, plant, t, seconds);
+    t += seconds;
+    return out;
+  }
+};
+}  // namespace
+
+// path/type none holds where it starts; a target 0.4 rad away is reached after 0.4 / rate + settling.
+TEST(ControllerSources, HoldsAtStartThenReachesATargetAtTheRateLimit) {
+  OperatorRig rig;
+  rig.c.start(0.0);
+  ControllerOutput out = rig.run_for(1.0);
+  ASSERT_EQ(out.state, ControllerState::kRunning) << out.reason;
+  EXPECT_EQ(out.source, control::Source::kHold);
+  EXPECT_LT(out.error_geodesic, 1e-3);
+  const Vec3 start = out.measured_direction;
+  const Vec3 target = control::direction(0.4, 1.0);
+  rig.c.aim(target, control::Source::kDirection);
+  out = rig.run_for(1.0);
+  EXPECT_EQ(out.source, control::Source::kDirection);
+  EXPECT_NEAR(control::geodesic_error(start, out.desired_direction), rig.c.params().max_angular_rate * 1.0, 0.02);
+  out = rig.run_for(control::geodesic_error(start, target) / rig.c.params().max_angular_rate + 2.0);
+  ASSERT_EQ(out.state, ControllerState::kRunning) << out.reason;
+  EXPECT_LT(control::geodesic_error(out.measured_direction, target), 1e-3);
+  EXPECT_FALSE(out.clipped);
+}
+
+// A command while idle is kept and drives from the start.
+TEST(ControllerSources, CommandsWhileIdleAreUsedAtStart) {
+  OperatorRig rig;
+  rig.c.aim(control::direction(0.3, 0.0), control::Source::kDirection);
+  EXPECT_TRUE(rig.c.commands_pending());
+  rig.c.start(0.0);
+  EXPECT_FALSE(rig.c.commands_pending());
+  const ControllerOutput out = rig.run_for(5.0);
+  EXPECT_EQ(out.source, control::Source::kDirection);
+  EXPECT_LT(control::geodesic_error(out.measured_direction, control::direction(0.3, 0.0)), 1e-3);
+}
+
+// Asking for the impossible never aborts: the target is clipped to the reachable set, the status says so.
+TEST(ControllerSources, TargetOutsideTheReachableSetIsClippedNotAborted) {
+  OperatorRig rig;
+  ASSERT_FALSE(rig.c.reachable_set().empty());
+  rig.c.start(0.0);
+  rig.run_for(0.5);
+  const Vec3 impossible = control::direction(2.0, 0.5);
+  ASSERT_FALSE(rig.c.reachable_set().contains(impossible));
+  rig.c.aim(impossible, control::Source::kDirection);
+  const ControllerOutput out = rig.run_for(15.0);
+  ASSERT_EQ(out.state, ControllerState::kRunning) << out.reason;
+  EXPECT_TRUE(out.clipped);
+  EXPECT_GT(out.clip_angle, 0.3);
+  double moved = 0.0;
+  const Vec3 clipped = rig.c.reachable_set().clip(impossible, &moved);
+  EXPECT_NEAR(out.clip_angle, moved, 1e-12);
+  EXPECT_LT(control::geodesic_error(out.desired_direction, clipped), 1e-12);
+  EXPECT_LT(control::geodesic_error(out.measured_direction, clipped), 2e-3);
+  EXPECT_GE(out.stability_margin, rig.c.params().min_stability_margin);
+}
+
+// A follow()ed path drives; at its end the controller is finished, holding; a new command runs again.
+TEST(ControllerSources, FollowedPathFinishesAndANewCommandRunsAgain) {
+  OperatorRig rig;
+  rig.c.start(0.0);
+  rig.run_for(0.5);
+  std::vector<control::Waypoint> w(2);
+  w[0].t = 0.0, w[0].direction = rig.c.reference().direction();
+  w[1].t = 2.0, w[1].direction = control::direction(0.2, 0.0);
+  rig.c.follow(control::make_waypoints(w), rig.t);
+  ControllerOutput out = rig.run_for(3.0);
+  EXPECT_EQ(out.state, ControllerState::kFinished);
+  EXPECT_EQ(out.source, control::Source::kPath);
+  rig.c.hold();
+  EXPECT_EQ(rig.c.state(), ControllerState::kRunning);
+  out = rig.run_for(0.1);
+  EXPECT_EQ(out.state, ControllerState::kRunning);
+  EXPECT_EQ(out.source, control::Source::kHold);
+}
+
 // --- Safety -------------------------------------------------------------------------------------
 
 namespace {
@@ -429,6 +566,8 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
       {"gains/damping", f.damping, d.damping},
       {"limits/max_force", f.max_force, d.max_force},
       {"limits/max_force_rate", f.max_force_rate, d.max_force_rate},
+      {"limits/max_angular_rate", f.max_angular_rate, d.max_angular_rate},
+      {"limits/reachable_force_fraction", f.reachable_force_fraction, d.reachable_force_fraction},
       {"allocation_weight", f.allocation_weight, d.allocation_weight},
       {"integrate_from_measured", double(f.integrate_from_measured), double(d.integrate_from_measured)},
       {"safety/max_oscillation", f.max_oscillation, d.max_oscillation},
@@ -454,15 +593,62 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
     EXPECT_TRUE(in_file(n.key)) << n.key << " is not in " << path;
     EXPECT_EQ(n.file, n.def) << n.key;
   }
-  for (const char* key : {"mode", "autostart", "base_frame"}) EXPECT_TRUE(in_file(key)) << key;
+  for (const char* key : {"mode", "autostart", "base_frame", "path/type"}) EXPECT_TRUE(in_file(key)) << key;
   EXPECT_EQ(f.mode, d.mode);
+  EXPECT_EQ(f.path_type, d.path_type);
   EXPECT_EQ(file.autostart, def.autostart);
   EXPECT_EQ(file.base_frame, def.base_frame);
   EXPECT_EQ(ff.anti_windup, fd.anti_windup);  // not a key: the regulator's own default
   // And the file names nothing else (the parser rejects unknown keys, so this is the full list).
   size_t keys = 0;
   for (const auto& top : yaml) keys += top.second.IsMap() ? top.second.size() : 1;
-  EXPECT_EQ(keys, sizeof(numbers) / sizeof(numbers[0]) + 3);
+  EXPECT_EQ(keys, sizeof(numbers) / sizeof(numbers[0]) + 4);
+}
+
+// config/teleop.yaml is the source of the joystick defaults (TeleopOptions), key by key.
+TEST(ControllerOptions, TeleopDefaultsEqualConfigTeleopYaml) {
+  const std::string path = std::string(HYDROJET_SOURCE_DIR) + "/config/teleop.yaml";
+  const YAML::Node yaml = YAML::LoadFile(path);
+  const config::TeleopOptions file = config::parse_controller_options(yaml).teleop, def;
+  const struct {
+    const char* key;
+    double file, def;
+  } numbers[] = {
+      {"axis_up", double(file.axis_up), double(def.axis_up)},
+      {"scale_up", file.scale_up, def.scale_up},
+      {"axis_right", double(file.axis_right), double(def.axis_right)},
+      {"scale_right", file.scale_right, def.scale_right},
+      {"deadman_button", double(file.deadman_button), double(def.deadman_button)},
+      {"timeout", file.timeout, def.timeout},
+  };
+  for (const auto& n : numbers) {
+    EXPECT_TRUE(bool(yaml["teleop"][n.key])) << n.key << " is not in " << path;
+    EXPECT_EQ(n.file, n.def) << n.key;
+  }
+  EXPECT_EQ(yaml["teleop"].size(), sizeof(numbers) / sizeof(numbers[0]));
+  // ROS joy: stick up reads +1 and tilts the view up; stick right reads −1 and turns it right.
+  EXPECT_GT(def.scale_up, 0.0);
+  EXPECT_LT(def.scale_right, 0.0);
+}
+
+TEST(ControllerOptions, BadTeleopAndPathTypeAreRefusedNamingTheKey) {
+  const struct {
+    const char* yaml;
+    const char* key;
+  } cases[] = {{"{teleop: {axis_up: -1}}", "teleop/axis_up"},
+               {"{teleop: {timeout: 0}}", "teleop/timeout"},
+               {"{teleop: {scale_right: .nan}}", "teleop/scale_right"},
+               {"{path: {type: circle}}", "path/type"},
+               {"{limits: {max_angular_rate: 0}}", "limits/max_angular_rate"},
+               {"{limits: {reachable_force_fraction: 1.5}}", "limits/reachable_force_fraction"}};
+  for (const auto& c : cases) {
+    try {
+      config::parse_controller_options(YAML::Load(c.yaml));
+      ADD_FAILURE() << c.yaml << " accepted";
+    } catch (const config::ParamError& e) {
+      EXPECT_EQ(e.key(), c.key) << e.what();
+    }
+  }
 }
 
 // validate() enforces the ranges of cfg/Controller.cfg: the bounds pass, a value just outside

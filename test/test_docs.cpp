@@ -85,9 +85,11 @@ TEST(Docs, RodModelNamesSymbolsThatExistInTheNamedFiles) {
     const std::string source = read_file(kRoot + "/" + files[0]);
     ASSERT_FALSE(source.empty()) << files[0] << " (named in docs/rod_model.md) does not exist";
     for (const std::string& s : symbols) {
-      const std::regex word("(^|[^A-Za-z0-9_])" + std::regex_replace(s, std::regex(R"([.^$|()\[\]{}*+?\\])"), R"(\$&)") +
+      const std::regex word("(^|[^A-Za-z0-9_])" +
+                            std::regex_replace(s, std::regex(R"([.^$|()\[\]{}*+?\\])"), R"(\$&)") +
                             "($|[^A-Za-z0-9_])");
-      EXPECT_TRUE(std::regex_search(source, word)) << "`" << s << "` not found in " << files[0] << " (row: " << l << ")";
+      EXPECT_TRUE(std::regex_search(source, word))
+          << "`" << s << "` not found in " << files[0] << " (row: " << l << ")";
     }
     ++rows;
   }

@@ -7,6 +7,7 @@ for a short window after its last byte: FIRST_PRESS_WINDOW after a fresh press (
 keyboard's auto-repeat delay, typically 250-600 ms, so that holding a key moves smoothly) and
 REPEAT_WINDOW after a repeat. When the window runs out, the view holds.
 """
+import math
 
 FIRST_PRESS_WINDOW = 0.6  # [s]
 REPEAT_WINDOW = 0.3  # [s]
@@ -111,12 +112,14 @@ HELP = """HydroJet keyboard teleoperation (camera view)
 """
 
 
-def render(teleop, rates, controller, connected):
-    """The screen: help, speed, the current rates, the last command and the controller's status line."""
+def render(teleop, rates, controller, connected, max_rate=None):
+    """The screen: help, speed, the current rates, the last command and the controller's status line.
+    max_rate [rad/s]: the controller's cap on the rates (None: unknown)."""
     moving = "holding" if rates is None else "up %+.2f  right %+.2f rad/s" % rates
+    capped = "  (the controller caps it at %.2f)" % max_rate if max_rate is not None and teleop.speed > max_rate else ""
     lines = HELP.splitlines() + [
         "",
-        "speed    %.2f rad/s" % teleop.speed,
+        "speed    %.2f rad/s%s" % (teleop.speed, capped),
         "now      %s" % moving,
         "last     %s" % teleop.last_command,
         "robot    %s" % controller,
@@ -128,7 +131,6 @@ def render(teleop, rates, controller, connected):
 
 def describe_status(m):
     """One line from a hydrojet_control/ControllerStatus: state, source, error, clipping, message."""
-    import math
     d = m.desired_direction
     theta = math.degrees(math.acos(max(-1.0, min(1.0, d.z)))) if (d.x or d.y or d.z) else float("nan")
     phi = math.degrees(math.atan2(d.y, d.x))

@@ -41,6 +41,8 @@ void read_controller_options(Tree& p, control::ControllerOptions& c) {
       {"gains/damping", "damping", &c.damping},
       {"limits/max_force", "max_force", &c.max_force},
       {"limits/max_force_rate", "max_force_rate", &c.max_force_rate},
+      {"limits/max_angular_rate", "max_angular_rate", &c.max_angular_rate},
+      {"limits/reachable_force_fraction", "reachable_force_fraction", &c.reachable_force_fraction},
       {"allocation_weight", "allocation_weight", &c.allocation_weight},
       {"safety/max_oscillation", "max_oscillation", &c.max_oscillation},
       {"safety/sample_period", "sample_period", &c.sample_period},
@@ -58,6 +60,13 @@ void read_controller_options(Tree& p, control::ControllerOptions& c) {
   c.stale_periods = p.integer("safety/stale_periods", c.stale_periods);
   c.max_solver_failures = p.integer("safety/max_solver_failures", c.max_solver_failures);
   c.integrate_from_measured = p.boolean("integrate_from_measured", c.integrate_from_measured);
+  const std::string type = p.text("path/type", control::to_string(c.path_type));
+  if (type == "spiral")
+    c.path_type = control::PathType::kSpiral;
+  else if (type == "none")
+    c.path_type = control::PathType::kNone;
+  else
+    p.fail("path/type", "must be 'spiral' or 'none', got '" + type + "'");
   const std::string err = c.validate();
   if (!err.empty()) {
     const std::string field = err.substr(0, err.find(':'));
@@ -82,6 +91,27 @@ void read_flow_regulator(Tree& p, actuation::FlowRegulatorOptions& f) {
   }
 }
 
+/// Joystick teleoperation (config/teleop.yaml), validated; an error names the key.
+void read_teleop(Tree& p, TeleopOptions& t) {
+  const struct {
+    const char* key;
+    int* value;
+  } indices[] = {{"teleop/axis_up", &t.axis_up},
+                 {"teleop/axis_right", &t.axis_right},
+                 {"teleop/deadman_button", &t.deadman_button}};
+  for (const auto& i : indices) {
+    *i.value = p.integer(i.key, *i.value);
+    if (*i.value < 0) p.fail(i.key, "must be an index >= 0");
+  }
+  for (auto [key, value] :
+       {std::pair{"teleop/scale_up", &t.scale_up}, std::pair{"teleop/scale_right", &t.scale_right}}) {
+    *value = p.number(key, *value);
+    if (!(std::abs(*value) <= 2.0)) p.fail(key, "must lie in [-2, 2] rad/s");
+  }
+  t.timeout = p.number("teleop/timeout", t.timeout);
+  if (!(t.timeout > 0.0 && t.timeout <= 10.0)) p.fail("teleop/timeout", "must lie in (0, 10] s");
+}
+
 }  // namespace
 
 ControllerNodeOptions parse_controller_options(const YAML::Node& root) {
@@ -91,6 +121,7 @@ ControllerNodeOptions parse_controller_options(const YAML::Node& root) {
   read_node_options(p, o);
   read_controller_options(p, o.controller);
   read_flow_regulator(p, o.flow_regulator);
+  read_teleop(p, o.teleop);
   p.reject_unknown();
   return o;
 }

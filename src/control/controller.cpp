@@ -5,6 +5,18 @@
 namespace hydrojet {
 namespace control {
 
+namespace {
+
+/// The reachable set of `model` with reserve: each jet's q_max scaled by reachable_force_fraction.
+std::shared_ptr<const ReachableSet> sweep_reachable_set(RobotModel model, const ControllerOptions& params) {
+  model.max_jet_force *= params.reachable_force_fraction;
+  ReachableSetOptions o;
+  o.min_stability_margin = params.min_stability_margin;
+  return std::make_shared<const ReachableSet>(ReachableSet::compute(model, o));
+}
+
+}  // namespace
+
 const char* to_string(ControllerState s) {
   switch (s) {
     case ControllerState::kIdle: return "idle";
@@ -21,7 +33,9 @@ Controller::Controller(const RobotModel& model, const ControllerOptions& params)
       jets_(model),
       solver_(model.rod, model.solver),
       monitor_(params, jets_.jet_count()),
-      limiter_(params.max_force, params.max_force_rate) {}
+      limiter_(params.max_force, params.max_force_rate),
+      reachable_(sweep_reachable_set(model, params)),
+      reference_(params.max_angular_rate, reachable_) {}
 
 void Controller::start(double t) {
   state_ = ControllerState::kRunning;
@@ -33,18 +47,58 @@ void Controller::start(double t) {
   monitor_.reset();
   pd_.reset();
   jets_.reset();
+  if (!commands_pending_) start_configured_path(t);
+  commands_pending_ = false;
 }
 
 void Controller::stop() {
   state_ = ControllerState::kIdle;
   limiter_.reset();
   jets_.reset();
+  commands_pending_ = false;
 }
 
 void Controller::set_params(const ControllerOptions& p) {
   params_ = p;
   monitor_.set_options(p);
   limiter_.set_limits(p.max_force, p.max_force_rate);
+  reference_.set_max_angular_rate(p.max_angular_rate);
+}
+
+void Controller::follow(std::shared_ptr<const Path> path, double t) {
+  reference_.follow(std::move(path), t);
+  commanded();
+}
+
+void Controller::aim(const Vec3& target, Source source) {
+  reference_.aim(target, source);
+  commanded();
+}
+
+void Controller::turn(const Eigen::Vector2d& up_right, Source source, double until) {
+  reference_.turn(up_right, source, until);
+  commanded();
+}
+
+void Controller::hold() {
+  reference_.hold();
+  commanded();
+}
+
+// The configured start: the spiral from its first point (as in the paper's experiment), or hold.
+void Controller::start_configured_path(double t) {
+  if (params_.path_type == PathType::kSpiral)
+    reference_.follow(make_spiral(params_.path), t, /*starts_at_path=*/true);
+  else
+    reference_.hold();
+}
+
+// A command while idle or aborted waits for start(); a finished path gives way to it.
+void Controller::commanded() {
+  if (state_ == ControllerState::kIdle || state_ == ControllerState::kAborted)
+    commands_pending_ = true;
+  else if (state_ == ControllerState::kFinished)
+    state_ = ControllerState::kRunning;
 }
 
 rod::RodSolution Controller::model_fk(const JetVector& q) { return solve_model(jets_.wrench(q)); }
@@ -73,7 +127,7 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   const rod::Compliance compliance = solver_.compliance();  // C^b of line 6 (eq. 14)
   if (std::string why = check_stability(compliance, out); !why.empty()) return abort(out, why);
 
-  track_path(in, sol, out);
+  track_reference(in, sol, dt, out);
   if (std::string why = monitor_.check_oscillation(out.error_geodesic); !why.empty()) return abort(out, why);
 
   if (std::string why = command_force(sol, compliance, dt, out); !why.empty()) return abort(out, why);
@@ -124,11 +178,19 @@ std::string Controller::check_stability(const rod::Compliance& compliance, Contr
 }
 
 // Task space: desired, measured and model tip directions (base frame); x_obs is the tracker's in
-// closed loop, the model's in open loop (§7.3). The errors are always against the tracker.
-void Controller::track_path(const ControllerInputs& in, const rod::RodSolution& sol, ControllerOutput& out) const {
-  out.desired_direction = params_.path.direction_at(out.path_time);
+// closed loop, the model's in open loop (§7.3). x_des is the reference one step on (its source,
+// rate limit and clipping: Reference), starting at x_obs. The errors are always against the tracker.
+void Controller::track_reference(const ControllerInputs& in, const rod::RodSolution& sol, double dt,
+                                 ControllerOutput& out) {
+  const bool closed = params_.mode == LoopMode::kClosed;
+  const Mat3 tip_frame = closed ? in.tip_rotation : sol.tip_rotation;  // the camera's axes for rate sources
   out.measured_direction = in.tip_rotation.col(2).normalized();
-  out.observed_direction = params_.mode == LoopMode::kClosed ? out.measured_direction : Vec3(sol.tip_rotation.col(2));
+  out.observed_direction = closed ? out.measured_direction : Vec3(sol.tip_rotation.col(2));
+  if (first_cycle_) reference_.start(out.observed_direction, t_start_);
+  out.desired_direction = reference_.advance(in.t, dt, tip_frame);
+  out.source = reference_.source();
+  out.clipped = reference_.clipped();
+  out.clip_angle = reference_.clip_angle();
   out.error_geodesic = geodesic_error(out.desired_direction, out.measured_direction);
   out.error_pitch_yaw = pitch_yaw_error(out.desired_direction, out.measured_direction);
 }
@@ -167,7 +229,7 @@ std::string Controller::actuate(const JetVector& flows, double dt, ControllerOut
 // A complete cycle: the path's end finishes it (control goes on, holding the end point).
 ControllerOutput Controller::finish_cycle(ControllerOutput out) {
   first_cycle_ = false;
-  if (params_.path.finished(out.path_time)) state_ = ControllerState::kFinished;
+  if (reference_.path_finished(t_last_)) state_ = ControllerState::kFinished;
   out.state = state_;
   last_output_ = out;
   return out;

@@ -27,6 +27,7 @@ std::string check_range(const char* field, double v, double lo, double hi) {
 }  // namespace
 
 const char* to_string(LoopMode m) { return m == LoopMode::kClosed ? "closed" : "open"; }
+const char* to_string(PathType t) { return t == PathType::kSpiral ? "spiral" : "none"; }
 
 std::string ControllerOptions::validate() const {
   // The live gains and limits: the ranges of cfg/Controller.cfg.
@@ -43,6 +44,9 @@ std::string ControllerOptions::validate() const {
   };
   for (const auto& r : ranges)
     if (std::string err = check_range(r.field, r.value, r.lo, r.hi); !err.empty()) return err;
+  if (!finite_pos(max_angular_rate)) return bad("max_angular_rate", max_angular_rate, "must be finite and > 0");
+  if (!(reachable_force_fraction > 0.0 && reachable_force_fraction <= 1.0))
+    return bad("reachable_force_fraction", reachable_force_fraction, "must lie in (0, 1]");
   if (!finite_nonneg(allocation_weight)) return bad("allocation_weight", allocation_weight, "must be finite and >= 0");
   if (!finite_pos(max_oscillation)) return bad("max_oscillation", max_oscillation, "must be finite and > 0");
   if (!finite_pos(sample_period)) return bad("sample_period", sample_period, "must be finite and > 0");

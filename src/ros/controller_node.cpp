@@ -1,11 +1,20 @@
 // Wires the ROS topics of the topic contract (docs/ros_api.md) to the ROS-free controller
-// (hydrojet::control::Controller, Algorithm 1 of the paper).
+// (hydrojet::control::Controller, Algorithm 1 of the paper), and the operator's commands
+// (docs/operating.md) to its reference: target_direction, look_at and /clicked_point, joy, view_rate
+// and the follow_path action. One source drives at a time, the latest command wins.
+#include <actionlib/server/simple_action_server.h>
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
+#include <geometry_msgs/PointStamped.h>
 #include <geometry_msgs/PoseStamped.h>
+#include <geometry_msgs/TwistStamped.h>
+#include <geometry_msgs/Vector3Stamped.h>
 #include <ros/ros.h>
+#include <sensor_msgs/Joy.h>
 #include <std_srvs/SetBool.h>
 #include <std_srvs/Trigger.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -14,12 +23,16 @@
 
 #include "hydrojet_control/ControllerConfig.h"
 #include "hydrojet_control/ControllerStatus.h"
+#include "hydrojet_control/FollowPathAction.h"
 #include "hydrojet_control/JetCommand.h"
 #include "hydrojet_control/JetState.h"
+#include "hydrojet_control/ReachableSet.h"
 #include "hydrojet_control/RodState.h"
 #include "hydrojet_control/TipTarget.h"
 #include "hydrojet_control/config/scene.h"
 #include "hydrojet_control/control/controller.h"
+#include "hydrojet_control/control/look_at.h"
+#include "hydrojet_control/control/path.h"
 #include "hydrojet_control/ros/params.h"
 #include "hydrojet_control/ros/names.h"
 
@@ -53,13 +66,142 @@ void copy_jets(const control::JetVector& from, Array& to) {
   for (int i = 0; i < from.size() && i < static_cast<int>(to.size()); ++i) to[i] = from[i];
 }
 
+Eigen::Vector3d from_msg(const geometry_msgs::Vector3& v) { return Eigen::Vector3d(v.x, v.y, v.z); }
+Eigen::Vector3d from_msg(const geometry_msgs::Point& p) { return Eigen::Vector3d(p.x, p.y, p.z); }
+
+/// The path a follow_path goal names. @throws std::invalid_argument naming what is wrong.
+std::shared_ptr<const control::Path> make_goal_path(const hydrojet_control::FollowPathGoal& g,
+                                                    const control::SpiralPath& configured) {
+  if (g.type == "spiral") {
+    if (g.duration <= 0.0) return control::make_spiral(configured);
+    control::SpiralPath s;
+    s.theta_start = g.theta_start, s.theta_end = g.theta_end, s.phi_start = g.phi_start, s.phi_end = g.phi_end;
+    s.duration = g.duration;
+    if (!std::isfinite(s.duration + s.theta_start + s.theta_end + s.phi_start + s.phi_end))
+      throw std::invalid_argument("spiral: parameters must be finite");
+    return control::make_spiral(s);
+  }
+  if (g.type == "raster") {
+    control::RasterOptions r;
+    r.theta_min = g.theta_min, r.theta_max = g.theta_max, r.rows = g.rows;
+    r.phi_start = g.raster_phi_start, r.phi_end = g.raster_phi_end, r.speed = g.speed;
+    if (const std::string err = r.validate(); !err.empty()) throw std::invalid_argument("raster: " + err);
+    return control::make_raster(r);
+  }
+  if (g.type == "waypoints") {
+    if (g.times.size() != g.directions.size() || g.times.empty())
+      throw std::invalid_argument("waypoints: need as many times as directions, at least one");
+    std::vector<control::Waypoint> w(g.times.size());
+    for (size_t i = 0; i < w.size(); ++i) w[i].t = g.times[i], w[i].direction = from_msg(g.directions[i]);
+    return control::make_waypoints(w);
+  }
+  if (g.type == "file") return control::load_path_file(g.file);
+  throw std::invalid_argument("type must be spiral, raster, waypoints or file, got '" + g.type + "'");
+}
+
+/// The follow_path action (action/FollowPath.action). A goal's path drives the controller until it
+/// ends (succeeded), another source takes over or the controller aborts (aborted), a new goal
+/// arrives or the client cancels (preempted; a cancel holds the current direction). Callbacks and
+/// cycle() run on the node's single spinner thread, between control cycles.
+class FollowPathServer {
+ public:
+  using Server = actionlib::SimpleActionServer<hydrojet_control::FollowPathAction>;
+
+  FollowPathServer(ros::NodeHandle& nh, control::Controller& controller, std::string& message)
+      : server_(nh, names::kFollowPathAction, false), controller_(controller), message_(message) {
+    server_.registerGoalCallback([this] { on_goal(); });
+    server_.registerPreemptCallback([this] { on_preempt(); });
+    server_.start();
+  }
+
+  /// After each control cycle: the error statistics, feedback at 10 Hz and the end of the goal.
+  void cycle(const ros::Time& now, const control::ControllerOutput& out) {
+    if (!server_.isActive() || !path_) return;
+    if (out.state == control::ControllerState::kAborted) return finish(false, "controller aborted: " + out.reason);
+    if (out.state == control::ControllerState::kIdle) return finish(false, "controller stopped");
+    const control::Reference& ref = controller_.reference();
+    if (ref.path() != path_.get())
+      return finish(false, std::string("superseded by the source '") + control::to_string(ref.source()) + "'");
+    sum_sq_ += out.error_geodesic * out.error_geodesic;
+    max_error_ = std::max(max_error_, out.error_geodesic);
+    ++samples_;
+    if (now - last_feedback_ >= ros::Duration(0.1)) {
+      hydrojet_control::FollowPathFeedback f;
+      f.path_time = ref.path_time(now.toSec());
+      f.progress = std::min(1.0, std::max(0.0, f.path_time / path_->duration()));
+      f.error = out.error_geodesic;
+      server_.publishFeedback(f);
+      last_feedback_ = now;
+    }
+    if (ref.path_finished(now.toSec())) finish(true, "");
+  }
+
+ private:
+  void on_goal() {
+    const auto goal = server_.acceptNewGoal();
+    path_.reset();
+    sum_sq_ = max_error_ = 0.0;
+    samples_ = 0;
+    if (controller_.state() == control::ControllerState::kAborted)
+      return finish(false, "controller aborted: " + controller_.abort_reason());
+    try {
+      path_ = make_goal_path(*goal, controller_.params().path);
+    } catch (const std::exception& e) {
+      return finish(false, std::string("bad goal: ") + e.what());
+    }
+    const double now = ros::Time::now().toSec();
+    controller_.follow(path_, now);
+    if (controller_.state() == control::ControllerState::kIdle) controller_.start(now);
+    message_ = "follow_path: " + goal->type + " path of " + std::to_string(path_->duration()) + " s";
+  }
+
+  void on_preempt() {
+    if (!server_.isActive()) return;
+    if (!server_.isNewGoalAvailable()) controller_.hold();  // a cancel holds the current direction
+    server_.setPreempted(
+        result(false, server_.isNewGoalAvailable() ? "preempted by a new goal" : "cancelled: holding"));
+    path_.reset();
+  }
+
+  void finish(bool completed, const std::string& reason) {
+    if (completed)
+      server_.setSucceeded(result(true, ""));
+    else
+      server_.setAborted(result(false, reason), reason);
+    if (!completed) message_ = "follow_path: " + reason;
+    path_.reset();
+  }
+
+  hydrojet_control::FollowPathResult result(bool completed, const std::string& reason) const {
+    hydrojet_control::FollowPathResult r;
+    r.completed = completed;
+    r.reason = reason;
+    r.rms_error = samples_ > 0 ? std::sqrt(sum_sq_ / samples_) : 0.0;
+    r.max_error = max_error_;
+    return r;
+  }
+
+  Server server_;
+  control::Controller& controller_;
+  std::string& message_;  ///< the node's status message
+  std::shared_ptr<const control::Path> path_;
+  double sum_sq_ = 0.0, max_error_ = 0.0;  ///< [rad^2], [rad] over the goal's cycles
+  int samples_ = 0;
+  ros::Time last_feedback_;
+};
+
 class ControllerNode {
  public:
-  ControllerNode(ros::NodeHandle& nh, ros::NodeHandle& pnh) : nh_(nh), pnh_(pnh) {
+  ControllerNode(ros::NodeHandle& nh, ros::NodeHandle& pnh) : nh_(nh), pnh_(pnh), tf_listener_(tf_) {
     opts_ = ros_bridge::read_controller_options(pnh);
     const config::Scene scene = config::load_scene(opts_.scene);
-    controller_.reset(
-        new control::Controller(config::make_controller_model(scene, opts_.flow_regulator), opts_.controller));
+    const control::RobotModel model = config::make_controller_model(scene, opts_.flow_regulator);
+    controller_.reset(new control::Controller(model, opts_.controller));
+    look_at_.reset(new control::LookAtSolver(model));
+    follow_path_.reset(new FollowPathServer(nh, *controller_, message_));
+    reachable_pub_ = nh.advertise<hydrojet_control::ReachableSet>(names::kReachableSet, 1, /*latch=*/true);
+    publish_reachable_set();
+    subscribe_operator(nh);
 
     tip_sub_ = nh.subscribe(names::kTipPose, 10, &ControllerNode::on_tip_pose, this);
     base_sub_ = nh.subscribe(names::kBasePose, 10, &ControllerNode::on_base_pose, this);
@@ -76,11 +218,118 @@ class ControllerNode {
     diagnostics_.setHardwareID("hydrojet_controller");
     diagnostics_.add("controller", this, &ControllerNode::diagnose);
     timer_ = nh.createTimer(ros::Duration(1.0 / opts_.rate), &ControllerNode::tick, this);
-    ROS_INFO("controller: scene %s, %s loop, %.0f Hz%s", opts_.scene.c_str(), control::to_string(opts_.controller.mode),
-             opts_.rate, opts_.autostart ? ", autostart" : "");
+    ROS_INFO("controller: scene %s, %s loop, %.0f Hz%s, at start: %s", opts_.scene.c_str(),
+             control::to_string(opts_.controller.mode), opts_.rate, opts_.autostart ? ", autostart" : "",
+             control::to_string(opts_.controller.path_type));
   }
 
  private:
+  // --- Operator commands (docs/operating.md): each becomes a command of the controller's reference.
+
+  void subscribe_operator(ros::NodeHandle& nh) {
+    target_sub_ = nh.subscribe(names::kTargetDirection, 10, &ControllerNode::on_target_direction, this);
+    look_at_sub_ = nh.subscribe(names::kLookAt, 10, &ControllerNode::on_look_at, this);
+    clicked_sub_ = nh.subscribe(names::kClickedPoint, 10, &ControllerNode::on_look_at, this);
+    joy_sub_ = nh.subscribe(names::kJoy, 10, &ControllerNode::on_joy, this);
+    view_rate_sub_ = nh.subscribe(names::kViewRate, 10, &ControllerNode::on_view_rate, this);
+  }
+
+  void on_target_direction(const geometry_msgs::Vector3Stamped::ConstPtr& m) {
+    const Eigen::Vector3d v = from_msg(m->vector);
+    if (!v.allFinite()) return reject("target_direction: not finite");
+    if (v.norm() < 1e-9) return reject("target_direction: zero vector");
+    Eigen::Matrix3d rotation;
+    Eigen::Vector3d translation;
+    if (!to_base(m->header.frame_id, rotation, translation)) return;
+    controller_->aim((rotation * v).normalized(), control::Source::kDirection);
+    commanded("target_direction");
+  }
+
+  // A point to look at, from controller/look_at or rviz's /clicked_point: solved on the model once per
+  // point (LookAtSolver, warm-started), then the closed loop tracks that direction.
+  void on_look_at(const geometry_msgs::PointStamped::ConstPtr& m) {
+    const Eigen::Vector3d p = from_msg(m->point);
+    if (!p.allFinite()) return reject("look_at: not finite");
+    Eigen::Matrix3d rotation;
+    Eigen::Vector3d translation;
+    if (!to_base(m->header.frame_id, rotation, translation)) return;
+    const control::LookAtResult r = look_at_->solve(rotation * p + translation);
+    if (!r.ok) return reject("look_at: " + r.message);
+    controller_->aim(r.direction, control::Source::kLookAt);
+    commanded("look_at");
+  }
+
+  // Rate teleoperation by joystick (config/teleop.yaml): with the deadman held, the axes turn the
+  // view; letting go of the deadman holds. Without the deadman the joystick commands nothing.
+  void on_joy(const sensor_msgs::Joy::ConstPtr& m) {
+    const config::TeleopOptions& t = opts_.teleop;
+    auto axis = [&](int i) { return i < static_cast<int>(m->axes.size()) ? double(m->axes[i]) : 0.0; };
+    const bool deadman = t.deadman_button < static_cast<int>(m->buttons.size()) && m->buttons[t.deadman_button];
+    const bool driving = controller_->reference().source() == control::Source::kJoy;
+    if (!deadman) {
+      if (driving) controller_->hold();
+      return;
+    }
+    const Eigen::Vector2d rates(t.scale_up * axis(t.axis_up), t.scale_right * axis(t.axis_right));
+    if (!rates.allFinite()) return reject("joy: axes not finite");
+    controller_->turn(rates, control::Source::kJoy, ros::Time::now().toSec() + t.timeout);
+    commanded("joy");
+  }
+
+  // Keyboard rates (scripts/teleop): a zero twist holds.
+  void on_view_rate(const geometry_msgs::TwistStamped::ConstPtr& m) {
+    const Eigen::Vector2d rates(m->twist.angular.x, m->twist.angular.y);
+    if (!rates.allFinite()) return reject("view_rate: not finite");
+    if (rates.isZero(0.0))
+      controller_->hold();
+    else
+      controller_->turn(rates, control::Source::kKeyboard, ros::Time::now().toSec() + opts_.teleop.timeout);
+    commanded("view_rate");
+  }
+
+  /// The transform from `frame` to the base frame ("" or the base frame: identity). An unknown
+  /// frame rejects the command (false).
+  bool to_base(const std::string& frame, Eigen::Matrix3d& rotation, Eigen::Vector3d& translation) {
+    rotation.setIdentity();
+    translation.setZero();
+    if (frame.empty() || frame == opts_.base_frame) return true;
+    try {
+      const geometry_msgs::TransformStamped tf = tf_.lookupTransform(opts_.base_frame, frame, ros::Time(0));
+      rotation = to_rotation(tf.transform.rotation);
+      translation = from_msg(tf.transform.translation);
+      return true;
+    } catch (const tf2::TransformException& e) {
+      reject("unknown frame '" + frame + "': " + e.what());
+      return false;
+    }
+  }
+
+  void reject(const std::string& why) {
+    ++rejected_targets_;
+    message_ = "rejected: " + why;
+    ROS_WARN_THROTTLE(1.0, "controller: %s", message_.c_str());
+  }
+
+  void commanded(const char* what) {
+    message_ = controller_->commands_pending()
+                   ? std::string(what) + " stored: the controller is not running, it is used at start"
+                   : std::string(what) + ": " + control::to_string(controller_->reference().source()) + " drives";
+  }
+
+  void publish_reachable_set() {
+    const control::ReachableSet& set = controller_->reachable_set();
+    hydrojet_control::ReachableSet m;
+    m.header.stamp = ros::Time::now();
+    m.header.frame_id = opts_.base_frame;
+    m.center = to_msg(set.center());
+    for (const Eigen::Vector3d& d : set.boundary()) m.boundary.push_back(to_msg(d));
+    m.min_stability_margin = opts_.controller.min_stability_margin;
+    m.compute_time = set.compute_time();
+    reachable_pub_.publish(m);
+    ROS_INFO("controller: reachable set: %zu boundary directions, computed in %.3f s", set.boundary().size(),
+             set.compute_time());
+  }
+
   void on_tip_pose(const geometry_msgs::PoseStamped::ConstPtr& m) {
     tip_ = *m;
     have_tip_ = true;
@@ -122,7 +371,8 @@ class ControllerNode {
   bool on_start(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
     controller_->start(ros::Time::now().toSec());
     res.success = true;
-    res.message = std::string("path started, ") + control::to_string(controller_->params().mode) + " loop";
+    res.message = std::string("started: ") + control::to_string(controller_->reference().source()) + " drives, " +
+                  control::to_string(controller_->params().mode) + " loop";
     ROS_INFO("controller: %s", res.message.c_str());
     return true;
   }
@@ -158,6 +408,7 @@ class ControllerNode {
       ROS_ERROR("controller: ABORT, jets off: %s", out.reason.c_str());
     last_state_ = out.state;
     last_ = out;
+    follow_path_->cycle(now, out);
 
     publish_command(now, out);
     const hydrojet_control::ControllerStatus st = publish_status(now, out);
@@ -220,6 +471,11 @@ class ControllerNode {
     copy_jets(out.jet_force_observed, st.jet_force_observed);
     st.force_reachable = out.force_reachable;
     st.solver_converged = out.solver_converged;
+    st.message = message_;
+    st.source = control::to_string(controller_->reference().source());
+    st.clipped = out.clipped;
+    st.clip_angle = out.clip_angle;
+    st.rejected_targets = rejected_targets_;
     status_pub_.publish(st);
     return st;
   }
@@ -272,9 +528,16 @@ class ControllerNode {
 
   ros::NodeHandle nh_, pnh_;
   config::ControllerNodeOptions opts_;
+  tf2_ros::Buffer tf_;
+  tf2_ros::TransformListener tf_listener_;
   std::unique_ptr<control::Controller> controller_;
+  std::unique_ptr<control::LookAtSolver> look_at_;
+  std::unique_ptr<FollowPathServer> follow_path_;
+  std::string message_;            ///< the status message: the last command, rejection or goal event
+  uint32_t rejected_targets_ = 0;  ///< since the node started
   ros::Subscriber tip_sub_, base_sub_, jet_sub_;
-  ros::Publisher cmd_pub_, status_pub_, rod_pub_, target_pub_;
+  ros::Subscriber target_sub_, look_at_sub_, clicked_sub_, joy_sub_, view_rate_sub_;
+  ros::Publisher cmd_pub_, status_pub_, rod_pub_, target_pub_, reachable_pub_;
   ros::ServiceServer start_srv_, stop_srv_, mode_srv_;
   ros::Timer timer_;
   boost::recursive_mutex reconfigure_mutex_;

@@ -32,6 +32,18 @@ inline actuation::FlowRegulatorOptions rig_flow_regulator() {
   return f;
 }
 
+/// Rate teleoperation by joystick (sensor_msgs/Joy, ROS joy conventions: axes in [−1, 1], stick pushed
+/// UP or LEFT reads +1). The view rate of a direction is scale × axis value [rad/s]; up = about the tip
+/// frame's +x axis, right = about its +y axis. Defaults equal config/teleop.yaml (test_controller).
+struct TeleopOptions {
+  int axis_up = 1;            ///< axis that tilts the view up (+) and down (−): left stick vertical
+  double scale_up = 0.1;      ///< [rad/s] at full deflection; + : stick up (+1) tilts the view up
+  int axis_right = 0;         ///< axis that turns the view right and left: left stick horizontal
+  double scale_right = -0.1;  ///< [rad/s]; − : stick right reads −1 and turns the view right
+  int deadman_button = 4;     ///< must be held (1) for the axes to act: LB on an Xbox-style pad
+  double timeout = 0.5;       ///< no joy or keyboard message for this long [s]: hold
+};
+
 /// Options of controller_node and the tools that run the controller. Default values equal
 /// config/controller.yaml (checked field by field by test_controller).
 struct ControllerNodeOptions {
@@ -41,10 +53,11 @@ struct ControllerNodeOptions {
   std::string base_frame = "base";  ///< frame of the rod model (REP 105-style name)
   control::ControllerOptions controller;
   actuation::FlowRegulatorOptions flow_regulator = rig_flow_regulator();
+  TeleopOptions teleop;  ///< teleop/* keys (config/teleop.yaml)
 };
 
 /// Parses a mapping with keys scene, rate, mode, autostart, base_frame, gains/*, limits/*,
-/// allocation_weight, integrate_from_measured, safety/*, path/*, flow_regulator/*. Unknown keys and
+/// allocation_weight, integrate_from_measured, safety/*, path/*, flow_regulator/*, teleop/*. Unknown keys and
 /// invalid values throw ParamError("<key>: <what>").
 ControllerNodeOptions parse_controller_options(const YAML::Node& root);
 /// Reads a YAML file of controller options.

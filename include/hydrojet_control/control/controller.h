@@ -2,12 +2,14 @@
 // with tracker feedback or open loop with the model's prediction (§7.3), guarded by the safety
 // monitor. One cycle, update(), runs these named steps:
 //   time and sensor checks (SafetyMonitor) → observe_jets (Algorithm 1, line 4) → solve_model
-//   (line 6) → solver and stability checks → track_path (x_des, x_obs) → oscillation check →
+//   (line 6) → solver and stability checks → track_reference (x_des from the Reference: the
+//   operator's source, rate-limited and clipped to the reachable set; x_obs) → oscillation check →
 //   command_force (lines 5, 7, 9/12: DirectionPd, force_change, ForceLimiter) → actuate (eq. 20,
 //   eq. 26, flow regulators: JetActuation) → finish_cycle.
 // ROS-free (Eigen, the rod and actuation libraries). Time is passed in; nothing reads a clock.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -15,6 +17,8 @@
 #include "hydrojet_control/control/controller_options.h"
 #include "hydrojet_control/control/force_limiter.h"
 #include "hydrojet_control/control/jet_actuation.h"
+#include "hydrojet_control/control/reachable_set.h"
+#include "hydrojet_control/control/reference.h"
 #include "hydrojet_control/control/resolved_rates.h"
 #include "hydrojet_control/control/robot_model.h"
 #include "hydrojet_control/control/safety_monitor.h"
@@ -25,18 +29,40 @@ namespace control {
 
 class Controller {
  public:
+  /// Computes the reachable set of `model` once: σ_c ≥ params.min_stability_margin, jet forces up to
+  /// params.reachable_force_fraction · q_max.
   Controller(const RobotModel& model, const ControllerOptions& params);
 
-  /// Starts the path at time t (also after an abort or the end). Jets start from zero.
+  /// Starts at time t (also after an abort or the end); jets start from zero. What drives: the
+  /// commands given since the last stop or abort, else the configured path_type (the spiral from
+  /// its start, or hold the measured direction).
   void start(double t);
-  /// Stops: jets to zero, state idle.
+  /// Stops: jets to zero, state idle; forgets the commands.
   void stop();
+
+  // Operator commands (the latest wins; see Reference). Running: they take effect on the next
+  // update() (a finished path goes back to running). Idle or aborted: kept for the next start().
+  /// Follow `path` from time t [s].
+  void follow(std::shared_ptr<const Path> path, double t);
+  /// Move to the fixed direction `target` (unit, base frame); kDirection or kLookAt.
+  void aim(const Vec3& target, Source source);
+  /// View rates (up, right) [rad/s] about the tip frame's +x, +y axes until time `until` [s]; kJoy or kKeyboard.
+  void turn(const Eigen::Vector2d& up_right, Source source, double until);
+  /// Hold the reference where it is.
+  void hold();
+  /// Commands were given while idle or aborted; start() will use them.
+  bool commands_pending() const { return commands_pending_; }
+  const Reference& reference() const { return reference_; }
+  const ReachableSet& reachable_set() const { return *reachable_; }
+
   /// Switches between closed and open loop (takes effect on the next update).
   void set_mode(LoopMode mode) { params_.mode = mode; }
   /// New gains/limits (validated by the caller); the state is kept.
   void set_params(const ControllerOptions& p);
   const ControllerOptions& params() const { return params_; }
   ControllerState state() const { return state_; }
+  /// Why it aborted (empty unless aborted).
+  const std::string& abort_reason() const { return abort_reason_; }
   /// Number of jets (entries of every JetVector in and out).
   int jet_count() const { return jets_.jet_count(); }
 
@@ -56,7 +82,9 @@ class Controller {
   rod::RodSolution solve_model(const rod::Vec6& wrench);
   ControllerOutput hold(ControllerOutput out, const JetVector& flows, double dt);
   std::string check_stability(const rod::Compliance& compliance, ControllerOutput& out) const;
-  void track_path(const ControllerInputs& in, const rod::RodSolution& sol, ControllerOutput& out) const;
+  void start_configured_path(double t);
+  void commanded();
+  void track_reference(const ControllerInputs& in, const rod::RodSolution& sol, double dt, ControllerOutput& out);
   std::string command_force(const rod::RodSolution& sol, const rod::Compliance& compliance, double dt,
                             ControllerOutput& out);
   std::string actuate(const JetVector& flows, double dt, ControllerOutput& out);
@@ -70,6 +98,9 @@ class Controller {
   SafetyMonitor monitor_;
   DirectionPd pd_;
   ForceLimiter limiter_;
+  std::shared_ptr<const ReachableSet> reachable_;
+  Reference reference_;
+  bool commands_pending_ = false;  ///< commands given while idle or aborted, for the next start()
   ControllerState state_ = ControllerState::kIdle;
   std::string abort_reason_;
   double t_start_ = 0.0;

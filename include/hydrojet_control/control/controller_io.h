@@ -5,6 +5,7 @@
 
 #include <string>
 
+#include "hydrojet_control/control/reference.h"
 #include "hydrojet_control/control/robot_model.h"
 #include "hydrojet_control/control/task_space.h"
 
@@ -35,7 +36,10 @@ struct ControllerOutput {
   JetVector jet_force_observed;                   ///< q_obs from measured flow [N]
   rod::Vec6 wrench_observed = rod::Vec6::Zero();  ///< w_a = A q_obs (Algorithm 1, line 4)
   rod::Vec6 wrench_command = rod::Vec6::Zero();   ///< w_a + ẇ^b after limits
-  Vec3 desired_direction = Vec3::UnitZ();         ///< x_des: tip z-axis, base frame
+  Vec3 desired_direction = Vec3::UnitZ();         ///< x_des: tip z-axis, base frame (the reference)
+  Source source = Source::kHold;                  ///< who drives the reference
+  bool clipped = false;                           ///< the target was outside the reachable set ...
+  double clip_angle = 0.0;                        ///< ... and moved by this much [rad]
   Vec3 observed_direction = Vec3::UnitZ();        ///< x_obs used by the loop (tracker or model)
   Vec3 measured_direction = Vec3::UnitZ();        ///< from the tracker (for metrics, both modes)
   Mat3 model_tip_rotation = Mat3::Identity();

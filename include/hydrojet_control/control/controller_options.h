@@ -14,30 +14,39 @@ namespace control {
 enum class LoopMode { kClosed, kOpen };
 const char* to_string(LoopMode m);
 
+/// What the controller does at start: follow the spiral of `path` (§7.1), or hold the measured direction.
+enum class PathType { kSpiral, kNone };
+const char* to_string(PathType t);
+
 /// Gains, limits and safety thresholds. validate() names the first bad field.
 struct ControllerOptions {
   LoopMode mode = LoopMode::kClosed;
-  double kp = 3.0;                  ///< K_p of eq. (17) [1/s]: fraction of the direction error corrected per second
-  double kd = 0.0;                  ///< K_d of eq. (17) [-]: weight of the error change per step
-  double feedforward = 1.0;         ///< weight of the path's own motion per step [-] (0 = pure PD)
-  double damping = 0.02;            ///< μ of the damped pseudo-inverse of eq. (19) [rad/N]
-  double max_force = 0.30;          ///< magnitude limit of the commanded tip force [N]
-  double max_force_rate = 1.0;      ///< rate limit of the commanded tip force [N/s]
+  double kp = 3.0;                 ///< K_p of eq. (17) [1/s]: fraction of the direction error corrected per second
+  double kd = 0.0;                 ///< K_d of eq. (17) [-]: weight of the error change per step
+  double feedforward = 1.0;        ///< weight of the path's own motion per step [-] (0 = pure PD)
+  double damping = 0.02;           ///< μ of the damped pseudo-inverse of eq. (19) [rad/N]
+  double max_force = 0.30;         ///< magnitude limit of the commanded tip force [N]
+  double max_force_rate = 1.0;     ///< rate limit of the commanded tip force [N/s]
+  double max_angular_rate = 0.25;  ///< the reference moves toward a new target at most this fast [rad/s]
+  /// The reachable set is swept with this fraction of each jet's q_max: authority kept in reserve for
+  /// the closed loop (model mismatch, valves that saturate below their nominal flow) [-], in (0, 1].
+  double reachable_force_fraction = 0.8;
   double allocation_weight = 1e-6;  ///< λ of eq. (20) [-]
   /// Base of the new wrench command: false = the previous command (default), true = the measured
   /// w_a as printed in Algorithm 1, line 9.
   bool integrate_from_measured = false;
   // Safety (§7.3 and the brief); see SafetyMonitor.
-  double max_oscillation = 0.5;         ///< abort when the desired–measured tip angle exceeds this [rad]
-                                        ///< (armed once the tip has come within the limit)
-  double sample_period = 0.01;          ///< tracker and flow sample period [s]
-  int stale_periods = 3;                ///< data older than stale_periods·sample_period is stale
-  int max_solver_failures = 2;          ///< abort after this many non-converged solves in a row
-  double min_stability_margin = 0.5;    ///< abort when σ_c (eq. 23) falls below this [N/m]
-  double unreachable_tolerance = 1e-3;  ///< allocation residual [N] above which the force is out of reach
-  double flow_fault_tolerance = 3e-6;   ///< |measured − commanded flow| that counts as a jet fault [m^3/s]
-  double flow_fault_time = 0.5;         ///< a deviation twice the tolerance trips after this long [s]
-                                        ///< (the excess over the tolerance is integrated)
+  double max_oscillation = 0.5;            ///< abort when the desired–measured tip angle exceeds this [rad]
+                                           ///< (armed once the tip has come within the limit)
+  double sample_period = 0.01;             ///< tracker and flow sample period [s]
+  int stale_periods = 3;                   ///< data older than stale_periods·sample_period is stale
+  int max_solver_failures = 2;             ///< abort after this many non-converged solves in a row
+  double min_stability_margin = 0.5;       ///< abort when σ_c (eq. 23) falls below this [N/m]
+  double unreachable_tolerance = 1e-3;     ///< allocation residual [N] above which the force is out of reach
+  double flow_fault_tolerance = 3e-6;      ///< |measured − commanded flow| that counts as a jet fault [m^3/s]
+  double flow_fault_time = 0.5;            ///< a deviation twice the tolerance trips after this long [s]
+                                           ///< (the excess over the tolerance is integrated)
+  PathType path_type = PathType::kSpiral;  ///< at start: the spiral `path`, or hold (kNone)
   SpiralPath path;
 
   /// Empty when valid, else "<field>: <what is wrong>". The gains and limits that

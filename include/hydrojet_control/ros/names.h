@@ -29,6 +29,9 @@ constexpr char kReachableSet[] = "controller/reachable_set";  ///< hydrojet_cont
 constexpr char kJoy[] = "joy";                                ///< sensor_msgs/Joy (joystick_node)
 constexpr char kDiagnostics[] = "/diagnostics";               ///< diagnostic_msgs/DiagnosticArray
 
+// Actions (actionlib: the goal, cancel, status, feedback and result topics under this name)
+constexpr char kFollowPathAction[] = "controller/follow_path";  ///< hydrojet_control/FollowPath
+
 // Services
 constexpr char kStartService[] = "controller/start";             ///< std_srvs/Trigger
 constexpr char kStopService[] = "controller/stop";               ///< std_srvs/Trigger
@@ -38,7 +41,8 @@ constexpr char kClosedLoopService[] = "controller/closed_loop";  ///< std_srvs/S
 constexpr const char* kTopics[] = {kTipPose,  kBasePose,      kTipRms,           kBaseRms,
                                    kJetState, kJetCommand,    kControllerStatus, kControllerTarget,
                                    kRodState, kPlantRodState, kViewMarkers,      kCalibrationResult,
-                                   kClock,    kJoy,           kDiagnostics};
+                                   kClock,    kJoy,           kDiagnostics,      kTargetDirection,
+                                   kLookAt,   kClickedPoint,  kViewRate,         kReachableSet};
 constexpr const char* kServices[] = {kStartService, kStopService, kClosedLoopService};
 
 }  // namespace names

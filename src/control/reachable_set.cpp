@@ -1,0 +1,205 @@
+#include "hydrojet_control/control/reachable_set.h"
+
+#include <chrono>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "force_polygon.h"
+
+namespace hydrojet {
+namespace control {
+namespace {
+
+constexpr double kTwoPi = 2.0 * M_PI;
+
+/// The sweep's rays per boundary bin: the polygon's edge maps onto the boundary unevenly (gravity,
+/// precurvature), so several edge samples per bin keep every bin filled.
+constexpr int kRaysPerBin = 2;
+
+/// Jet forces of `model` as the 3-jet vector of eq. (24).
+Eigen::Vector3d jet_force_bounds(const RobotModel& model) {
+  if (model.max_jet_force.size() != 3)
+    throw std::invalid_argument("max_jet_force: " + std::to_string(model.max_jet_force.size()) + " entries for 3 jets");
+  return model.max_jet_force;
+}
+
+/// The force-space sweep: solve + C^b + stability (eq. 23) per lateral tip force, warm-started
+/// along a serpentine of rays of the force polygon (outward on even rays, inward on odd ones).
+class ForceSweep {
+ public:
+  ForceSweep(const RobotModel& model, const ReachableSetOptions& options)
+      : model_(model),
+        options_(options),
+        jets_(model.jets),
+        polygon_(jets_.planar(), jet_force_bounds(model)),
+        wrench_per_force_(wrench_per_force(jets_)),
+        solver_(model.rod, model.solver) {}
+
+  /// The tip z-axis with the jets off (unit, base frame); false when the solve fails.
+  bool zero_force_direction(Vec3* d) { return tip_direction(Eigen::Vector2d::Zero(), d); }
+
+  /// The accepted directions: converged, σ_c ≥ min_stability_margin and eig_min > 0.
+  std::vector<Vec3> accepted_directions() {
+    std::vector<Vec3> out;
+    const int rays = kRaysPerBin * options_.azimuth_bins, rings = options_.force_samples;
+    Vec3 d;
+    if (accepted(Eigen::Vector2d::Zero(), &d)) out.push_back(d);
+    for (int j = 0; j < rays; ++j) {
+      const Eigen::Vector2d u(std::cos(kTwoPi * j / rays), std::sin(kTwoPi * j / rays));
+      const double extent = polygon_.extent(u);
+      for (int kk = 1; kk <= rings; ++kk) {
+        const int k = j % 2 == 0 ? kk : rings + 1 - kk;
+        if (accepted(extent * k / rings * u, &d)) out.push_back(d);
+      }
+    }
+    return out;
+  }
+
+ private:
+  bool tip_direction(const Eigen::Vector2d& force, Vec3* d) {
+    const rod::Vec6 w = wrench_per_force_ * force;
+    rod::TipWrench tip;
+    tip.force = w.head<3>();
+    tip.moment = w.tail<3>();
+    const rod::RodSolution s = solver_.solve(tip);
+    *d = s.tip_rotation.col(2);
+    return s.converged;
+  }
+
+  bool accepted(const Eigen::Vector2d& force, Vec3* d) {
+    if (!tip_direction(force, d)) return false;
+    const rod::Compliance C = solver_.compliance();
+    if (!C.ok) return false;
+    const rod::StabilityReport st = rod::stability(C.body, model_.actuated);
+    return st.ok && st.margin >= options_.min_stability_margin && st.eig_min > 0.0;
+  }
+
+  const RobotModel& model_;
+  const ReachableSetOptions& options_;
+  actuation::JetMap jets_;
+  ForcePolygon polygon_;
+  Eigen::Matrix<double, 6, 2> wrench_per_force_;
+  rod::ShootingSolver solver_;
+};
+
+/// The point of the great-circle arc a→b (shorter than π) nearest to the unit vector p.
+Vec3 nearest_on_arc(const Vec3& a, const Vec3& b, const Vec3& p) {
+  const Vec3 n = a.cross(b);
+  if (n.norm() > 1e-15) {
+    const Vec3 nh = n.normalized();
+    const Vec3 q = p - p.dot(nh) * nh;  // p projected onto the arc's plane
+    if (q.norm() > 1e-15) {
+      const Vec3 qh = q.normalized();
+      if (a.cross(qh).dot(nh) >= 0.0 && qh.cross(b).dot(nh) >= 0.0) return qh;
+    }
+  }
+  return p.dot(a) >= p.dot(b) ? a : b;
+}
+
+}  // namespace
+
+std::string ReachableSetOptions::validate() const {
+  std::ostringstream os;
+  if (!std::isfinite(min_stability_margin) || min_stability_margin < 0.0)
+    os << "min_stability_margin: must be finite and >= 0, got " << min_stability_margin;
+  else if (force_samples < 4)
+    os << "force_samples: must be >= 4, got " << force_samples;
+  else if (azimuth_bins < 8)
+    os << "azimuth_bins: must be >= 8, got " << azimuth_bins;
+  return os.str();
+}
+
+ReachableSet ReachableSet::compute(const RobotModel& model, const ReachableSetOptions& options) {
+  if (std::string err = options.validate(); !err.empty()) throw std::invalid_argument(err);
+  const auto t0 = std::chrono::steady_clock::now();
+  ReachableSet set;
+  ForceSweep sweep(model, options);
+  if (sweep.zero_force_direction(&set.center_)) {
+    set.samples_ = sweep.accepted_directions();
+    set.build_boundary(options.azimuth_bins);
+  }
+  set.compute_time_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return set;
+}
+
+double ReachableSet::azimuth_about_center(const Vec3& d) const {
+  const double a = std::atan2(d.dot(e2_), d.dot(e1_));
+  return a < 0.0 ? a + kTwoPi : a;
+}
+
+Vec3 ReachableSet::polar_point(double angle, double azimuth) const {
+  return std::cos(angle) * center_ + std::sin(angle) * (std::cos(azimuth) * e1_ + std::sin(azimuth) * e2_);
+}
+
+int ReachableSet::bin_of(double azimuth) const {
+  const int bins = static_cast<int>(max_angle_.size());
+  return std::min(bins - 1, static_cast<int>(azimuth / kTwoPi * bins));
+}
+
+void ReachableSet::build_boundary(int bins) {
+  if (samples_.empty()) return;
+  e1_ = Vec3::UnitX() - center_.x() * center_;
+  if (e1_.norm() < 1e-6) e1_ = Vec3::UnitY() - center_.y() * center_;
+  e1_.normalize();
+  e2_ = center_.cross(e1_);
+  max_angle_.assign(bins, -1.0);
+  vertex_azimuth_.assign(bins, 0.0);
+  boundary_.assign(bins, center_);
+  for (const Vec3& s : samples_) {
+    const double angle = angle_from_center(s), azimuth = azimuth_about_center(s);
+    const int b = bin_of(azimuth);
+    if (angle <= max_angle_[b]) continue;
+    max_angle_[b] = angle;
+    boundary_[b] = s;
+    vertex_azimuth_[b] = angle > 1e-12 ? azimuth : kTwoPi * (b + 0.5) / bins;
+  }
+  const std::vector<double> sampled = max_angle_;
+  for (int b = 0; b < bins; ++b) {
+    if (sampled[b] >= 0.0) continue;
+    double left = -1.0, right = -1.0;
+    for (int k = 1; k < bins && (left < 0.0 || right < 0.0); ++k) {
+      if (left < 0.0) left = sampled[(b - k + bins) % bins];
+      if (right < 0.0) right = sampled[(b + k) % bins];
+    }
+    max_angle_[b] = std::min(left, right);
+    vertex_azimuth_[b] = kTwoPi * (b + 0.5) / bins;
+    boundary_[b] = polar_point(max_angle_[b], vertex_azimuth_[b]);
+  }
+}
+
+bool ReachableSet::contains(const Vec3& direction) const {
+  if (empty()) return false;
+  const Vec3 d = direction.normalized();
+  if (angle_from_center(d) < 1e-12) return true;
+  const int bins = static_cast<int>(boundary_.size());
+  const double azimuth = azimuth_about_center(d);
+  const int b = bin_of(azimuth);
+  const int k0 = azimuth >= vertex_azimuth_[b] ? b : (b + bins - 1) % bins;
+  const Vec3& a = boundary_[k0];
+  const Vec3& c = boundary_[(k0 + 1) % bins];
+  // Inside the wedge's spherical triangle (centre, a, c): on the centre's side of the arc a→c.
+  return d.dot(a.cross(c)) >= -1e-12;
+}
+
+Vec3 ReachableSet::clip(const Vec3& direction, double* moved) const {
+  const Vec3 d = direction.normalized();
+  Vec3 best = center_;
+  if (!empty() && contains(d)) {
+    best = d;
+  } else if (!empty()) {
+    double best_dot = -2.0;
+    for (size_t k = 0; k < boundary_.size(); ++k) {
+      const Vec3 q = nearest_on_arc(boundary_[k], boundary_[(k + 1) % boundary_.size()], d);
+      if (q.dot(d) > best_dot) {
+        best_dot = q.dot(d);
+        best = q;
+      }
+    }
+  }
+  if (moved) *moved = best == d ? 0.0 : geodesic_error(d, best);
+  return best;
+}
+
+}  // namespace control
+}  // namespace hydrojet

@@ -1,0 +1,94 @@
+#include "hydrojet_control/control/reference.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+
+namespace hydrojet {
+namespace control {
+
+const char* to_string(Source s) {
+  switch (s) {
+    case Source::kPath: return "path";
+    case Source::kDirection: return "direction";
+    case Source::kLookAt: return "look_at";
+    case Source::kJoy: return "joy";
+    case Source::kKeyboard: return "keyboard";
+    case Source::kHold: return "hold";
+  }
+  return "unknown";
+}
+
+Reference::Reference(double max_angular_rate, std::shared_ptr<const ReachableSet> reachable)
+    : max_rate_(max_angular_rate), reachable_(std::move(reachable)) {}
+
+void Reference::follow(std::shared_ptr<const Path> path, double t, bool starts_at_path) {
+  source_ = Source::kPath;
+  path_ = std::move(path);
+  path_start_ = t;
+  jump_to_path_ = starts_at_path;
+}
+
+void Reference::aim(const Vec3& target, Source source) {
+  source_ = source;
+  set_target(target.normalized());
+}
+
+void Reference::turn(const Eigen::Vector2d& up_right, Source source, double until) {
+  if (source_ != source) target_ = reference_;  // a rate source turns the reference from where it is
+  source_ = source;
+  const double norm = up_right.norm();
+  rate_ = norm > max_rate_ ? Eigen::Vector2d(up_right * (max_rate_ / norm)) : up_right;
+  rate_until_ = until;
+}
+
+void Reference::hold() {
+  source_ = Source::kHold;
+  target_ = reference_;
+  clip_angle_ = 0.0;
+}
+
+void Reference::start(const Vec3& direction, double t) {
+  if (source_ == Source::kPath) path_start_ = t;
+  if (source_ == Source::kPath && jump_to_path_) return;  // advance() puts the reference on the path
+  reference_ = direction;
+  if (source_ == Source::kHold || source_ == Source::kJoy || source_ == Source::kKeyboard) target_ = direction;
+}
+
+const Vec3& Reference::advance(double t, double dt, const Mat3& tip_frame) {
+  if (source_ == Source::kPath) {
+    set_target(path_->direction_at(t - path_start_));
+    if (jump_to_path_) reference_ = target_;
+    jump_to_path_ = false;
+  } else if (source_ == Source::kJoy || source_ == Source::kKeyboard) {
+    if (t > rate_until_) {
+      hold();  // no deadman or no message for the timeout: hold where it is
+    } else {
+      const Vec3 omega = tip_frame.col(0) * rate_.x() + tip_frame.col(1) * rate_.y();  // [rad/s], base frame
+      const double angle = omega.norm() * dt;
+      if (angle > 0.0) set_target(Eigen::AngleAxisd(angle, omega.normalized()) * target_);
+    }
+  }
+  move_toward_target(dt);
+  return reference_;
+}
+
+// The commanded direction (unit) clipped to the reachable set.
+void Reference::set_target(const Vec3& target) {
+  clip_angle_ = 0.0;
+  target_ = reachable_ ? reachable_->clip(target, &clip_angle_) : target;
+}
+
+// Along the great circle toward the target, at most max_angular_rate·dt; exactly onto it when closer.
+void Reference::move_toward_target(double dt) {
+  const Vec3 rotation = rotation_between(reference_, target_);
+  const double angle = rotation.norm(), step = max_rate_ * dt;
+  if (angle <= step) {
+    reference_ = target_;
+    return;
+  }
+  reference_ = (Eigen::AngleAxisd(step, rotation / angle) * reference_).normalized();
+}
+
+}  // namespace control
+}  // namespace hydrojet

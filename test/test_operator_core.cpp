@@ -1,0 +1,518 @@
+// Operator control's core pieces (issue 13), each against an independent truth: paths (slerp
+// waypoints vs the closed form, raster rows and speed, the spiral bit for bit, the file loaders), the
+// reachable set (contains() vs the sweep samples, clip() vs a brute-force nearest point of the
+// boundary, the §7 spiral inside at 0° and 30°) and the look-at solver (the aimed line through the
+// point on a second, independent model solve; refusals).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <random>
+#include <stdexcept>
+
+#include "hydrojet_control/actuation/allocation.h"
+#include "hydrojet_control/control/look_at.h"
+#include "hydrojet_control/control/path.h"
+#include "hydrojet_control/control/reachable_set.h"
+#include "test_helpers.h"
+
+using namespace hydrojet;
+using control::Vec3;
+
+namespace {
+
+double angle(const Vec3& a, const Vec3& b) { return control::geodesic_error(a, b); }
+
+/// The message of the std::invalid_argument that f throws ("" if none).
+template <class F>
+std::string error_of(F f) {
+  try {
+    f();
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
+std::string write_file(const std::string& name, const std::string& text) {
+  const std::string path = ::testing::TempDir() + name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+control::RobotModel model(const std::string& scene) {
+  return config::make_controller_model(test::scene(scene), actuation::FlowRegulatorOptions());
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Paths
+// ---------------------------------------------------------------------------------------------
+
+TEST(Paths, SpiralThroughPathIsBitIdentical) {
+  control::SpiralPath s;  // the §7.1 spiral of config/controller.yaml
+  const auto p = control::make_spiral(s);
+  EXPECT_STREQ(p->type(), "spiral");
+  EXPECT_EQ(p->duration(), s.duration);
+  for (double t = -3.0; t <= 650.0; t += 0.37) {
+    const Vec3 a = p->direction_at(t), b = s.direction_at(t);
+    for (int k = 0; k < 3; ++k) ASSERT_EQ(a[k], b[k]) << "t = " << t;
+  }
+}
+
+TEST(Paths, WaypointsFollowTheGreatCircleAtConstantRate) {
+  const Vec3 a = control::direction(0.3, 0.2), b = control::direction(0.9, 2.0), c = control::direction(0.1, -1.0);
+  const auto p = control::make_waypoints({{1.0, 2.0 * a}, {5.0, b}, {7.0, 0.5 * c}});  // lengths normalised
+  EXPECT_STREQ(p->type(), "waypoints");
+  EXPECT_EQ(p->duration(), 7.0);
+  const Vec3 normal = a.cross(b).normalized();
+  for (double t = 1.0; t <= 5.0; t += 0.05) {
+    const Vec3 d = p->direction_at(t);
+    EXPECT_NEAR(d.norm(), 1.0, 1e-14);
+    EXPECT_NEAR(d.dot(normal), 0.0, 1e-14) << "on the great circle through a and b";
+    EXPECT_NEAR(angle(a, d), (t - 1.0) / 4.0 * angle(a, b), 1e-12) << "angle proportional to time";
+    EXPECT_NEAR(angle(d, b), (5.0 - t) / 4.0 * angle(a, b), 1e-12) << "between a and b";
+  }
+  EXPECT_NEAR(angle(p->direction_at(6.0), b), 0.5 * angle(b, c), 1e-12);
+  EXPECT_NEAR(angle(p->direction_at(-1.0), a), 0.0, 1e-15) << "holds the first before its time";
+  EXPECT_NEAR(angle(p->direction_at(0.5), a), 0.0, 1e-15);
+  EXPECT_NEAR(angle(p->direction_at(100.0), c), 0.0, 1e-15) << "holds the last after the end";
+}
+
+TEST(Paths, WaypointErrorsNameTheWaypoint) {
+  using W = control::Waypoint;
+  const Vec3 z = Vec3::UnitZ(), x = Vec3::UnitX();
+  const auto err = [](const std::vector<W>& w) { return error_of([&] { control::make_waypoints(w); }); };
+  EXPECT_EQ(err({}).rfind("waypoints:", 0), 0u) << err({});
+  EXPECT_EQ(err({{-1.0, z}}).rfind("waypoints[0].t:", 0), 0u);
+  EXPECT_EQ(err({{0.0, z}, {1.0, x}, {1.0, z}}).rfind("waypoints[2].t:", 0), 0u);
+  EXPECT_EQ(err({{0.0, z}, {NAN, x}}).rfind("waypoints[1].t:", 0), 0u);
+  EXPECT_EQ(err({{0.0, z}, {1.0, Vec3::Zero()}}).rfind("waypoints[1].direction:", 0), 0u);
+  EXPECT_EQ(err({{0.0, Vec3(NAN, 0, 1)}}).rfind("waypoints[0].direction:", 0), 0u);
+  EXPECT_EQ(err({{0.0, z}, {1.0, -z}}).rfind("waypoints[1].direction: opposite", 0), 0u);
+  EXPECT_EQ(err({{0.0, z}, {1.0, x}}), "");
+}
+
+TEST(Paths, RasterRowsHaveConstantThetaAndTheSpeed) {
+  control::RasterOptions r;
+  r.theta_min = 0.2, r.theta_max = 0.6, r.rows = 3, r.phi_start = -1.0, r.phi_end = 1.0, r.speed = 0.05;
+  const auto p = control::make_raster(r);
+  EXPECT_STREQ(p->type(), "raster");
+  // Closed form: rows of 2 sin ϑ_i of arc, two meridian steps of 0.2 rad, all at 0.05 rad/s.
+  const double row[3] = {2.0 * std::sin(0.2) / 0.05, 2.0 * std::sin(0.4) / 0.05, 2.0 * std::sin(0.6) / 0.05};
+  const double step = 0.2 / 0.05;
+  ASSERT_NEAR(p->duration(), row[0] + row[1] + row[2] + 2.0 * step, 1e-9);
+  const double row_start[3] = {0.0, row[0] + step, row[0] + row[1] + 2.0 * step};
+  for (int i = 0; i < 3; ++i) {
+    const double theta = 0.2 + 0.2 * i;
+    for (double s = 0.0; s <= 1.0; s += 0.01) {
+      const Vec3 d = p->direction_at(row_start[i] + s * row[i]);
+      EXPECT_NEAR(control::bend_angle(d), theta, 1e-12) << "row " << i;
+      const double phi = i % 2 == 0 ? -1.0 + 2.0 * s : 1.0 - 2.0 * s;  // boustrophedon
+      EXPECT_NEAR(control::azimuth(d), phi, 1e-9) << "row " << i;
+    }
+  }
+  const double dt = 1e-3;  // speed along the whole path, corners included
+  for (double t = 0.0; t + dt <= p->duration(); t += 0.25)
+    EXPECT_NEAR(angle(p->direction_at(t), p->direction_at(t + dt)) / dt, 0.05, 1e-6) << "t = " << t;
+  EXPECT_NEAR(angle(p->direction_at(1e9), control::direction(0.6, 1.0)), 0.0, 1e-15);
+}
+
+TEST(Paths, RasterOptionsAreValidated) {
+  const auto err = [](auto change) {
+    control::RasterOptions r;
+    change(r);
+    return r.validate();
+  };
+  EXPECT_EQ(err([](control::RasterOptions&) {}), "");
+  EXPECT_EQ(err([](control::RasterOptions& r) { r.rows = 0; }).rfind("rows:", 0), 0u);
+  EXPECT_EQ(err([](control::RasterOptions& r) { r.speed = 0.0; }).rfind("speed:", 0), 0u);
+  EXPECT_EQ(err([](control::RasterOptions& r) { r.theta_max = 0.1; }).rfind("theta_max:", 0), 0u);
+  EXPECT_EQ(err([](control::RasterOptions& r) { r.theta_min = -0.1; }).rfind("theta_min:", 0), 0u);
+  EXPECT_EQ(err([](control::RasterOptions& r) { r.phi_end = r.phi_start; }).rfind("phi_end:", 0), 0u);
+  control::RasterOptions bad;
+  bad.rows = 0;
+  EXPECT_EQ(error_of([&] { control::make_raster(bad); }).rfind("rows:", 0), 0u);
+}
+
+TEST(PathFiles, CsvAndYamlGiveTheTableLinearOnTheSphere) {
+  const std::string csv = write_file("path_good.csv",
+                                     "t, theta, phi\n"
+                                     "# a comment\n"
+                                     "0, 0.1, 0.0\n"
+                                     "2.0 0.5 1.0\n"
+                                     "\n"
+                                     "4,0.5,2.0   # the end\n");
+  const std::string yaml = write_file("path_good.yaml",
+                                      "- [0, 0.1, 0.0]\n"
+                                      "- {t: 2.0, theta: 0.5, phi: 1.0}\n"
+                                      "- [4, 0.5, 2.0]\n");
+  for (const std::string& f : {csv, yaml}) {
+    const auto p = control::load_path_file(f);
+    EXPECT_STREQ(p->type(), "file");
+    EXPECT_EQ(p->duration(), 4.0);
+    const Vec3 d0 = control::direction(0.1, 0.0), d1 = control::direction(0.5, 1.0), d2 = control::direction(0.5, 2.0);
+    EXPECT_NEAR(angle(p->direction_at(0.0), d0), 0.0, 1e-15) << f;
+    EXPECT_NEAR(angle(p->direction_at(2.0), d1), 0.0, 1e-15) << f;
+    EXPECT_NEAR(angle(p->direction_at(4.0), d2), 0.0, 1e-15) << f;
+    EXPECT_NEAR(angle(p->direction_at(0.5), d0), 0.25 * angle(d0, d1), 1e-12) << f;
+    EXPECT_NEAR(angle(p->direction_at(3.0), d2), 0.5 * angle(d1, d2), 1e-12) << f;
+  }
+}
+
+TEST(PathFiles, BadFilesNameTheFileAndLine) {
+  const auto err = [](const std::string& name, const std::string& text) {
+    const std::string f = write_file(name, text);
+    return error_of([&] { control::load_path_file(f); });
+  };
+  const auto has = [](const std::string& msg, const std::string& part) {
+    return msg.find(part) != std::string::npos ? ::testing::AssertionSuccess()
+                                               : ::testing::AssertionFailure() << "'" << msg << "'";
+  };
+  EXPECT_TRUE(has(err("bad_word.csv", "t,theta,phi\n0,0,0\n1,0.2,0\n2,zero,0\n"), "bad_word.csv:4: expected three"));
+  EXPECT_TRUE(has(err("bad_count.csv", "0 0 0\n1 0.2\n"), "bad_count.csv:2: expected three"));
+  EXPECT_TRUE(has(err("bad_time.csv", "0,0,0\n1,0.2,0\n1,0.3,0\n"), "bad_time.csv:3: t: must be greater"));
+  EXPECT_TRUE(has(err("bad_theta.csv", "0,0,0\n1,nan,0\n"), "bad_theta.csv:2: expected three"));
+  EXPECT_TRUE(has(err("bad_theta.yaml", "- [0, 0, 0]\n- [1, .inf, 0]\n"), "bad_theta.yaml:2: entry 1: theta and phi"));
+  EXPECT_TRUE(has(err("empty.csv", "t,theta,phi\n"), "empty.csv: no rows"));
+  EXPECT_TRUE(has(err("bad_key.yaml", "- [0, 0, 0]\n- {t: 1, theta: 0.2, psi: 0}\n"),
+                  "bad_key.yaml:2: entry 1: unknown key 'psi'"));
+  EXPECT_TRUE(has(err("missing.yaml", "- [0, 0, 0]\n- [1, 0.1, 0]\n- {t: 2, theta: 0.2}\n"),
+                  "missing.yaml:3: entry 2: phi: expected a number"));
+  EXPECT_TRUE(has(err("short.yaml", "- [0, 0, 0]\n- [1, 0.1]\n"), "short.yaml:2: entry 1: expected [t, theta, phi]"));
+  EXPECT_TRUE(has(err("time.yaml", "- [0, 0, 0]\n- [0, 0.1, 0]\n"), "time.yaml:2: entry 1: t: must be greater"));
+  EXPECT_TRUE(has(err("map.yaml", "t: 1\n"), "map.yaml: expected a sequence"));
+  EXPECT_TRUE(has(err("syntax.yaml", "- [0, 0, 0]\n- [1, 0.1, 0\n"), "syntax.yaml:"));
+  EXPECT_TRUE(has(err("path.txt", "0 0 0\n"), "path.txt: unknown path file type"));
+  EXPECT_TRUE(
+      has(error_of([] { control::load_path_file("/nonexistent/p.csv"); }), "/nonexistent/p.csv: cannot be read"));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reachable set
+// ---------------------------------------------------------------------------------------------
+
+namespace {
+
+/// Computed once per scene (the sweep takes a fraction of a second).
+const control::ReachableSet& reachable(const std::string& scene) {
+  static std::map<std::string, control::ReachableSet> sets;
+  auto it = sets.find(scene);
+  if (it == sets.end()) it = sets.emplace(scene, control::ReachableSet::compute(model(scene), {})).first;
+  return it->second;
+}
+
+/// Polar coordinates about the set's centre, from an independent basis.
+struct Polar {
+  Vec3 c, e1, e2;
+  explicit Polar(const Vec3& centre) : c(centre) {
+    e1 = c.cross(Vec3::UnitY()).normalized();
+    e2 = c.cross(e1);
+  }
+  double radius(const Vec3& d) const { return angle(c, d); }
+  double azimuth(const Vec3& d) const { return std::atan2(d.dot(e2), d.dot(e1)); }
+  Vec3 point(double r, double a) const { return std::cos(r) * c + std::sin(r) * (std::cos(a) * e1 + std::sin(a) * e2); }
+};
+
+double azimuth_gap(double a, double b) { return std::abs(std::remainder(a - b, 2.0 * M_PI)); }
+
+/// The nearest point of the boundary polyline by brute force: each arc sampled at n points.
+double brute_force_distance(const control::ReachableSet& set, const Vec3& d, int n) {
+  const auto& B = set.boundary();
+  double best = 10.0;
+  for (size_t k = 0; k < B.size(); ++k) {
+    const Vec3 &a = B[k], &b = B[(k + 1) % B.size()];
+    const Vec3 u = (b - a.dot(b) * a).normalized();
+    for (int i = 0; i <= n; ++i)
+      best = std::min(best, angle(d, std::cos(angle(a, b) * i / n) * a + std::sin(angle(a, b) * i / n) * u));
+  }
+  return best;
+}
+
+}  // namespace
+
+class Reachable : public ::testing::TestWithParam<std::string> {};
+INSTANTIATE_TEST_SUITE_P(Scenes, Reachable, ::testing::Values("hydrojet_0deg", "hydrojet_30deg"));
+
+TEST_P(Reachable, ComputedQuicklyWithEveryBinFilled) {
+  const control::ReachableSet& set = reachable(GetParam());
+  ASSERT_FALSE(set.empty());
+  EXPECT_EQ(set.boundary().size(), 72u);
+  EXPECT_GT(set.samples().size(), 1000u);
+  EXPECT_LT(set.compute_time(), 2.0);
+  // The zero-force direction is the model's tip z-axis with the jets off.
+  rod::ShootingSolver s(test::scene(GetParam()).model, test::scene(GetParam()).solver);
+  EXPECT_NEAR(angle(set.center(), s.solve(rod::TipWrench()).tip_rotation.col(2)), 0.0, 1e-12);
+  std::printf("%s: %zu samples, compute %.3f s\n", GetParam().c_str(), set.samples().size(), set.compute_time());
+  double lo = 10, hi = 0;
+  for (const Vec3& b : set.boundary())
+    lo = std::min(lo, angle(set.center(), b)), hi = std::max(hi, angle(set.center(), b));
+  std::printf("  centre bend %.3f rad, boundary %.3f..%.3f rad from the centre\n", control::bend_angle(set.center()),
+              lo, hi);
+}
+
+TEST_P(Reachable, ContainsAgreesWithTheSweepSamples) {
+  const control::ReachableSet& set = reachable(GetParam());
+  const Polar polar(set.center());
+  double worst = 0.0;
+  int outside = 0;
+  for (const Vec3& s : set.samples()) {
+    double moved = 0.0;
+    set.clip(s, &moved);
+    if (!set.contains(s)) ++outside;
+    worst = std::max(worst, moved);
+  }
+  std::printf("%s: %d of %zu samples outside the polyline, by at most %.2e rad\n", GetParam().c_str(), outside,
+              set.samples().size(), worst);
+  // The polyline is inscribed (its vertices are samples), so it cuts the corners of the image of the
+  // force polygon: a few samples lie outside it, by at most the chords' sag there (measured 1.2e-2 rad
+  // at 0°, 1.3e-2 rad at 30°).
+  EXPECT_LT(worst, 2e-2) << "a sample outside the boundary polyline by more than its chords' sag";
+  EXPECT_LT(outside, static_cast<int>(set.samples().size()) / 500);
+  // Random directions against the samples: one with a sample farther out at nearly its azimuth is
+  // inside; one beyond every sample within two bins' azimuth is outside (margins above the sag).
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> az(-M_PI, M_PI), rad(0.0, 2.0);
+  const double bin = 2.0 * M_PI / 72;
+  int checked_in = 0, checked_out = 0;
+  for (int i = 0; i < 3000; ++i) {
+    const double a = az(rng), r = rad(rng);
+    double near_max = 0.0, wide_max = 0.0;
+    for (const Vec3& s : set.samples()) {
+      const double gap = azimuth_gap(polar.azimuth(s), a), sr = polar.radius(s);
+      if (gap < 0.1 * bin) near_max = std::max(near_max, sr);
+      if (gap < 2.0 * bin) wide_max = std::max(wide_max, sr);
+    }
+    const Vec3 d = polar.point(r, a);
+    if (near_max > r + 0.02) {
+      EXPECT_TRUE(set.contains(d)) << "r " << r << " a " << a;
+      ++checked_in;
+    }
+    if (wide_max < r - 0.01) {
+      EXPECT_FALSE(set.contains(d)) << "r " << r << " a " << a;
+      ++checked_out;
+    }
+  }
+  EXPECT_GT(checked_in, 300);
+  EXPECT_GT(checked_out, 300);
+}
+
+TEST_P(Reachable, ClipIsTheNearestPointOfTheBoundary) {
+  const control::ReachableSet& set = reachable(GetParam());
+  const Polar polar(set.center());
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> az(-M_PI, M_PI), rad(0.0, M_PI);
+  int outside = 0;
+  for (int i = 0; i < 400; ++i) {
+    const Vec3 d = polar.point(rad(rng), az(rng));
+    double moved = -1.0;
+    const Vec3 c = set.clip(d, &moved);
+    EXPECT_NEAR(c.norm(), 1.0, 1e-12);
+    if (set.contains(d)) {
+      EXPECT_EQ(moved, 0.0);
+      EXPECT_NEAR(angle(c, d), 0.0, 1e-15);
+      continue;
+    }
+    ++outside;
+    EXPECT_NEAR(moved, angle(d, c), 1e-12);
+    EXPECT_TRUE(set.contains(c)) << "the clipped direction is in the set";
+    const double brute = brute_force_distance(set, d, 400);
+    EXPECT_LE(moved, brute + 1e-12) << "no sampled boundary point is nearer";
+    EXPECT_GE(moved, brute - 1e-5) << "the dense sample finds the same point";
+  }
+  EXPECT_GT(outside, 100);
+}
+
+TEST_P(Reachable, FarOutsideIsClippedOntoTheBoundary) {
+  const control::ReachableSet& set = reachable(GetParam());
+  for (const Vec3& far : {Vec3(-set.center()), Vec3(-Vec3::UnitZ()), Vec3(Vec3::UnitX())}) {
+    double moved = 0.0;
+    const Vec3 c = set.clip(far, &moved);
+    EXPECT_FALSE(set.contains(far));
+    EXPECT_TRUE(set.contains(c));
+    EXPECT_GT(moved, 0.1);
+    // On the boundary: a step of 1e-6 rad on towards `far` leaves the set.
+    const Vec3 beyond = (c + 1e-6 * (far - far.dot(c) * c).normalized()).normalized();
+    EXPECT_FALSE(set.contains(beyond));
+    EXPECT_NEAR(moved, brute_force_distance(set, far, 400), 1e-5);
+  }
+}
+
+TEST_P(Reachable, TheSection7SpiralIsInside) {
+  const control::ReachableSet& set = reachable(GetParam());
+  const control::SpiralPath spiral;
+  double worst = 0.0, margin = 10.0;
+  int outside = 0;
+  for (double t = 0.0; t <= 600.0; t += 0.25) {
+    double moved = 0.0;
+    set.clip(spiral.direction_at(t), &moved);
+    worst = std::max(worst, moved);
+    if (moved > 0.0) ++outside;
+    margin = std::min(margin, brute_force_distance(set, spiral.direction_at(t), 20));
+  }
+  std::printf("%s: spiral: %d of 2401 points outside (worst %.2e rad); closest to the boundary %.3f rad\n",
+              GetParam().c_str(), outside, worst, margin);
+  EXPECT_EQ(outside, 0);
+  EXPECT_LT(worst, 1e-3);
+}
+
+TEST(ReachableSet, OptionsAreValidated) {
+  control::ReachableSetOptions o;
+  EXPECT_EQ(o.validate(), "");
+  o.force_samples = 3;
+  EXPECT_EQ(o.validate().rfind("force_samples:", 0), 0u);
+  o = {};
+  o.azimuth_bins = 4;
+  EXPECT_EQ(o.validate().rfind("azimuth_bins:", 0), 0u);
+  o = {};
+  o.min_stability_margin = NAN;
+  EXPECT_EQ(o.validate().rfind("min_stability_margin:", 0), 0u);
+  EXPECT_EQ(error_of([&] { control::ReachableSet::compute(model("hydrojet_0deg"), o); }).rfind("min_stability", 0), 0u);
+}
+
+TEST(ReachableSet, AMarginAboveEveryEquilibriumLeavesItEmpty) {
+  control::ReachableSetOptions o;
+  o.min_stability_margin = 100.0;  // N/m, far above the HydroJet's ~3 N/m
+  o.force_samples = 4;
+  const control::ReachableSet set = control::ReachableSet::compute(model("hydrojet_0deg"), o);
+  EXPECT_TRUE(set.empty());
+  EXPECT_FALSE(set.contains(set.center()));
+  double moved = 0.0;
+  EXPECT_EQ(set.clip(Vec3::UnitX(), &moved), set.center());
+  EXPECT_NEAR(moved, angle(Vec3::UnitX(), set.center()), 1e-12);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Look-at
+// ---------------------------------------------------------------------------------------------
+
+namespace {
+
+/// A second, independent model solve at the jet forces the result implies: jet forces allocated
+/// exactly (λ = 0) for its tip force, the jet map's wrench, a fresh solver.
+rod::RodSolution independent_fk(const std::string& scene, const control::LookAtResult& r) {
+  const config::Scene sc = test::scene(scene);
+  const actuation::JetMap jets(sc.jets);
+  const actuation::AllocationResult q =
+      actuation::allocate(jets.planar(), r.tip_force, Eigen::Vector3d::Zero(), sc.max_jet_force, 0.0);
+  EXPECT_TRUE(q.ok && q.reachable) << "the tip force is allocatable";
+  rod::TipWrench w;
+  w.force = jets.wrench(q.q).head<3>();
+  w.moment = jets.wrench(q.q).tail<3>();
+  rod::ShootingSolver s(sc.model, sc.solver);
+  const rod::RodSolution sol = s.solve(w);
+  EXPECT_TRUE(sol.converged);
+  return sol;
+}
+
+/// Distance of P from the line through the tip along its z-axis, and whether P is in front.
+double line_distance(const rod::RodSolution& s, const Vec3& P, bool* in_front) {
+  const Vec3 d = s.tip_rotation.col(2), v = P - s.tip_position;
+  *in_front = v.dot(d) > 0.0;
+  return (v - v.dot(d) * d).norm();
+}
+
+/// The jets-off tip position and direction.
+std::pair<Vec3, Vec3> rest_pose(const std::string& scene) {
+  rod::ShootingSolver s(test::scene(scene).model, test::scene(scene).solver);
+  const rod::RodSolution sol = s.solve(rod::TipWrench());
+  return {sol.tip_position, sol.tip_rotation.col(2)};
+}
+
+void expect_aimed(const std::string& scene, const Vec3& P, const control::LookAtResult& r) {
+  ASSERT_TRUE(r.ok) << r.message;
+  EXPECT_LE(r.miss_distance, 1e-6);
+  const rod::RodSolution fk = independent_fk(scene, r);
+  bool in_front = false;
+  EXPECT_LE(line_distance(fk, P, &in_front), 1e-6) << "the line through the tip passes through P";
+  EXPECT_TRUE(in_front);
+  EXPECT_NEAR(angle(fk.tip_rotation.col(2), r.direction), 0.0, 1e-8);
+  EXPECT_NEAR((fk.tip_position - r.tip_position).norm(), 0.0, 1e-9);
+}
+
+}  // namespace
+
+class LookAt : public ::testing::TestWithParam<std::string> {};
+INSTANTIATE_TEST_SUITE_P(Scenes, LookAt, ::testing::Values("hydrojet_0deg", "hydrojet_30deg"));
+
+TEST_P(LookAt, AimsThroughThePointColdAndWarm) {
+  const auto [tip, d0] = rest_pose(GetParam());
+  const Vec3 side = d0.cross(Vec3::UnitX()).normalized(), up = d0.cross(side);
+  control::LookAtSolver solver(model(GetParam()));
+  // 60 mm beyond the tip, off its axis: cold (first call), then warm along a moving point.
+  for (int i = 0; i < 12; ++i) {
+    const Vec3 P = tip + 0.06 * d0 + 0.02 * std::cos(0.5 * i) * side + 0.015 * std::sin(0.5 * i) * up;
+    const control::LookAtResult r = solver.solve(P);
+    expect_aimed(GetParam(), P, r);
+    if (i > 0) EXPECT_LE(r.iterations, 5) << "warm";
+  }
+  // A cold solve of the last point gives the same aim as the warm one.
+  const Vec3 P = tip + 0.06 * d0 + 0.02 * std::cos(5.5) * side + 0.015 * std::sin(5.5) * up;
+  const control::LookAtResult warm = solver.solve(P);
+  solver.reset();
+  const control::LookAtResult cold = solver.solve(P);
+  expect_aimed(GetParam(), P, cold);
+  EXPECT_NEAR(angle(warm.direction, cold.direction), 0.0, 2.0 * 1e-6 / 0.06) << "the same aim within the tolerance";
+}
+
+TEST_P(LookAt, AimsAtNearAndFarPoints) {
+  const auto [tip, d0] = rest_pose(GetParam());
+  const Vec3 side = d0.cross(Vec3::UnitX()).normalized();
+  for (const double distance : {0.008, 0.015, 0.03, 0.2, 1.0}) {
+    control::LookAtSolver solver(model(GetParam()));
+    const Vec3 P = tip + distance * (d0 + 0.4 * side).normalized();
+    const control::LookAtResult r = solver.solve(P);
+    std::printf("%s: %.3f m: %d iterations\n", GetParam().c_str(), distance, r.iterations);
+    expect_aimed(GetParam(), P, r);
+  }
+}
+
+TEST_P(LookAt, RefusesPointsBehindTheCameraOrTooClose) {
+  const auto [tip, d0] = rest_pose(GetParam());
+  control::LookAtSolver solver(model(GetParam()));
+  for (const Vec3& behind : {Vec3(tip - 0.05 * d0), Vec3(0.0, 0.0, -0.05)}) {
+    const control::LookAtResult r = solver.solve(behind);
+    EXPECT_FALSE(r.ok);
+    EXPECT_NE(r.message.find("behind the camera"), std::string::npos) << r.message;
+    solver.reset();  // cold as well
+    EXPECT_NE(solver.solve(behind).message.find("behind the camera"), std::string::npos);
+  }
+  const control::LookAtResult close = solver.solve(tip + 0.003 * d0);
+  EXPECT_FALSE(close.ok);
+  EXPECT_NE(close.message.find("closer to the tip than min_distance"), std::string::npos) << close.message;
+  const control::LookAtResult nan = solver.solve(Vec3(NAN, 0.0, 0.1));
+  EXPECT_FALSE(nan.ok);
+  EXPECT_NE(nan.message.find("not finite"), std::string::npos);
+  // A refusal does not move the warm start: the next good point is solved as before.
+  expect_aimed(GetParam(), tip + 0.06 * d0, solver.solve(tip + 0.06 * d0));
+}
+
+TEST_P(LookAt, APointBeyondTheJetsReachIsRefusedWithTheClosestAim) {
+  const auto [tip, d0] = rest_pose(GetParam());
+  // 1 m away, 100° from the jets-off axis: no allocatable force turns the tip that far.
+  const Vec3 side = d0.cross(Vec3::UnitX()).normalized();
+  const Vec3 P = tip + 1.0 * (std::cos(1.75) * d0 + std::sin(1.75) * side);
+  control::LookAtSolver solver(model(GetParam()));
+  const control::LookAtResult r = solver.solve(P);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.message.find("out of the jets' reach"), std::string::npos) << r.message;
+  EXPECT_GT(r.miss_distance, 0.01);
+  EXPECT_LT(angle(r.direction, (P - r.tip_position).normalized()), angle(d0, (P - tip).normalized()))
+      << "turned towards the point";
+}
+
+TEST(LookAtOptions, AreValidated) {
+  control::LookAtOptions o;
+  EXPECT_EQ(o.validate(), "");
+  o.max_iterations = 0;
+  EXPECT_EQ(o.validate().rfind("max_iterations:", 0), 0u);
+  o = {};
+  o.tolerance = 0.0;
+  EXPECT_EQ(o.validate().rfind("tolerance:", 0), 0u);
+  o = {};
+  o.min_distance = -1.0;
+  EXPECT_EQ(o.validate().rfind("min_distance:", 0), 0u);
+  EXPECT_EQ(error_of([&] { control::LookAtSolver(model("hydrojet_0deg"), o); }).rfind("min_distance:", 0), 0u);
+}
