@@ -171,7 +171,7 @@ TEST(Controller, FollowsShortenedSpiral) {
 
 // A new target is not a step: the reference moves along the great circle at most max_angular_rate.
 TEST(Reference, MovesTowardANewTargetAlongTheGreatCircleAtTheRateLimit) {
-  control::Reference ref(0.2, nullptr);
+  control::Reference ref(0.2, nullptr, nullptr);
   ref.hold();
   ref.start(Vec3::UnitZ(), 0.0);
   const Vec3 target = control::direction(0.4, 0.0);
@@ -193,7 +193,7 @@ TEST(Reference, MovesTowardANewTargetAlongTheGreatCircleAtTheRateLimit) {
 TEST(Reference, RatesTurnAboutTheTipAxesAndHoldWhenTheyExpire) {
   const control::Mat3 tip = Eigen::AngleAxisd(0.3, Vec3::UnitZ()).toRotationMatrix();  // camera rolled 0.3 rad
   for (int axis = 0; axis < 2; ++axis) {
-    control::Reference ref(0.2, nullptr);
+    control::Reference ref(0.2, nullptr, nullptr);
     ref.start(Vec3::UnitZ(), 0.0);
     const Eigen::Vector2d rates = axis == 0 ? Eigen::Vector2d(0.1, 0.0) : Eigen::Vector2d(0.0, 0.1);
     ref.turn(rates, control::Source::kJoy, 1.0);
@@ -283,6 +283,41 @@ TEST(ControllerSources, TargetOutsideTheReachableSetIsClippedNotAborted) {
   EXPECT_LT(control::geodesic_error(out.desired_direction, clipped), 1e-12);
   EXPECT_LT(control::geodesic_error(out.measured_direction, clipped), 2e-3);
   EXPECT_GE(out.stability_margin, rig.c.params().min_stability_margin);
+}
+
+// The paper's §7 spiral (the configured default) runs as written: every point lies in the full-force
+// set paths are clipped to, although its end leaves the reserve set operator targets are clipped to;
+// the same direction given as a fixed target is clipped. (The 60 s spiral: the same points, faster.)
+TEST(ControllerSources, TheConfiguredSpiralRunsUnclippedAnOperatorTargetThereIsClipped) {
+  for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
+    const config::Scene sc = test::scene(name);
+    control::ControllerOptions options = tuned_gains();
+    options.path = control::ControllerOptions().path;  // == config/controller.yaml (DefaultsMatchYaml)
+    options.path_type = control::PathType::kSpiral;
+    options.path.duration = 60.0;
+    Controller c(config::make_controller_model(sc, flow_gains()), options);
+    Vec3 outside = Vec3::Zero();  // a spiral point outside the reserve set
+    for (double t = 0.0; t <= options.path.duration; t += 0.1)
+      if (!c.reachable_set().contains(options.path.direction_at(t))) outside = options.path.direction_at(t);
+    // At 0° the spiral's end (ϑ up to 1.04 rad) leaves the reserve set at some azimuths; at 30° it stays
+    // inside both sets.
+    if (std::string(name) == "hydrojet_0deg") ASSERT_GT(outside.norm(), 0.0) << name << ": the sets do not differ";
+    StaticPlant plant(sc, sc.model);
+    c.start(0.0);
+    ControllerOutput out;
+    for (int k = 0; k * kDt < options.path.duration; ++k) {
+      out = c.update(plant.inputs(k * kDt));
+      plant.apply(out.valve_command);
+      ASSERT_EQ(out.state, ControllerState::kRunning) << name << " t = " << k * kDt << ": " << out.reason;
+      ASSERT_FALSE(out.clipped) << name << " t = " << k * kDt;
+      EXPECT_LT(control::geodesic_error(out.desired_direction, options.path.direction_at(k * kDt)), 1e-12);
+    }
+    if (outside.norm() == 0.0) continue;
+    c.aim(outside, control::Source::kDirection);
+    out = c.update(plant.inputs(options.path.duration + 2 * kDt));
+    EXPECT_TRUE(out.clipped) << name;
+    EXPECT_GT(out.clip_angle, 0.0) << name;
+  }
 }
 
 // A follow()ed path drives; at its end the controller is finished, holding; a new command runs again.

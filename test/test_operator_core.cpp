@@ -476,12 +476,14 @@ TEST_P(LookAt, RefusesPointsBehindTheCameraOrTooClose) {
     const control::LookAtResult r = solver.solve(behind);
     EXPECT_FALSE(r.ok);
     EXPECT_NE(r.message.find("behind the camera"), std::string::npos) << r.message;
+    EXPECT_FALSE(r.out_of_reach);
     solver.reset();  // cold as well
     EXPECT_NE(solver.solve(behind).message.find("behind the camera"), std::string::npos);
   }
   const control::LookAtResult close = solver.solve(tip + 0.003 * d0);
   EXPECT_FALSE(close.ok);
   EXPECT_NE(close.message.find("closer to the tip than min_distance"), std::string::npos) << close.message;
+  EXPECT_FALSE(close.out_of_reach);
   const control::LookAtResult nan = solver.solve(Vec3(NAN, 0.0, 0.1));
   EXPECT_FALSE(nan.ok);
   EXPECT_NE(nan.message.find("not finite"), std::string::npos);
@@ -489,7 +491,7 @@ TEST_P(LookAt, RefusesPointsBehindTheCameraOrTooClose) {
   expect_aimed(GetParam(), tip + 0.06 * d0, solver.solve(tip + 0.06 * d0));
 }
 
-TEST_P(LookAt, APointBeyondTheJetsReachIsRefusedWithTheClosestAim) {
+TEST_P(LookAt, APointBeyondTheJetsReachGivesTheClosestAim) {
   const auto [tip, d0] = rest_pose(GetParam());
   // 1 m away, 100° from the jets-off axis: no allocatable force turns the tip that far.
   const Vec3 side = d0.cross(Vec3::UnitX()).normalized();
@@ -498,6 +500,7 @@ TEST_P(LookAt, APointBeyondTheJetsReachIsRefusedWithTheClosestAim) {
   const control::LookAtResult r = solver.solve(P);
   EXPECT_FALSE(r.ok);
   EXPECT_NE(r.message.find("out of the jets' reach"), std::string::npos) << r.message;
+  EXPECT_TRUE(r.out_of_reach);
   EXPECT_GT(r.miss_distance, 0.01);
   EXPECT_LT(angle(r.direction, (P - r.tip_position).normalized()), angle(d0, (P - tip).normalized()))
       << "turned towards the point";

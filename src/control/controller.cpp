@@ -7,9 +7,10 @@ namespace control {
 
 namespace {
 
-/// The reachable set of `model` with reserve: each jet's q_max scaled by reachable_force_fraction.
-std::shared_ptr<const ReachableSet> sweep_reachable_set(RobotModel model, const ControllerOptions& params) {
-  model.max_jet_force *= params.reachable_force_fraction;
+/// The reachable set of `model` with each jet's q_max scaled by `force_fraction` (0, 1].
+std::shared_ptr<const ReachableSet> sweep_reachable_set(RobotModel model, const ControllerOptions& params,
+                                                        double force_fraction) {
+  model.max_jet_force *= force_fraction;
   ReachableSetOptions o;
   o.min_stability_margin = params.min_stability_margin;
   return std::make_shared<const ReachableSet>(ReachableSet::compute(model, o));
@@ -34,8 +35,11 @@ Controller::Controller(const RobotModel& model, const ControllerOptions& params)
       solver_(model.rod, model.solver),
       monitor_(params, jets_.jet_count()),
       limiter_(params.max_force, params.max_force_rate),
-      reachable_(sweep_reachable_set(model, params)),
-      reference_(params.max_angular_rate, reachable_) {}
+      path_reachable_(sweep_reachable_set(model, params, 1.0)),
+      reachable_(params.reachable_force_fraction == 1.0
+                     ? path_reachable_
+                     : sweep_reachable_set(model, params, params.reachable_force_fraction)),
+      reference_(params.max_angular_rate, reachable_, path_reachable_) {}
 
 void Controller::start(double t) {
   state_ = ControllerState::kRunning;

@@ -14,6 +14,7 @@ namespace {
 
 /// Line-search halvings of a Gauss–Newton step before the iteration gives up.
 constexpr int kMaxHalvings = 12;
+constexpr const char* kOutOfReach = "the point is out of the jets' reach: the closest aim misses it by";
 
 Eigen::Vector3d jet_force_bounds(const RobotModel& model) {
   if (model.max_jet_force.size() != 3)
@@ -129,6 +130,7 @@ struct LookAtSolver::Impl {
     r.iterations = iterations;
     r.message = message;
     r.ok = message.empty();
+    r.out_of_reach = message.rfind(kOutOfReach, 0) == 0;
     return r;
   }
 
@@ -139,8 +141,7 @@ struct LookAtSolver::Impl {
       return metres("the point is closer to the tip than min_distance", options.min_distance);
     if (to_point.dot(s.d()) <= 0.0) return "the point is behind the camera: no reachable direction has it in front";
     if (aimed(s, P)) return "";
-    if (polygon.edge_gap(s.force) < 1e-9)
-      return metres("the point is out of the jets' reach: the closest aim misses it by", miss_distance(s, P));
+    if (polygon.edge_gap(s.force) < 1e-9) return metres(kOutOfReach, miss_distance(s, P));
     return metres(stalled ? "no convergence (the line search stalled); the aim misses by"
                           : "no convergence within max_iterations; the aim misses by",
                   miss_distance(s, P));

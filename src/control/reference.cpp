@@ -19,8 +19,9 @@ const char* to_string(Source s) {
   return "unknown";
 }
 
-Reference::Reference(double max_angular_rate, std::shared_ptr<const ReachableSet> reachable)
-    : max_rate_(max_angular_rate), reachable_(std::move(reachable)) {}
+Reference::Reference(double max_angular_rate, std::shared_ptr<const ReachableSet> target_set,
+                     std::shared_ptr<const ReachableSet> path_set)
+    : max_rate_(max_angular_rate), target_set_(std::move(target_set)), path_set_(std::move(path_set)) {}
 
 void Reference::follow(std::shared_ptr<const Path> path, double t, bool starts_at_path) {
   source_ = Source::kPath;
@@ -31,7 +32,7 @@ void Reference::follow(std::shared_ptr<const Path> path, double t, bool starts_a
 
 void Reference::aim(const Vec3& target, Source source) {
   source_ = source;
-  set_target(target.normalized());
+  set_target(target.normalized(), target_set_.get());
 }
 
 void Reference::turn(const Eigen::Vector2d& up_right, Source source, double until) {
@@ -57,7 +58,7 @@ void Reference::start(const Vec3& direction, double t) {
 
 const Vec3& Reference::advance(double t, double dt, const Mat3& tip_frame) {
   if (source_ == Source::kPath) {
-    set_target(path_->direction_at(t - path_start_));
+    set_target(path_->direction_at(t - path_start_), path_set_.get());
     if (jump_to_path_) reference_ = target_;
     jump_to_path_ = false;
   } else if (source_ == Source::kJoy || source_ == Source::kKeyboard) {
@@ -66,17 +67,17 @@ const Vec3& Reference::advance(double t, double dt, const Mat3& tip_frame) {
     } else {
       const Vec3 omega = tip_frame.col(0) * rate_.x() + tip_frame.col(1) * rate_.y();  // [rad/s], base frame
       const double angle = omega.norm() * dt;
-      if (angle > 0.0) set_target(Eigen::AngleAxisd(angle, omega.normalized()) * target_);
+      if (angle > 0.0) set_target(Eigen::AngleAxisd(angle, omega.normalized()) * target_, target_set_.get());
     }
   }
   move_toward_target(dt);
   return reference_;
 }
 
-// The commanded direction (unit) clipped to the reachable set.
-void Reference::set_target(const Vec3& target) {
+// The commanded direction (unit) clipped to `set` (none: not clipped).
+void Reference::set_target(const Vec3& target, const ReachableSet* set) {
   clip_angle_ = 0.0;
-  target_ = reachable_ ? reachable_->clip(target, &clip_angle_) : target;
+  target_ = set ? set->clip(target, &clip_angle_) : target;
 }
 
 // Along the great circle toward the target, at most max_angular_rate·dt; exactly onto it when closer.

@@ -246,7 +246,9 @@ class ControllerNode {
   }
 
   // A point to look at, from controller/look_at or rviz's /clicked_point: solved on the model once per
-  // point (LookAtSolver, warm-started), then the closed loop tracks that direction.
+  // point (LookAtSolver, warm-started), then the closed loop tracks that direction. A point beyond the
+  // jets' reach is not refused: the tip aims as close as it can (the closest aim, clipped as any
+  // target); behind the camera, too close or not converged: rejected.
   void on_look_at(const geometry_msgs::PointStamped::ConstPtr& m) {
     const Eigen::Vector3d p = from_msg(m->point);
     if (!p.allFinite()) return reject("look_at: not finite");
@@ -254,9 +256,10 @@ class ControllerNode {
     Eigen::Vector3d translation;
     if (!to_base(m->header.frame_id, rotation, translation)) return;
     const control::LookAtResult r = look_at_->solve(rotation * p + translation);
-    if (!r.ok) return reject("look_at: " + r.message);
-    controller_->aim(r.direction, control::Source::kLookAt);
+    if (!r.ok && !r.out_of_reach) return reject("look_at: " + r.message);
+    controller_->aim(r.direction, control::Source::kLookAt);  // out of reach: the closest aim, clipped
     commanded("look_at");
+    if (r.out_of_reach) message_ = "look_at: " + r.message + "; aiming as close as the jets allow";
   }
 
   // Rate teleoperation by joystick (config/teleop.yaml): with the deadman held, the axes turn the

@@ -5,9 +5,12 @@
 // on view/markers; and the frames on tf2:
 //   world → tracker (static), tracker → base_sensor (driver/plant), base_sensor → base (static,
 //   the sensor is aligned with the base frame), base → tip_model (the model's tip).
-// Fixed namespaces and ids; a DELETEALL goes out first and whenever the controller resets. The
-// reachable set is sent once per controller/reachable_set message and again after each DELETEALL (it
-// is large and rarely changes); everything else with each rod/state.
+// Fixed namespaces and ids. Each new subscriber (rviz starting or reconnecting to a restarted view)
+// first gets a DELETEALL, to that subscriber alone, with the reachable set; all subscribers get one
+// whenever the controller resets. The reachable set is sent once per controller/reachable_set message
+// and again with each DELETEALL (it is large and rarely changes); everything else with each rod/state.
+// Not latched: the per-subscriber welcome replaces the latch (a latched array would reach a late
+// subscriber after, not before, its DELETEALL, and would hold only the last of the arrays).
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
@@ -114,7 +117,8 @@ class ViewNode {
     pnh.param<std::string>("tracker_frame", tracker_frame_, "tracker");
     pnh.param<std::string>("base_frame", base_frame_, "base");
 
-    markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>(names::kViewMarkers, 2, true);
+    markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>(
+        names::kViewMarkers, 2, [this](const ros::SingleSubscriberPublisher& p) { p.publish(reset_markers()); });
     rod_sub_ = nh.subscribe(names::kRodState, 2, &ViewNode::on_rod_state, this);
     status_sub_ = nh.subscribe(names::kControllerStatus, 2, &ViewNode::on_status, this);
     jets_sub_ = nh.subscribe(names::kJetState, 2, &ViewNode::on_jet_state, this);
@@ -130,19 +134,19 @@ class ViewNode {
     b.child_frame_id = base_frame_;
     b.transform.rotation.w = 1.0;
     static_tf_.sendTransform(std::vector<geometry_msgs::TransformStamped>{a, b});
-    delete_all();
   }
 
  private:
   /// Clears every marker, then draws the reachable set again (in the same message, so rviz keeps it).
-  void delete_all() {
+  visualization_msgs::MarkerArray reset_markers() const {
     visualization_msgs::MarkerArray arr;
     visualization_msgs::Marker m;
     m.action = visualization_msgs::Marker::DELETEALL;
     arr.markers.push_back(m);
     arr.markers.insert(arr.markers.end(), reachable_markers_.begin(), reachable_markers_.end());
-    markers_pub_.publish(arr);
+    return arr;
   }
+  void delete_all() { markers_pub_.publish(reset_markers()); }
 
   /// A new reachable set: its markers replace the previous ones (or delete them when it is empty).
   void on_reachable_set(const hydrojet_control::ReachableSet::ConstPtr& m) {

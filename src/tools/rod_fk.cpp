@@ -193,7 +193,9 @@ std::string solve_json(hydrojet::rod::ShootingSolver& solver, const hydrojet::co
       .add("rhs_evaluations", sol.rhs_evaluations)
       .add("continuation_steps", sol.continuation_steps)
       .add("shooting_jacobian_det", sol.jacobian_det)
-      .add("integrator", hydrojet::rod::integrator_name(scene.solver.integrator.type));
+      .add("integrator", hydrojet::rod::integrator_name(scene.solver.integrator.type))
+      .add("fold_crossings", sol.fold_crossings);
+  if (!sol.warning.empty()) j.add("warning", sol.warning);
   if (!sol.converged) j.add("message", sol.message);
   if (opt.compliance) add_compliance(solver, scene, sol.converged, &j);
   if (opt.shape > 0) {

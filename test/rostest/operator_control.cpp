@@ -272,7 +272,8 @@ void follow_path(Graph& g) {
   EXPECT_LE(angle(g.mean_measured(t1, t1 + 0.3), g.mean_measured(t1 + 2.7, t1 + 3.0)), 0.02) << "drift";
 }
 
-// 5: a target outside the reachable set is clipped, the status says so, no abort.
+// 5: a target outside the reachable set is clipped, the status says so, no abort; a look-at point the
+// jets cannot aim at gives the closest aim, clipped as well, and the message says so.
 void clipped(Graph& g) {
   const Vector3d impossible(std::sin(2.0) * std::cos(0.5), std::sin(2.0) * std::sin(0.5), std::cos(2.0));  // ϑ = 2 rad
   g.send_target(impossible);
@@ -284,6 +285,23 @@ void clipped(Graph& g) {
   EXPECT_GT(s.clip_angle, 0.3);
   EXPECT_NEAR(angle(impossible, vec(s.desired_direction)), s.clip_angle, 1e-6);
   std::printf("clipped: moved by %.3f rad, error %.4f rad\n", s.clip_angle, s.error_geodesic);
+
+  g.send_target(Vector3d::UnitZ());  // back to straight, then look at a point 1 m away, 100° to the side
+  ASSERT_TRUE(g.wait_until(g.now() + 10.0));
+  const uint32_t rejected = g.last().rejected_targets;
+  const Vector3d tip(g.rod.tip_pose.position.x, g.rod.tip_pose.position.y, g.rod.tip_pose.position.z);
+  g.send_look_at(tip + Vector3d(std::sin(1.75), 0.0, std::cos(1.75)));
+  ASSERT_TRUE(g.wait_until(g.now() + 15.0));
+  const auto& l = g.last();
+  EXPECT_EQ(l.state, "running") << l.reason;
+  EXPECT_EQ(l.source, "look_at");
+  EXPECT_EQ(l.rejected_targets, rejected);
+  EXPECT_NE(l.message.find("out of the jets' reach"), std::string::npos) << l.message;
+  EXPECT_GT(angle(Vector3d::UnitZ(), vec(l.desired_direction)), 0.5) << "turned towards the point";
+  EXPECT_LT(l.error_geodesic, 0.05);
+  std::printf("clipped look_at: aims %.3f rad from straight (%s), error %.4f rad\n",
+              angle(Vector3d::UnitZ(), vec(l.desired_direction)), l.clipped ? "clipped" : "not clipped",
+              l.error_geodesic);
 }
 
 // 6: NaN, zero and unknown-frame targets are rejected and counted; nothing moves, no abort.

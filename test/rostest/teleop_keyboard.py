@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""scripts/teleop driven through a pseudo-terminal against plant_node + controller_node (lockstep,
+"""scripts/teleop driven through a pseudo-terminal against plant_node + controller_node (real time,
 path/type none, autostart; teleop_keyboard.test): holding 'up' tilts the view up, i.e. turns the tip
 z-axis about the tip's +x axis, towards the tip's -y axis (the contract of controller/view_rate);
 the status names the keyboard as the source; after the key is released the direction holds (source
@@ -98,7 +98,7 @@ class TeleopKeyboard(unittest.TestCase):
             self.pty.pump(0.05)
 
     def sim_sleep(self, seconds):
-        """Waits `seconds` of ROS (simulated) time while reading the terminal."""
+        """Waits `seconds` of ROS time while reading the terminal."""
         end = rospy.get_time() + seconds
         self.wait_for("%.1f s of simulated time" % seconds, lambda: rospy.get_time() >= end, 60.0)
 

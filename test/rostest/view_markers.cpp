@@ -155,7 +155,7 @@ TEST(ViewMarkers, TfTreeAndStartupReset) {
   const Received& r = received();
   ASSERT_TRUE(r.connected) << "tf tree world -> tip_model not connected:\n" << r.frames;
   ASSERT_GT(r.full, 0u) << "no marker array received";
-  // The first message is a DELETEALL (reset on start-up).
+  // The first message a subscriber gets is a DELETEALL (its welcome: a clean start in rviz).
   ASSERT_FALSE(r.got.front().markers.empty());
   EXPECT_EQ(r.got.front().markers[0].action, visualization_msgs::Marker::DELETEALL);
   // tip_model sits at the arc's tip, in the base frame.
@@ -236,6 +236,25 @@ TEST(ViewMarkers, ReachableSet) {
   }
   EXPECT_EQ(set_markers[1].type, visualization_msgs::Marker::LINE_STRIP);
   EXPECT_EQ(set_markers[1].points.size(), 37u);  // the 36 boundary directions, closed
+}
+
+// rviz connecting later (or again) gets a clean start too: its first array is a DELETEALL carrying the
+// reachable set, whatever was published before.
+TEST(ViewMarkers, ALateSubscriberFirstGetsADeleteAllWithTheReachableSet) {
+  ASSERT_GT(received().with_set, 0u) << "no reachable_set marker received";
+  ros::NodeHandle nh;
+  std::vector<visualization_msgs::MarkerArray> got;
+  ros::Subscriber sub = nh.subscribe<visualization_msgs::MarkerArray>(
+      names::kViewMarkers, 10, [&](const visualization_msgs::MarkerArray::ConstPtr& m) { got.push_back(*m); });
+  const ros::WallTime until = ros::WallTime::now() + ros::WallDuration(10.0);
+  while (ros::ok() && got.empty() && ros::WallTime::now() < until) {
+    ros::spinOnce();
+    ros::WallDuration(0.01).sleep();
+  }
+  ASSERT_FALSE(got.empty());
+  ASSERT_FALSE(got.front().markers.empty());
+  EXPECT_EQ(got.front().markers[0].action, visualization_msgs::Marker::DELETEALL);
+  EXPECT_TRUE(has_ns(got.front(), "reachable_set"));
 }
 
 int main(int argc, char** argv) {

@@ -29,8 +29,9 @@ namespace control {
 
 class Controller {
  public:
-  /// Computes the reachable set of `model` once: σ_c ≥ params.min_stability_margin, jet forces up to
-  /// params.reachable_force_fraction · q_max.
+  /// Computes the reachable sets of `model` once, σ_c ≥ params.min_stability_margin: the one for
+  /// operator targets with jet forces up to params.reachable_force_fraction · q_max, the one for
+  /// path points with q_max (the same set when the fraction is 1).
   Controller(const RobotModel& model, const ControllerOptions& params);
 
   /// Starts at time t (also after an abort or the end); jets start from zero. What drives: the
@@ -53,7 +54,10 @@ class Controller {
   /// Commands were given while idle or aborted; start() will use them.
   bool commands_pending() const { return commands_pending_; }
   const Reference& reference() const { return reference_; }
+  /// The set operator targets are clipped to (with the force reserve; the one rviz shows).
   const ReachableSet& reachable_set() const { return *reachable_; }
+  /// The set path points are clipped to (full q_max).
+  const ReachableSet& path_reachable_set() const { return *path_reachable_; }
 
   /// Switches between closed and open loop (takes effect on the next update).
   void set_mode(LoopMode mode) { params_.mode = mode; }
@@ -98,7 +102,8 @@ class Controller {
   SafetyMonitor monitor_;
   DirectionPd pd_;
   ForceLimiter limiter_;
-  std::shared_ptr<const ReachableSet> reachable_;
+  std::shared_ptr<const ReachableSet> path_reachable_;  ///< full q_max: path points
+  std::shared_ptr<const ReachableSet> reachable_;       ///< with reserve: operator targets
   Reference reference_;
   bool commands_pending_ = false;  ///< commands given while idle or aborted, for the next start()
   ControllerState state_ = ControllerState::kIdle;

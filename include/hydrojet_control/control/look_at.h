@@ -41,6 +41,9 @@ struct LookAtResult {
   /// Why not ok (behind the camera, too close, out of the jets' reach, no convergence, ...). When not
   /// ok, direction, tip_position and tip_force are the last iterate (the warm start is not moved).
   std::string message;
+  /// Not ok only because the point is out of the jets' reach: `direction` is then the closest aim
+  /// (the force at the edge of the allocatable polygon), a usable clipped target.
+  bool out_of_reach = false;
 };
 
 class LookAtSolver {

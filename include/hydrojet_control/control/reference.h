@@ -2,7 +2,11 @@
 // latest command wins) and how it moves. A new target is not a step: the reference moves toward it
 // along the great circle at most max_angular_rate [rad/s]; its own motion per step is the PD's
 // feedforward (DirectionPd takes the change of x_des, eq. 17). Every commanded direction goes
-// through ReachableSet::clip first, so the reference never leaves the reachable set.
+// through ReachableSet::clip first, so the reference never leaves the reachable set. Two sets:
+// operator targets (direction, look_at, rates) are clipped to the set swept with a force reserve,
+// so that the closed loop keeps authority where a person may park the tip; a path (designed, as the
+// paper's §7 spiral, which the paper ran on hardware) is clipped only to what the jets can reach at
+// all, so that a path inside that set runs exactly as written.
 // Sources:
 //   path       a Path from its start time (the configured §7 spiral, or a follow_path goal)
 //   direction  a fixed target direction (controller/target_direction)
@@ -29,8 +33,10 @@ const char* to_string(Source s);
 
 class Reference {
  public:
-  /// max_angular_rate [rad/s] > 0; `reachable` may be null (then nothing is clipped).
-  Reference(double max_angular_rate, std::shared_ptr<const ReachableSet> reachable);
+  /// max_angular_rate [rad/s] > 0; `target_set` clips fixed and rate targets, `path_set` the points
+  /// of a path; either may be null (then nothing of that kind is clipped).
+  Reference(double max_angular_rate, std::shared_ptr<const ReachableSet> target_set,
+            std::shared_ptr<const ReachableSet> path_set);
 
   void set_max_angular_rate(double rate) { max_rate_ = rate; }
 
@@ -68,11 +74,12 @@ class Reference {
   bool path_finished(double t) const { return path() && path_time(t) >= path_->duration(); }
 
  private:
-  void set_target(const Vec3& target);
+  void set_target(const Vec3& target, const ReachableSet* set);
   void move_toward_target(double dt);
 
   double max_rate_;
-  std::shared_ptr<const ReachableSet> reachable_;
+  std::shared_ptr<const ReachableSet> target_set_;  ///< with reserve: fixed and rate targets
+  std::shared_ptr<const ReachableSet> path_set_;    ///< full force: path points
   Source source_ = Source::kHold;
   Vec3 reference_ = Vec3::UnitZ();  ///< x_des, unit, base frame
   Vec3 target_ = Vec3::UnitZ();     ///< where the reference is going (clipped)
