@@ -7,6 +7,8 @@
 #include <cstdio>
 #include <fstream>
 #include <string>
+#include <Eigen/Dense>
+
 #include "cli_helpers.h"
 
 namespace {
@@ -170,4 +172,91 @@ TEST(RodFkCli, CarriesFoldCrossingsAndTheWarning) {
   ASSERT_EQ(moderate.status, 0) << moderate.err;
   EXPECT_EQ(hydrojet::test::number_field(moderate.out, "fold_crossings"), 0.0) << moderate.out;
   EXPECT_EQ(moderate.out.find("\"warning\""), std::string::npos) << moderate.out;
+}
+
+namespace {
+/// The numbers of a nested JSON array field `"key": [[a, b], [c, d]]`, row by row.
+std::vector<std::vector<double>> rows_field(const std::string& json, const std::string& key) {
+  std::vector<std::vector<double>> rows;
+  size_t i = json.find("\"" + key + "\": [[");
+  if (i == std::string::npos) return rows;
+  i = json.find("[[", i) + 1;
+  const size_t end = json.find("]]", i);
+  while (i < end) {
+    const size_t a = json.find('[', i), b = json.find(']', a);
+    rows.push_back(hydrojet::test::array_field("\"r\": " + json.substr(a, b - a + 1), "r"));
+    i = b + 1;
+  }
+  return rows;
+}
+
+struct Pose {
+  Eigen::Vector3d p;
+  Eigen::Matrix3d R;
+};
+Pose pose_of(const std::string& json) {
+  const auto p = array_field(json, "tip_position"), q = array_field(json, "tip_quaternion_wxyz");
+  return {Eigen::Vector3d(p[0], p[1], p[2]), Eigen::Quaterniond(q[0], q[1], q[2], q[3]).toRotationMatrix()};
+}
+
+const char* kTipActuators = R"(
+rod: {length: 0.09, bending_stiffness: [6.01e-4, 5.0e-4], torsional_stiffness: 2.23e-4, precurvature: [0.5, 0.0, 0.0]}
+tip: {mass: 0.003}
+gravity: [0, -9.81, 0]
+actuators:
+  - {name: a, direction: [1, 0, 0], position: [0, 0.004, 0.002], max_force: 0.2}
+  - {name: b, direction: [0, 0.6, 0.8], max_force: 0.2, min_force: -0.2}
+  - {name: c, direction: [0, -1, 0], position: [0.003, 0, 0], max_force: 0.2}
+)";
+}  // namespace
+
+// --actuators: the inputs go through the scene's actuators (the equivalent tip wrench gives the same
+// pose), and actuation_jacobian matches central differences of full solves (columns: body twist
+// (v, ω) = (Rᵀ δp, (Rᵀ δR)^∨) per unit input).
+TEST(RodFkCli, ActuatorsAndTheirJacobian) {
+  const std::string sc = write_scene(kTipActuators);
+  const double q[3] = {0.05, -0.04, 0.02}, h = 1e-5;
+  auto args = [&](int k, double dq) {
+    std::string a = " --actuators";
+    for (int i = 0; i < 3; ++i) {
+      char v[32];
+      std::snprintf(v, sizeof(v), " %.17g", q[i] + (i == k ? dq : 0.0));
+      a += v;
+    }
+    return "--scene " + sc + a;
+  };
+  const CliRun r = run(args(-1, 0.0) + " --compliance");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto J = rows_field(r.out, "actuation_jacobian");
+  ASSERT_EQ(J.size(), 6u) << r.out;
+  ASSERT_EQ(J[0].size(), 3u);
+  // The equivalent tip wrench: Σ q_i (d_i, p_i × d_i).
+  const Eigen::Vector3d d[3] = {{1, 0, 0}, {0, 0.6, 0.8}, {0, -1, 0}},
+                        p[3] = {{0, 0.004, 0.002}, {0, 0, 0}, {0.003, 0, 0}};
+  Eigen::Vector3d f = Eigen::Vector3d::Zero(), m = Eigen::Vector3d::Zero();
+  for (int i = 0; i < 3; ++i) f += q[i] * d[i], m += q[i] * p[i].cross(d[i]);
+  char buf[256];
+  std::snprintf(buf, sizeof(buf), " --force %.17g %.17g %.17g --moment %.17g %.17g %.17g", f.x(), f.y(), f.z(), m.x(),
+                m.y(), m.z());
+  const Pose base = pose_of(r.out), same = pose_of(run("--scene " + sc + buf).out);
+  EXPECT_LT((base.p - same.p).norm(), 1e-12);
+  for (int k = 0; k < 3; ++k) {
+    const Pose plus = pose_of(run(args(k, h)).out), minus = pose_of(run(args(k, -h)).out);
+    Eigen::Matrix<double, 6, 1> fd;
+    fd.head<3>() = base.R.transpose() * (plus.p - minus.p) / (2 * h);
+    const Eigen::Matrix3d dR = base.R.transpose() * (plus.R - minus.R) / (2 * h);  // ≈ ω^
+    fd.tail<3>() << dR(2, 1), dR(0, 2), dR(1, 0);
+    Eigen::Matrix<double, 6, 1> col;
+    for (int i = 0; i < 6; ++i) col[i] = J[i][k];
+    EXPECT_LT((col - fd).norm(), 1e-5 * col.norm()) << "input " << k << "\n"
+                                                    << col.transpose() << "\n"
+                                                    << fd.transpose();
+  }
+  // Wrong count and out-of-bounds inputs are named.
+  const CliRun few = run("--scene " + sc + " --actuators 0.1 0.1");
+  EXPECT_EQ(few.status, 2);
+  EXPECT_NE(few.err.find("--actuators: the scene has 3 actuator(s), got 2"), std::string::npos) << few.err;
+  const CliRun big = run("--scene " + sc + " --actuators 0.1 0.1 0.5");
+  EXPECT_EQ(big.status, 2);
+  EXPECT_NE(big.err.find("input 3 (c)"), std::string::npos) << big.err;
 }

@@ -182,3 +182,140 @@ TEST(YamlTree, TypedReadsFallbacksAndNamedErrors) {
   u.allow("a.c");  // a sub-map handled as one value
   EXPECT_EQ(tree_error([&] { u.reject_unknown(); }), "(no error)");
 }
+
+// --- Any follower-actuated rod (issue 14): rod.segments, loads, actuators ---------------------------
+
+namespace {
+const char* kGeneral = R"(
+rod:
+  segments:
+    - length: 0.05
+      bending_stiffness: [1.2e-3, 1.2e-3]
+      torsional_stiffness: 4.5e-4
+      linear_density: 0.02
+    - length: 0.04
+      youngs_modulus: 1.0e6
+      shear_modulus: 3.4e5
+      outer_diameter: 0.008
+      inner_diameter: 0.0
+      precurvature: [0.0, 1.0, 0.0]
+tip: {mass: 0.001}
+gravity: [0.0, 0.0, -9.81]
+loads:
+  - {at: 0.05, mass: 0.001}
+  - {at: 0.02, force: [0.0, 0.01, 0.0], moment: [0.0, 0.0, 0.001], frame: base}
+actuators:
+  - {name: thruster1, at: 0.05, position: [0.004, 0.0, 0.0], direction: [0.0, 1.0, 0.0], max_force: 0.1}
+  - {direction: [-1.0, 0.0, 0.0], max_force: 0.2, min_force: -0.2}
+)";
+}  // namespace
+
+TEST(SceneGeneral, SegmentsLoadsAndActuators) {
+  const hydrojet::config::Scene s = parse_scene(kGeneral);
+  ASSERT_EQ(s.body.segments.size(), 2u);
+  EXPECT_FALSE(s.uniform());
+  EXPECT_NEAR(s.body.length(), 0.09, 1e-15);
+  EXPECT_DOUBLE_EQ(s.model.rod.length, 0.09);  // the uniform view: total length
+  EXPECT_EQ(s.body.segments[0].stiffness, hydrojet::rod::Vec3(1.2e-3, 1.2e-3, 4.5e-4));
+  EXPECT_DOUBLE_EQ(s.body.segments[0].linear_density, 0.02);
+  // Moduli and diameters: E·I and G·J = G·2I with I = π D⁴ / 64 (solid).
+  const double I = M_PI * std::pow(0.008, 4) / 64.0;
+  EXPECT_NEAR(s.body.segments[1].stiffness.x(), 1.0e6 * I, 1e-15);
+  EXPECT_NEAR(s.body.segments[1].stiffness.z(), 3.4e5 * 2 * I, 1e-15);
+  EXPECT_EQ(s.body.segments[1].precurvature, hydrojet::rod::Vec3(0.0, 1.0, 0.0));
+  ASSERT_EQ(s.body.loads.size(), 2u);
+  EXPECT_EQ(s.body.loads[0].frame, hydrojet::rod::LoadFrame::kBody);  // the default
+  EXPECT_DOUBLE_EQ(s.body.loads[0].mass, 0.001);
+  EXPECT_EQ(s.body.loads[1].frame, hydrojet::rod::LoadFrame::kBase);
+  EXPECT_EQ(s.body.loads[1].moment, hydrojet::rod::Vec3(0.0, 0.0, 0.001));
+  ASSERT_EQ(s.body.actuators.size(), 2u);
+  EXPECT_TRUE(s.has_actuators);
+  EXPECT_FALSE(s.has_jets);
+  const hydrojet::rod::Actuator& a = s.body.actuators[0];
+  EXPECT_EQ(a.name, "thruster1");
+  EXPECT_DOUBLE_EQ(a.at, 0.05);
+  // The unit wrench is (d, p × d): (0, 1, 0) at (0.004, 0, 0) gives the moment 0.004 e_z.
+  EXPECT_NEAR((a.unit_wrench() - (hydrojet::rod::Vec6() << 0, 1, 0, 0, 0, 0.004).finished()).norm(), 0.0, 1e-15);
+  const hydrojet::rod::Actuator& b = s.body.actuators[1];
+  EXPECT_EQ(b.name, "actuator2");
+  EXPECT_DOUBLE_EQ(b.at, 0.09);  // default: the tip
+  EXPECT_DOUBLE_EQ(b.min_force, -0.2);
+  EXPECT_EQ(b.type, hydrojet::rod::ActuatorType::kForce);
+  EXPECT_EQ(s.body.gravity, hydrojet::rod::Vec3(0.0, 0.0, -9.81));
+  EXPECT_DOUBLE_EQ(s.body.tip_mass, 0.001);
+}
+
+// A single-rod scene is one segment; a jets scene has the three jets of eq. (24) as actuators at L.
+TEST(SceneGeneral, SingleRodAndJetsScenesAreTheSpecialCase) {
+  for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
+    const hydrojet::config::Scene s = hydrojet::test::scene(name);
+    EXPECT_TRUE(s.uniform()) << name;
+    ASSERT_EQ(s.body.segments.size(), 1u);
+    EXPECT_EQ(s.body.segments[0].stiffness, s.model.rod.stiffness);
+    EXPECT_EQ(s.body.segments[0].precurvature, s.model.rod.precurvature);
+    EXPECT_DOUBLE_EQ(s.body.segments[0].length, s.model.rod.length);
+    ASSERT_EQ(s.body.actuators.size(), 3u);
+    const hydrojet::actuation::JetMap map(s.jets);
+    for (int i = 0; i < 3; ++i) {
+      const hydrojet::rod::Actuator& a = s.body.actuators[i];
+      EXPECT_EQ(a.type, hydrojet::rod::ActuatorType::kJet);
+      EXPECT_DOUBLE_EQ(a.at, s.model.rod.length);
+      EXPECT_DOUBLE_EQ(a.max_force, s.max_jet_force[i]);
+      EXPECT_LT((a.unit_wrench() - map.wrench_matrix().col(i)).norm(), 1e-15) << name << " jet " << i;
+    }
+  }
+}
+
+TEST(SceneGeneral, ErrorsNameTheKey) {
+  const std::string g = kGeneral;
+  const struct {
+    std::string yaml;
+    const char* key;
+  } cases[] = {
+      {replace(g, "- length: 0.05", "- length: -0.05"), "rod.segments[0].length"},
+      {replace(g, "      precurvature: [0.0, 1.0, 0.0]", "      precurvatur: [0.0, 1.0, 0.0]"),
+       "rod.segments[1].precurvatur"},
+      {replace(g, "rod:\n  segments:", "rod:\n  length: 0.09\n  segments:"), "rod.length"},
+      {replace(g, "  - {at: 0.05, mass: 0.001}", "  - {at: 0.1, mass: 0.001}"), "loads[0].at"},
+      {replace(g, "  - {at: 0.05, mass: 0.001}", "  - {at: 0.0, mass: 0.001}"), "loads[0].at"},
+      {replace(g, "frame: base}", "frame: world}"), "loads[1].frame"},
+      {replace(g, "direction: [0.0, 1.0, 0.0]", "direction: [0.0, 1.01, 0.0]"), "actuators[0].direction"},
+      {replace(g, "max_force: 0.2, min_force: -0.2", "max_force: 0.2, min_force: 0.3"), "actuators[1].max_force"},
+      {replace(g, "{name: thruster1,", "{name: thruster1, type: jet,"), "actuators[0].type"},
+      {replace(g, "{name: thruster1,", "{name: thruster1, type: hydraulic,"), "actuators[0].type"},
+      {replace(g, "{name: thruster1,", "{nme: thruster1,"), "actuators[0].nme"},
+      {replace(g, "actuators:\n",
+               "jets: {misalignment: [0, 0, 0], max_force: [0.2, 0.2, 0.2], inlet_area: 1.0e-5, "
+               "outlet_area: 5.0e-6, water_density: 1000}\nactuators:\n"),
+       "actuators"},
+      {replace(g, "      linear_density: 0.02", "      linear_density: 0.02\n      model: cosserat"),
+       "rod.segments[0].model"},
+  };
+  for (const auto& c : cases) EXPECT_EQ(error_key(c.yaml), c.key) << c.yaml;
+}
+
+// The parts that solve one uniform rod with tip actuation refuse the rest by name (not silently
+// solving the first segment).
+TEST(SceneGeneral, UniformOnlyConsumersRefuseByName) {
+  const std::string jets =
+      "jets: {misalignment: [0, 0, 0], max_force: [0.2, 0.2, 0.2], inlet_area: 1.0e-5, outlet_area: 5.0e-6, "
+      "water_density: 1000}\n";
+  const std::string segments = replace(kGeneral, "actuators:\n", jets + "xactuators:\n");
+  const std::string loads = std::string(kGood) + jets + "loads:\n  - {at: 0.05, mass: 0.001}\n";
+  const std::string inside = std::string(kGood) + "actuators:\n  - {at: 0.05, direction: [1, 0, 0], max_force: 0.1}\n";
+  const struct {
+    std::string yaml;
+    const char* key;
+  } cases[] = {{segments, "rod.segments"}, {loads, "loads"}, {inside, "actuators[0].at"}};
+  for (const auto& c : cases) {
+    const hydrojet::config::Scene s = parse_scene(c.yaml);
+    try {
+      hydrojet::config::require_uniform(s, "the controller");
+      ADD_FAILURE() << "accepted:\n" << c.yaml;
+    } catch (const SceneError& e) {
+      EXPECT_EQ(e.key(), c.key);
+      EXPECT_NE(std::string(e.what()).find("the controller handles one uniform rod"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_NO_THROW(hydrojet::config::require_uniform(hydrojet::test::scene("hydrojet_0deg"), "the controller"));
+}

@@ -225,6 +225,7 @@ StartScene load_start_scene(const Args& a) {
   StartScene s;
   s.text = read_text(a.scene, "--scene");
   s.scene = config::parse_scene(s.text);
+  config::require_uniform(s.scene, "the calibration");
   s.cs = cross_section_from_scene_text(s.text, CrossSection());
   if (a.outer > 0) s.cs.outer_diameter = a.outer;
   if (a.inner >= 0) s.cs.inner_diameter = a.inner;

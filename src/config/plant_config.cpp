@@ -146,6 +146,7 @@ plant::PlantModel make_plant(const Scene& nominal, const std::string& text) {
 }
 
 plant::PlantModel load_plant(const Scene& nominal, const std::string& path) {
+  require_uniform(nominal, "the simulated plant");
   if (path.empty()) return make_plant(nominal, "");
   std::ifstream f(path);
   if (!f) throw SceneError("plant", "cannot read file '" + path + "'");

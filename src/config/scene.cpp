@@ -2,6 +2,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -13,56 +14,115 @@ namespace {
 /// Scene keys are dotted paths ("rod.length"); errors are SceneError naming them.
 using Tree = YamlTree<SceneError>;
 
-void parse_rod(Tree& t, rod::ElasticRod* p) {
-  t.section("rod");
-  t.keys("rod",
-         {"length", "bending_stiffness", "torsional_stiffness", "youngs_modulus", "shear_modulus", "outer_diameter",
-          "inner_diameter", "precurvature", "linear_density", "model", "shear_stiffness", "axial_stiffness"});
-  p->length = t.positive("rod.length");
-  const bool direct = t.has("rod.bending_stiffness") || t.has("rod.torsional_stiffness");
-  const bool moduli = t.has("rod.youngs_modulus") || t.has("rod.shear_modulus") || t.has("rod.outer_diameter") ||
-                      t.has("rod.inner_diameter");
+/// The keys of one piece of rod: the single-rod section or one item of rod.segments.
+constexpr std::initializer_list<const char*> kRodKeys = {"length",         "bending_stiffness", "torsional_stiffness",
+                                                         "youngs_modulus", "shear_modulus",     "outer_diameter",
+                                                         "inner_diameter", "precurvature",      "linear_density",
+                                                         "model",          "shear_stiffness",   "axial_stiffness"};
+
+/// Stiffness from `k`bending_stiffness/torsional_stiffness, or from moduli and diameters (then also
+/// EA and GA for the Cosserat rod). `k` is the key prefix ("rod." or "" for a segment's own tree).
+void parse_stiffness(Tree& t, const std::string& k, rod::ElasticRod* p) {
+  const bool direct = t.has(k + "bending_stiffness") || t.has(k + "torsional_stiffness");
+  const bool moduli = t.has(k + "youngs_modulus") || t.has(k + "shear_modulus") || t.has(k + "outer_diameter") ||
+                      t.has(k + "inner_diameter");
   if (direct && moduli)
-    t.fail("rod.bending_stiffness", "give either bending/torsional stiffness or moduli and diameters, not both");
+    t.fail(k + "bending_stiffness", "give either bending/torsional stiffness or moduli and diameters, not both");
   if (moduli) {
-    const double E = t.positive("rod.youngs_modulus");
-    const double G = t.positive("rod.shear_modulus");
-    const double D = t.positive("rod.outer_diameter");
-    const double d = t.nonnegative("rod.inner_diameter");
-    if (d >= D) t.fail("rod.inner_diameter", "must be smaller than rod.outer_diameter");
+    const double E = t.positive(k + "youngs_modulus");
+    const double G = t.positive(k + "shear_modulus");
+    const double D = t.positive(k + "outer_diameter");
+    const double d = t.nonnegative(k + "inner_diameter");
+    if (d >= D) t.fail(k + "inner_diameter", "must be smaller than " + t.key(k + "outer_diameter"));
     const double I = M_PI * (std::pow(D, 4) - std::pow(d, 4)) / 64.0;  // hollow cylinder
     p->stiffness = rod::Vec3(E * I, E * I, G * 2.0 * I);               // J = 2 I
     const double A = M_PI * (D * D - d * d) / 4.0;                     // Cosserat: EA, GA
     p->axial_stiffness = E * A;
     p->shear_stiffness = G * A;
   } else {
-    const std::vector<double> ei = t.numbers("rod.bending_stiffness", 2);
+    const std::vector<double> ei = t.numbers(k + "bending_stiffness", 2);
     for (int i = 0; i < 2; ++i)
       if (!(ei[i] > 0.0))
-        t.fail("rod.bending_stiffness[" + std::to_string(i) + "]", "must be positive, got " + Tree::format(ei[i]));
-    p->stiffness = rod::Vec3(ei[0], ei[1], t.positive("rod.torsional_stiffness"));
+        t.fail(k + "bending_stiffness[" + std::to_string(i) + "]", "must be positive, got " + Tree::format(ei[i]));
+    p->stiffness = rod::Vec3(ei[0], ei[1], t.positive(k + "torsional_stiffness"));
   }
-  // rod.model: kirchhoff (default) | cosserat. The Cosserat rod needs K_se = diag(GA, GA, EA): the
-  // keys shear_stiffness and axial_stiffness [N], or moduli and diameters (GA = G·A, EA = E·A).
+}
+
+/// `k`model: kirchhoff (default, or `inherited`) | cosserat. The Cosserat rod needs K_se = diag(GA,
+/// GA, EA): the keys shear_stiffness and axial_stiffness [N], or moduli and diameters (GA = G·A, EA = E·A).
+void parse_kind(Tree& t, const std::string& k, const std::string& inherited, bool segment, rod::ElasticRod* p) {
+  const std::string kind = t.text(k + "model", inherited);
+  if (kind != "kirchhoff" && kind != "cosserat")
+    t.fail(k + "model", "must be kirchhoff or cosserat, got '" + kind + "'");
+  if (segment && kind != inherited)
+    t.fail(k + "model", "every segment has the model of rod.model ('" + inherited + "')");
+  if (kind == "kirchhoff") {
+    for (const char* key : {"shear_stiffness", "axial_stiffness"})
+      if (t.has(k + key)) t.fail(k + key, "only with model: cosserat");
+    p->kind = rod::RodKind::kKirchhoff;
+    p->shear_stiffness = p->axial_stiffness = 0.0;
+    return;
+  }
+  p->kind = rod::RodKind::kCosserat;
+  p->shear_stiffness = t.positive(k + "shear_stiffness", p->shear_stiffness);
+  p->axial_stiffness = t.positive(k + "axial_stiffness", p->axial_stiffness);
+  if (!(p->shear_stiffness > 0.0))
+    t.fail(k + "shear_stiffness", "missing (model: cosserat needs it, or moduli and diameters)");
+  if (!(p->axial_stiffness > 0.0))
+    t.fail(k + "axial_stiffness", "missing (model: cosserat needs it, or moduli and diameters)");
+}
+
+/// One uniform piece of rod under the key prefix `k`.
+void parse_piece(Tree& t, const std::string& k, const std::string& inherited_kind, bool segment, rod::ElasticRod* p) {
+  p->length = t.positive(k + "length");
+  parse_stiffness(t, k, p);
+  parse_kind(t, k, inherited_kind, segment, p);
+  p->precurvature = t.vec3<rod::Vec3>(k + "precurvature", rod::Vec3::Zero());
+  p->linear_density = t.nonnegative(k + "linear_density", 0.0);
+}
+
+rod::RodSegment segment_of(const rod::ElasticRod& p) {
+  rod::RodSegment s;
+  s.length = p.length;
+  s.stiffness = p.stiffness;
+  s.precurvature = p.precurvature;
+  s.linear_density = p.linear_density;
+  s.shear_stiffness = p.shear_stiffness;
+  s.axial_stiffness = p.axial_stiffness;
+  return s;
+}
+
+/// rod.segments: base to tip, each with the single-rod keys. The scene's uniform `model.rod` gets
+/// the total length and the first segment's material (what a single-rod consumer may read; the
+/// consumers that only handle a uniform rod check Scene::uniform()).
+void parse_segments(Tree& t, const YAML::Node& rod_node, Scene* s) {
+  t.keys("rod", {"segments", "model"});
+  t.allow("rod.segments");
+  const YAML::Node list = rod_node["segments"];
+  if (!list.IsSequence() || list.size() == 0) t.fail("rod.segments", "must be a non-empty list of segments");
   const std::string kind = t.text("rod.model", "kirchhoff");
   if (kind != "kirchhoff" && kind != "cosserat")
     t.fail("rod.model", "must be kirchhoff or cosserat, got '" + kind + "'");
-  if (kind == "kirchhoff") {
-    for (const char* k : {"rod.shear_stiffness", "rod.axial_stiffness"})
-      if (t.has(k)) t.fail(k, "only with rod.model: cosserat");
-    p->kind = rod::RodKind::kKirchhoff;
-    p->shear_stiffness = p->axial_stiffness = 0.0;
-  } else {
-    p->kind = rod::RodKind::kCosserat;
-    p->shear_stiffness = t.positive("rod.shear_stiffness", p->shear_stiffness);
-    p->axial_stiffness = t.positive("rod.axial_stiffness", p->axial_stiffness);
-    if (!(p->shear_stiffness > 0.0))
-      t.fail("rod.shear_stiffness", "missing (rod.model: cosserat needs it, or moduli and diameters)");
-    if (!(p->axial_stiffness > 0.0))
-      t.fail("rod.axial_stiffness", "missing (rod.model: cosserat needs it, or moduli and diameters)");
+  for (size_t i = 0; i < list.size(); ++i) {
+    Tree item(list[i], '.', "rod.segments[" + std::to_string(i) + "].");
+    if (!list[i].IsMap()) item.fail("", "must be a mapping of single-rod keys");
+    item.keys("", kRodKeys);
+    rod::ElasticRod piece;
+    parse_piece(item, "", kind, true, &piece);
+    s->body.segments.push_back(segment_of(piece));
+    if (i == 0) s->model.rod = piece;
   }
-  p->precurvature = t.vec3<rod::Vec3>("rod.precurvature", rod::Vec3::Zero());
-  p->linear_density = t.nonnegative("rod.linear_density", 0.0);
+  s->model.rod.length = s->body.length();
+  s->body.kind = s->model.rod.kind;
+}
+
+void parse_rod(Tree& t, Scene* s) {
+  const YAML::Node node = t.section("rod");
+  if (node["segments"]) return parse_segments(t, node, s);
+  t.keys("rod", kRodKeys);
+  parse_piece(t, "rod.", "kirchhoff", false, &s->model.rod);
+  s->body.segments = {segment_of(s->model.rod)};
+  s->body.kind = s->model.rod.kind;
 }
 
 void parse_tip(Tree& t, Scene* s) {
@@ -122,6 +182,106 @@ void parse_jets(Tree& t, Scene* s) {
   s->jets.nozzle_offset = t.number("jets.nozzle_offset", 0.0);
 }
 
+/// An item of a list section: its own tree, keys checked, errors named "<list>[i].<key>".
+Tree list_item(Tree& t, const YAML::Node& list, const std::string& name, size_t i,
+               std::initializer_list<const char*> allowed) {
+  Tree item(list[i], '.', name + "[" + std::to_string(i) + "].");
+  if (!list[i].IsMap()) item.fail("", "must be a mapping");
+  item.keys("", allowed);
+  return item;
+}
+
+/// A list section (absent: empty list).
+YAML::Node list_section(Tree& t, const YAML::Node& root, const std::string& name) {
+  t.allow(name);
+  const YAML::Node list = root[name];
+  if (!list.IsSequence()) t.fail(name, "must be a list");
+  return list;
+}
+
+/// An arc length in (0, L] [m]; `fallback` < 0: required.
+double arc_length(Tree& item, const std::string& key, double L, double fallback = -1.0) {
+  const double at = fallback < 0.0 ? item.number(key) : item.number(key, fallback);
+  if (!(at > 0.0 && at <= L * (1.0 + 1e-12))) item.fail(key, "must lie in (0, L] = (0, " + Tree::format(L) + "] m");
+  return std::min(at, L);
+}
+
+/// loads: point loads along the body besides the tip's.
+void parse_loads(Tree& t, const YAML::Node& root, Scene* s) {
+  const YAML::Node list = list_section(t, root, "loads");
+  for (size_t i = 0; i < list.size(); ++i) {
+    Tree item = list_item(t, list, "loads", i, {"at", "mass", "force", "moment", "frame"});
+    rod::PointLoad l;
+    l.at = arc_length(item, "at", s->body.length());
+    l.mass = item.nonnegative("mass", 0.0);
+    l.force = item.vec3<rod::Vec3>("force", rod::Vec3::Zero());
+    l.moment = item.vec3<rod::Vec3>("moment", rod::Vec3::Zero());
+    const std::string frame = item.text("frame", "body");
+    if (frame != "body" && frame != "base") item.fail("frame", "must be body or base, got '" + frame + "'");
+    l.frame = frame == "body" ? rod::LoadFrame::kBody : rod::LoadFrame::kBase;
+    s->body.loads.push_back(l);
+  }
+}
+
+rod::Actuator parse_actuator(Tree& item, size_t i, double L) {
+  rod::Actuator a;
+  a.name = item.text("name", "actuator" + std::to_string(i + 1));
+  a.at = arc_length(item, "at", L, L);
+  a.position = item.vec3<rod::Vec3>("position", rod::Vec3::Zero());
+  a.direction = item.vec3<rod::Vec3>("direction");
+  if (!(std::abs(a.direction.norm() - 1.0) <= 1e-6))
+    item.fail("direction", "must be a unit vector (within 1e-6), its norm is " + Tree::format(a.direction.norm()));
+  a.max_force = item.number("max_force");
+  a.min_force = item.number("min_force", 0.0);
+  if (!(a.min_force <= a.max_force)) item.fail("max_force", "must be >= min_force (" + Tree::format(a.min_force) + ")");
+  const std::string type = item.text("type", "force");
+  if (type != "force" && type != "jet") item.fail("type", "must be force or jet, got '" + type + "'");
+  a.type = type == "force" ? rod::ActuatorType::kForce : rod::ActuatorType::kJet;
+  return a;
+}
+
+/// actuators: N inputs anywhere along the body (instead of `jets`).
+void parse_actuators(Tree& t, const YAML::Node& root, Scene* s) {
+  const YAML::Node list = list_section(t, root, "actuators");
+  if (list.size() == 0 || list.size() > static_cast<size_t>(rod::kMaxActuators))
+    t.fail("actuators", "must list 1 to " + std::to_string(rod::kMaxActuators) + " actuators");
+  for (size_t i = 0; i < list.size(); ++i) {
+    Tree item =
+        list_item(t, list, "actuators", i, {"name", "at", "position", "direction", "max_force", "min_force", "type"});
+    s->body.actuators.push_back(parse_actuator(item, i, s->body.length()));
+  }
+  s->has_actuators = true;
+}
+
+/// nozzle: the thrust equation's areas and density (eq. 26), for actuators of type jet.
+void parse_nozzle(Tree& t, Scene* s) {
+  t.section("nozzle");
+  t.keys("nozzle", {"inlet_area", "outlet_area", "water_density"});
+  s->nozzle.inlet_area = t.positive("nozzle.inlet_area");
+  s->nozzle.outlet_area = t.positive("nozzle.outlet_area");
+  s->nozzle.water_density = t.positive("nozzle.water_density");
+  if (s->nozzle.outlet_area >= s->nozzle.inlet_area)
+    t.fail("nozzle.outlet_area", "must be smaller than nozzle.inlet_area (else the thrust of eq. 26 is not positive)");
+}
+
+/// The three jets of eq. (24) as actuators at the tip: direction = the jet's force direction, the
+/// nozzle offset as the point of application (moment (d e_z) × f).
+std::vector<rod::Actuator> jet_actuators(const Scene& s) {
+  const actuation::JetMap map(s.jets);
+  std::vector<rod::Actuator> out;
+  for (int i = 0; i < 3; ++i) {
+    rod::Actuator a;
+    a.name = "jet" + std::to_string(i + 1);
+    a.at = s.body.length();
+    a.direction = map.wrench_matrix().col(i).head<3>();
+    a.position = rod::Vec3(0.0, 0.0, s.jets.nozzle_offset);
+    a.max_force = s.max_jet_force[i];
+    a.type = rod::ActuatorType::kJet;
+    out.push_back(a);
+  }
+  return out;
+}
+
 }  // namespace
 
 Scene parse_scene(const std::string& text) {
@@ -136,11 +296,22 @@ Scene parse_scene(const std::string& text) {
   // inside them are not.
   Tree t(root, '.');
   Scene s;
-  parse_rod(t, &s.model.rod);
+  parse_rod(t, &s);
   parse_tip(t, &s);
   s.model.gravity = t.vec3<rod::Vec3>("gravity");
+  s.body.tip_mass = s.model.tip_mass;
+  s.body.gravity = s.model.gravity;
   if (t.has("solver")) parse_solver(t, &s.solver);
+  if (t.has("jets") && t.has("actuators")) t.fail("actuators", "give either jets (the HydroJet's three) or actuators");
   if (t.has("jets")) parse_jets(t, &s);
+  if (s.has_jets) s.body.actuators = jet_actuators(s);
+  if (t.has("loads")) parse_loads(t, root, &s);
+  if (t.has("actuators")) parse_actuators(t, root, &s);
+  if (t.has("nozzle")) parse_nozzle(t, &s);
+  for (size_t i = 0; i < s.body.actuators.size(); ++i)
+    if (s.body.actuators[i].type == rod::ActuatorType::kJet && !s.has_jets && !t.has("nozzle"))
+      t.fail("actuators[" + std::to_string(i) + "].type",
+             "jet needs the nozzle section (inlet_area, outlet_area, water_density)");
   return s;
 }
 
@@ -158,7 +329,17 @@ Scene load_scene(const std::string& path) {
 namespace hydrojet {
 namespace config {
 
+void require_uniform(const Scene& scene, const std::string& who) {
+  const std::string why = who + " handles one uniform rod with its actuators at the tip so far";
+  if (scene.body.segments.size() > 1) throw SceneError("rod.segments", why);
+  if (!scene.body.loads.empty()) throw SceneError("loads", why);
+  for (size_t i = 0; i < scene.body.actuators.size(); ++i)
+    if (scene.body.actuators[i].at < scene.body.length())
+      throw SceneError("actuators[" + std::to_string(i) + "].at", why);
+}
+
 control::RobotModel make_controller_model(const Scene& scene, const actuation::FlowRegulatorOptions& flow) {
+  require_uniform(scene, "the controller");
   if (!scene.has_jets) throw SceneError("jets", "missing (the controller needs the jet geometry)");
   control::RobotModel m;
   m.rod = scene.model;

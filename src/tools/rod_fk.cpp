@@ -24,6 +24,7 @@ const char* kUsage =
     "usage: rod_fk --scene FILE [--force FX FY FZ] [--moment MX MY MZ] [--integrator NAME]\n"
     "              [--steps N] [--tol X] [--compliance] [--shape K] [--batch FILE|-]\n"
     "              [--jets Q1 Q2 Q3]   (jet forces [N] through the scene's jet map, eq. 24)\n"
+    "              [--actuators Q1 ... QN]   (the scene's actuators' inputs [N], in scene order)\n"
     "  --integrator: rk4 | rk8 | dopri5 | cvode-adams | cvode-bdf (default: the scene's)\n";
 
 /// Bad input: one line on stderr naming the argument or key, nothing on stdout, exit 2.
@@ -49,7 +50,9 @@ struct Options {
   int shape = 0;
   std::string batch;
   bool have_jets = false;
-  Vec3 jets = Vec3::Zero();  ///< jet forces [N]
+  Vec3 jets = Vec3::Zero();       ///< jet forces [N]
+  std::vector<double> actuators;  ///< --actuators: inputs [N] in scene order (checked against the scene)
+  bool have_actuators = false;
   bool have_wrench = false;
 };
 
@@ -76,6 +79,11 @@ Options parse_args(int argc, char** argv) {
         if (o.jets[k] < 0.0) throw BadInput{a + ": jet forces must not be negative"};
       }
       o.have_jets = true;
+    } else if (a == "--actuators") {
+      // As many numbers as follow (a negative number is an input: options start with "--").
+      while (i + 1 < argc && std::strncmp(argv[i + 1], "--", 2) != 0) o.actuators.push_back(parse_number(argv[++i], a));
+      if (o.actuators.empty()) throw BadInput{a + ": expects one input per actuator of the scene"};
+      o.have_actuators = true;
     } else if (a == "--integrator") {
       need(i, 1, a);
       o.integrator = argv[++i];
@@ -108,6 +116,8 @@ Options parse_args(int argc, char** argv) {
   if (o.scene.empty()) throw BadInput{"--scene: missing (required)"};
   if (o.have_jets && (o.have_wrench || !o.batch.empty()))
     throw BadInput{"--jets: cannot be combined with --force/--moment/--batch"};
+  if (o.have_actuators && (o.have_jets || o.have_wrench || !o.batch.empty()))
+    throw BadInput{"--actuators: cannot be combined with --jets/--force/--moment/--batch"};
   return o;
 }
 
@@ -140,10 +150,31 @@ std::vector<hydrojet::rod::TipWrench> read_batch(const std::string& src) {
   return out;
 }
 
+/// Column i: actuator i's tip body wrench per unit input (all actuators at the tip: require_uniform).
+Eigen::Matrix<double, 6, Eigen::Dynamic> actuator_wrenches(const hydrojet::config::Scene& scene) {
+  Eigen::Matrix<double, 6, Eigen::Dynamic> B(6, scene.body.actuators.size());
+  for (size_t i = 0; i < scene.body.actuators.size(); ++i) B.col(i) = scene.body.actuators[i].unit_wrench();
+  return B;
+}
+
+/// --actuators: one input per actuator, each within its [min_force, max_force].
+void check_inputs(const hydrojet::config::Scene& scene, const std::vector<double>& q) {
+  const auto& acts = scene.body.actuators;
+  if (q.size() != acts.size())
+    throw BadInput{"--actuators: the scene has " + std::to_string(acts.size()) + " actuator(s), got " +
+                   std::to_string(q.size()) + " input(s)"};
+  for (size_t i = 0; i < q.size(); ++i)
+    if (q[i] < acts[i].min_force || q[i] > acts[i].max_force)
+      throw BadInput{"--actuators: input " + std::to_string(i + 1) + " (" + acts[i].name +
+                     ") = " + std::to_string(q[i]) + " N lies outside [min_force, max_force] = [" +
+                     std::to_string(acts[i].min_force) + ", " + std::to_string(acts[i].max_force) + "] N"};
+}
+
 /// The scene with the command line's integrator overrides; --jets turned into opt->wrench through
 /// the scene's jet map.
 hydrojet::config::Scene load_scene(Options* opt) {
   hydrojet::config::Scene scene = hydrojet::config::load_scene(opt->scene);
+  hydrojet::config::require_uniform(scene, "rod_fk");
   if (!opt->integrator.empty() && !hydrojet::rod::parse_integrator(opt->integrator, &scene.solver.integrator.type))
     throw BadInput{"--integrator: unknown integrator '" + opt->integrator + "' (" + hydrojet::rod::integrator_names() +
                    ")"};
@@ -151,7 +182,12 @@ hydrojet::config::Scene load_scene(Options* opt) {
   if (opt->tol > 0.0) scene.solver.integrator.tolerance = opt->tol;
   if (opt->have_jets) {
     if (!scene.has_jets) throw BadInput{"--jets: scene " + opt->scene + " has no jets section"};
-    const hydrojet::rod::Vec6 w = hydrojet::actuation::JetMap(scene.jets).wrench(opt->jets);
+    opt->actuators.assign(opt->jets.data(), opt->jets.data() + 3);
+  }
+  if (opt->have_actuators) check_inputs(scene, opt->actuators);
+  if (opt->have_jets || opt->have_actuators) {
+    const hydrojet::rod::Vec6 w =
+        actuator_wrenches(scene) * Eigen::Map<const Eigen::VectorXd>(opt->actuators.data(), opt->actuators.size());
     opt->wrench.force = w.head<3>();
     opt->wrench.moment = w.tail<3>();
   }
@@ -161,8 +197,10 @@ hydrojet::config::Scene load_scene(Options* opt) {
 /// --compliance: the body compliance C^b and the stability margin (null when not converged).
 void add_compliance(hydrojet::rod::ShootingSolver& solver, const hydrojet::config::Scene& scene, bool converged,
                     JsonObject* j) {
+  const bool actuated = !scene.body.actuators.empty();
   if (!converged) {
     j->add_null("compliance").add_null("stability_margin").add_null("stability_eig_min");
+    if (actuated) j->add_null("actuation_jacobian");
     return;
   }
   const auto tc0 = std::chrono::steady_clock::now();
@@ -173,6 +211,9 @@ void add_compliance(hydrojet::rod::ShootingSolver& solver, const hydrojet::confi
       .add("stability_margin", st.margin)
       .add("stability_eig_min", st.eig_min)
       .add("compliance_time_us", std::chrono::duration<double, std::micro>(tc1 - tc0).count());
+  // J_q = ∂(v, ω)/∂q: the actuators act at the tip (require_uniform), so by the chain rule through the
+  // converged solve (implicit function theorem) J_q = C^b · ∂w/∂q, ∂w/∂q = the unit wrenches.
+  if (actuated) j->add("actuation_jacobian", Eigen::MatrixXd(c.body * actuator_wrenches(scene)));
 }
 
 /// One solve for the tip wrench w as its JSON line.
