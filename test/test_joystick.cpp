@@ -20,28 +20,17 @@
 #include <vector>
 
 #include "emulator_process.h"
+#include "js_records.h"
 #include "hydrojet_control/devices/joystick.h"
 
 using namespace hydrojet::devices;
 using hydrojet::test::eventually;
+using namespace hydrojet::test;  // js_record, axis, button, initial_axis, initial_button
 using Publish = JoystickDecoder::Publish;
 
 namespace {
 
 constexpr double kWait = 5.0;  ///< bound of every wait for the reader [s]
-
-std::string record(uint8_t type, uint8_t number, int16_t value) {
-  js_event e{};
-  e.time = 1234;
-  e.value = value;
-  e.type = type;
-  e.number = number;
-  return std::string(reinterpret_cast<const char*>(&e), sizeof e);
-}
-std::string axis(uint8_t n, int16_t v) { return record(JS_EVENT_AXIS, n, v); }
-std::string button(uint8_t n, int16_t v) { return record(JS_EVENT_BUTTON, n, v); }
-std::string initial_axis(uint8_t n, int16_t v) { return record(JS_EVENT_AXIS | JS_EVENT_INIT, n, v); }
-std::string initial_button(uint8_t n, int16_t v) { return record(JS_EVENT_BUTTON | JS_EVENT_INIT, n, v); }
 
 Publish feed(JoystickDecoder& d, const std::string& bytes) {
   return d.feed(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size());
@@ -215,7 +204,7 @@ TEST(JoystickDecoder, InitialStateButtonsAndGrowth) {
   EXPECT_EQ(d.axes(), (std::vector<double>{-1.0, 0.0, 0.0, 0.0, 1.0}));
   EXPECT_EQ(d.buttons(), (std::vector<int>{1, 0, 0, 0, 0, 0, 1}));
   // Unknown event types are counted and ignored.
-  EXPECT_EQ(feed(d, record(0x40, 2, 1)), Publish::kNone);
+  EXPECT_EQ(feed(d, js_record(0x40, 2, 1)), Publish::kNone);
   EXPECT_EQ(d.buttons().size(), 7u);
   // zero() keeps the sizes; reset() forgets everything.
   d.zero();

@@ -16,22 +16,12 @@
 #include <vector>
 
 #include "hydrojet_control/ros/names.h"
+#include "../js_records.h"
 
 namespace names = hydrojet::names;
+using namespace hydrojet::test;  // js_record, axis, button, initial_axis, initial_button
 
 namespace {
-
-std::string record(uint8_t type, uint8_t number, int16_t value) {
-  js_event e{};
-  e.value = value;
-  e.type = type;
-  e.number = number;
-  return std::string(reinterpret_cast<const char*>(&e), sizeof e);
-}
-std::string axis(uint8_t n, int16_t v) { return record(JS_EVENT_AXIS, n, v); }
-std::string button(uint8_t n, int16_t v) { return record(JS_EVENT_BUTTON, n, v); }
-std::string initial_axis(uint8_t n, int16_t v) { return record(JS_EVENT_AXIS | JS_EVENT_INIT, n, v); }
-std::string initial_button(uint8_t n, int16_t v) { return record(JS_EVENT_BUTTON | JS_EVENT_INIT, n, v); }
 
 /// Spins until `cond` holds or `timeout_s` seconds (wall) have passed; its final value.
 template <class F>
