@@ -145,6 +145,17 @@ Vector3d tilted(const Vector3d& d, double by) {
   return Eigen::AngleAxisd(by, d.cross(axis).normalized()) * d;
 }
 
+/// From simulated time t [s] on the source is hold: the reference stays put and the tip drifts by
+/// ≤ 0.02 rad over 3 s.
+void expect_holds_from(Graph& g, double t) {
+  ASSERT_TRUE(g.wait_until(t));
+  EXPECT_EQ(g.last().source, "hold");
+  const Vector3d held = vec(g.last().desired_direction);
+  ASSERT_TRUE(g.wait_until(t + 3.0));
+  EXPECT_LE(angle(held, vec(g.last().desired_direction)), 1e-9);
+  EXPECT_LE(angle(g.mean_measured(t, t + 0.3), g.mean_measured(t + 2.7, t + 3.0)), 0.02) << "drift";
+}
+
 }  // namespace
 
 // 1: error ≤ 0.02 rad within 0.4 / max_angular_rate + 3 s, then RMS ≤ 0.015 rad over 5 s of hold.
@@ -215,13 +226,7 @@ void joy(Graph& g) {
   }
   // Timeout: deadman and axis, then no message at all; the target holds 0.5 s later.
   g.send_joy_until(g.now() + 1.0, 1.0f, 0.0f, true);
-  const double t2 = g.now() + 0.5 + 0.1;
-  ASSERT_TRUE(g.wait_until(t2));
-  EXPECT_EQ(g.last().source, "hold");
-  const Vector3d held = vec(g.last().desired_direction);
-  ASSERT_TRUE(g.wait_until(t2 + 3.0));
-  EXPECT_LE(angle(held, vec(g.last().desired_direction)), 1e-9);
-  EXPECT_LE(angle(g.mean_measured(t2, t2 + 0.3), g.mean_measured(t2 + 2.7, t2 + 3.0)), 0.02) << "drift";
+  expect_holds_from(g, g.now() + 0.5 + 0.1);
 }
 
 // 4: waypoints complete with RMS ≤ 0.02 rad; a second goal preempts the first; cancel holds.
@@ -263,13 +268,7 @@ void follow_path(Graph& g) {
   second.cancelGoal();
   ASSERT_TRUE(g.wait_until(g.now() + 5.0, [&] { return second.getState().isDone(); }));
   EXPECT_EQ(second.getState(), actionlib::SimpleClientGoalState::PREEMPTED) << second.getState().getText();
-  const double t1 = g.now() + 0.1;
-  ASSERT_TRUE(g.wait_until(t1));
-  EXPECT_EQ(g.last().source, "hold");
-  const Vector3d held = vec(g.last().desired_direction);
-  ASSERT_TRUE(g.wait_until(t1 + 3.0));
-  EXPECT_LE(angle(held, vec(g.last().desired_direction)), 1e-9);
-  EXPECT_LE(angle(g.mean_measured(t1, t1 + 0.3), g.mean_measured(t1 + 2.7, t1 + 3.0)), 0.02) << "drift";
+  expect_holds_from(g, g.now() + 0.1);
 }
 
 // 5: a target outside the reachable set is clipped, the status says so, no abort; a look-at point the
