@@ -79,6 +79,6 @@ hydrojet_rostest_binary(calibration_plant DEPENDS plant_node calibration_recorde
 foreach(f controller_params controller_stale sim_closed_loop sim_tracker_dropout sim_flow_fault sim_stuck_jet
           sim_controller_killed rig_emulated view_markers calibration_plant joystick_fifo
           teleop_keyboard operator_target_direction operator_look_at operator_joy operator_follow_path
-          operator_clipped operator_rejected)
+          operator_clipped operator_rejected operator_reload_scene)
   add_rostest(test/rostest/${f}.test)
 endforeach()

@@ -213,6 +213,7 @@ class ControllerNode {
     start_srv_ = nh.advertiseService(names::kStartService, &ControllerNode::on_start, this);
     stop_srv_ = nh.advertiseService(names::kStopService, &ControllerNode::on_stop, this);
     mode_srv_ = nh.advertiseService(names::kClosedLoopService, &ControllerNode::on_closed_loop, this);
+    reload_srv_ = nh.advertiseService(names::kReloadSceneService, &ControllerNode::on_reload_scene, this);
     start_reconfigure();
 
     diagnostics_.setHardwareID("hydrojet_controller");
@@ -393,6 +394,34 @@ class ControllerNode {
     return true;
   }
 
+  // A new scene (e.g. after a calibration): ~scene read again, the model rebuilt with the gains in
+  // force, the reachable set swept and published again. Refused while running (the jets would
+  // change model mid-motion) and when the scene does not load (the old one stays).
+  bool on_reload_scene(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+    res.success = false;
+    if (controller_->state() == control::ControllerState::kRunning) {
+      res.message = "refused: the controller is running (call controller/stop first)";
+      return true;
+    }
+    std::string path = opts_.scene;
+    pnh_.getParam("scene", path);
+    try {
+      const control::RobotModel model = config::make_controller_model(config::load_scene(path), opts_.flow_regulator);
+      *controller_ = control::Controller(model, controller_->params());
+      look_at_.reset(new control::LookAtSolver(model));
+    } catch (const std::exception& e) {
+      res.message = std::string("refused: ") + e.what() + " (the scene " + opts_.scene + " stays)";
+      return true;
+    }
+    opts_.scene = path;
+    publish_reachable_set();
+    res.success = true;
+    res.message = "scene " + path + " loaded; reachable set swept in " +
+                  std::to_string(controller_->reachable_set().compute_time()) + " s";
+    ROS_INFO("controller: %s", res.message.c_str());
+    return true;
+  }
+
   // One control cycle: latest samples in, Algorithm 1, command and status out.
   void tick(const ros::TimerEvent&) {
     const ros::Time now = ros::Time::now();
@@ -541,7 +570,7 @@ class ControllerNode {
   ros::Subscriber tip_sub_, base_sub_, jet_sub_;
   ros::Subscriber target_sub_, look_at_sub_, clicked_sub_, joy_sub_, view_rate_sub_;
   ros::Publisher cmd_pub_, status_pub_, rod_pub_, target_pub_, reachable_pub_;
-  ros::ServiceServer start_srv_, stop_srv_, mode_srv_;
+  ros::ServiceServer start_srv_, stop_srv_, mode_srv_, reload_srv_;
   ros::Timer timer_;
   boost::recursive_mutex reconfigure_mutex_;
   std::unique_ptr<dynamic_reconfigure::Server<hydrojet_control::ControllerConfig>> reconfigure_;

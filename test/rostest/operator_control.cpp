@@ -8,6 +8,8 @@
 //   follow_path       waypoints complete with RMS ≤ 0.02 rad; a second goal preempts; cancel holds
 //   clipped           a target outside the reachable set is clipped, status says so, no abort
 //   rejected          NaN, zero and unknown-frame targets: rejected, counted, nothing moves, no abort
+//   reload_scene      controller/reload_scene: refused while running or for a bad file; stopped, the
+//                     new scene's reachable set is published
 // Times are simulated (the plant owns /clock); wall-clock limits only guard against hangs.
 #include <actionlib/client/simple_action_client.h>
 #include <geometry_msgs/PointStamped.h>
@@ -20,8 +22,11 @@
 #include <cmath>
 #include <functional>
 
+#include <std_srvs/Trigger.h>
+
 #include "hydrojet_control/ControllerStatus.h"
 #include "hydrojet_control/FollowPathAction.h"
+#include "hydrojet_control/ReachableSet.h"
 #include "hydrojet_control/RodState.h"
 #include "hydrojet_control/ros/names.h"
 
@@ -328,6 +333,45 @@ void rejected(Graph& g) {
   EXPECT_EQ(g.last().state, "running");
 }
 
+/// Calls a std_srvs/Trigger service; its response (success false and the reason if the call failed).
+std_srvs::Trigger::Response trigger(const std::string& name) {
+  std_srvs::Trigger t;
+  if (!ros::service::call(name, t)) t.response.message = "the call of " + name + " failed";
+  return t.response;
+}
+
+// 7: a new scene: controller/reload_scene is refused while running and for a scene that does not
+// load; stopped, it loads ~scene again and publishes the new scene's reachable set.
+void reload_scene(Graph& g) {
+  ros::NodeHandle nh;
+  std::vector<hydrojet_control::ReachableSet> sets;
+  ros::Subscriber sub = nh.subscribe<hydrojet_control::ReachableSet>(
+      names::kReachableSet, 10, [&](const hydrojet_control::ReachableSet::ConstPtr& m) { sets.push_back(*m); });
+  ASSERT_TRUE(g.wait_until(g.now() + 30.0, [&] { return !sets.empty(); }));
+  const std::string service = names::kReloadSceneService;
+  std_srvs::Trigger::Response r = trigger(service);
+  EXPECT_FALSE(r.success);
+  EXPECT_NE(r.message.find("running"), std::string::npos) << r.message;
+  ASSERT_TRUE(trigger(names::kStopService).success);
+  std::string other;
+  ASSERT_TRUE(ros::param::get("~other_scene", other));
+  ros::param::set("/controller/scene", "/nonexistent/scene.yaml");
+  r = trigger(service);
+  EXPECT_FALSE(r.success);
+  EXPECT_NE(r.message.find("/nonexistent/scene.yaml"), std::string::npos) << r.message;
+  ros::param::set("/controller/scene", other);
+  r = trigger(service);
+  EXPECT_TRUE(r.success) << r.message;
+  ASSERT_TRUE(g.wait_until(g.now() + 30.0, [&] { return sets.size() >= 2; })) << "no new reachable set";
+  // The new scene's set is centred on its own jets-off direction (the 30° base tilt moves it).
+  EXPECT_GT(angle(vec(sets.front().center), vec(sets.back().center)), 0.05);
+  ASSERT_TRUE(trigger(names::kStartService).success);
+  ASSERT_TRUE(g.wait_until(g.now() + 2.0));
+  EXPECT_EQ(g.last().state, "running") << g.last().reason;
+  std::printf("reload_scene: the set's centre moved by %.3f rad\n",
+              angle(vec(sets.front().center), vec(sets.back().center)));
+}
+
 TEST(OperatorControl, Scenario) {
   ros::NodeHandle pnh("~");
   std::string scenario;
@@ -347,6 +391,8 @@ TEST(OperatorControl, Scenario) {
     clipped(g);
   else if (scenario == "rejected")
     rejected(g);
+  else if (scenario == "reload_scene")
+    reload_scene(g);
   else
     FAIL() << "unknown ~scenario '" << scenario << "'";
   EXPECT_EQ(g.abort_reason, "") << "the controller aborted";

@@ -33,9 +33,10 @@ constexpr char kDiagnostics[] = "/diagnostics";               ///< diagnostic_ms
 constexpr char kFollowPathAction[] = "controller/follow_path";  ///< hydrojet_control/FollowPath
 
 // Services
-constexpr char kStartService[] = "controller/start";             ///< std_srvs/Trigger
-constexpr char kStopService[] = "controller/stop";               ///< std_srvs/Trigger
-constexpr char kClosedLoopService[] = "controller/closed_loop";  ///< std_srvs/SetBool
+constexpr char kStartService[] = "controller/start";               ///< std_srvs/Trigger
+constexpr char kStopService[] = "controller/stop";                 ///< std_srvs/Trigger
+constexpr char kClosedLoopService[] = "controller/closed_loop";    ///< std_srvs/SetBool
+constexpr char kReloadSceneService[] = "controller/reload_scene";  ///< std_srvs/Trigger
 
 /// Every topic and every service above (docs/ros_api.md lists exactly these; test/test_docs.cpp).
 constexpr const char* kTopics[] = {kTipPose,  kBasePose,      kTipRms,           kBaseRms,
@@ -43,7 +44,7 @@ constexpr const char* kTopics[] = {kTipPose,  kBasePose,      kTipRms,          
                                    kRodState, kPlantRodState, kViewMarkers,      kCalibrationResult,
                                    kClock,    kJoy,           kDiagnostics,      kTargetDirection,
                                    kLookAt,   kClickedPoint,  kViewRate,         kReachableSet};
-constexpr const char* kServices[] = {kStartService, kStopService, kClosedLoopService};
+constexpr const char* kServices[] = {kStartService, kStopService, kClosedLoopService, kReloadSceneService};
 
 }  // namespace names
 }  // namespace hydrojet
