@@ -319,3 +319,23 @@ TEST(SceneGeneral, UniformOnlyConsumersRefuseByName) {
   }
   EXPECT_NO_THROW(hydrojet::config::require_uniform(hydrojet::test::scene("hydrojet_0deg"), "the controller"));
 }
+
+// The second robot shipped with the package (issue 14).
+TEST(SceneGeneral, TheSecondRobotLoads) {
+  const hydrojet::config::Scene s = hydrojet::test::scene("two_segment_thrusters");
+  EXPECT_EQ(s.body.segments.size(), 2u);
+  EXPECT_GT(s.body.segments[0].stiffness.x(), s.body.segments[1].stiffness.x());  // stiffer proximal
+  EXPECT_GT(s.body.segments[1].precurvature.norm(), 0.0);                         // precurved distal
+  ASSERT_EQ(s.body.loads.size(), 1u);
+  EXPECT_DOUBLE_EQ(s.body.loads[0].mass, 0.001);
+  ASSERT_EQ(s.body.actuators.size(), 6u);
+  int at_tip = 0, with_arm = 0, mid = 0;
+  for (const auto& a : s.body.actuators) {
+    at_tip += a.at == s.body.length();
+    mid += a.at < s.body.length();
+    with_arm += a.at == s.body.length() && a.unit_wrench().tail<3>().norm() > 0.0;
+  }
+  EXPECT_EQ(at_tip, 4);
+  EXPECT_EQ(mid, 2);
+  EXPECT_EQ(with_arm, 1);
+}
