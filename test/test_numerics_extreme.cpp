@@ -117,14 +117,17 @@ TEST(Extreme, LongRodColdStartsAcrossWorkspace) {
 // zero (reported, positive below P_cr). Past P_cr of the weaker direction (EIx < EIy, so one
 // bending direction buckles first) the straight equilibrium is unstable: the shooting Jacobian has
 // changed sign against the unloaded rod (a crossing the solver reports with a warning) and the
-// indicator is non-positive.
+// indicator is non-positive. (The solver's cold-start stability check is off here: this is the raw
+// straight branch; ColdSolvePastBucklingReachesTheBuckledBranch has it on.)
 TEST(Extreme, NearInstabilityIsDetectedAndReported) {
   const double EI = 6.01e-4, L = 0.09, g = 9.81;
   const double Pcr = M_PI * M_PI * EI / (4 * L * L);  // of the weaker direction
   rod::RodModel m = test::plain_rod(L, EI);
   m.rod.stiffness.y() = 1.2 * EI;
   m.gravity = Vec3(0, 0, -g);
-  rod::ShootingSolver solver(m, test::rk8(16));
+  rod::ShootingOptions options = test::rk8(16);
+  options.cold_stability_check.fill(false);
+  rod::ShootingSolver solver(m, options);
   double last_eig = 1e300;
   for (double ratio : {0.5, 0.8, 0.9, 0.95, 0.99}) {
     m.tip_mass = ratio * Pcr / g;
@@ -153,6 +156,68 @@ TEST(Extreme, NearInstabilityIsDetectedAndReported) {
     EXPECT_EQ(s.fold_crossings, 1) << ratio;
     EXPECT_NE(s.warning.find("fold or bifurcation"), std::string::npos) << s.warning;
   }
+}
+
+/// The tip angle α of the clamped-free elastica under a dead end load P = ratio·P_cr (Euler's
+/// buckled branch): P/P_cr = (2 K(k)/π)², k = sin(α/2), K the complete elliptic integral of the
+/// first kind (bisection on k).
+double elastica_tip_angle(double ratio) {
+  double lo = 0.0, hi = 1.0 - 1e-15;
+  for (int i = 0; i < 200; ++i) {
+    const double k = 0.5 * (lo + hi), r = std::pow(2.0 * std::comp_ellint_1(k) / M_PI, 2);
+    (r < ratio ? lo : hi) = k;
+  }
+  return 2.0 * std::asin(0.5 * (lo + hi));
+}
+
+// A cold solve past buckling (tip weight 1.1 and 1.5 P_cr, column upright, EIy = 1.2 EIx) lands by
+// Newton on the straight, unstable branch; the solver loads the rod from rest with a push along
+// its softest direction instead and returns the buckled branch: stable, no warning, and its tip
+// angle is the elastica's. A slightly precurved (imperfect) column ends on the same side as its
+// imperfection. (A direct Newton or a load path that crosses the bifurcation along the straight
+// branch both end there: the check follows every cold solve.)
+TEST(Extreme, ColdSolvePastBucklingReachesTheBuckledBranch) {
+  const double EI = 6.01e-4, L = 0.09, g = 9.81;
+  const double Pcr = M_PI * M_PI * EI / (4 * L * L);
+  for (double ratio : {1.1, 1.5}) {
+    for (double imperfection : {0.0, 0.05}) {
+      rod::RodModel m = test::plain_rod(L, EI);
+      m.rod.stiffness.y() = 1.2 * EI;
+      m.rod.precurvature.x() = imperfection;  // bends about x (the weaker axis): toward −y
+      m.gravity = Vec3(0, 0, -g);
+      m.tip_mass = ratio * Pcr / g;
+      rod::ShootingSolver solver(m, test::rk8(32));
+      const rod::RodSolution s = solver.solve(rod::TipWrench{});
+      ASSERT_TRUE(s.converged) << ratio << ": " << s.message;
+      EXPECT_TRUE(s.warning.empty()) << s.warning;
+      const rod::StabilityReport st = rod::stability(solver.compliance().body, rod::lateral_force_actuation());
+      EXPECT_GT(st.eig_min, 0.0) << ratio;
+      const double angle = std::acos(std::min(1.0, s.tip_rotation(2, 2)));
+      if (imperfection == 0.0) {
+        EXPECT_NEAR(angle, elastica_tip_angle(ratio), 1e-6) << ratio;
+      } else {
+        EXPECT_NEAR(angle, elastica_tip_angle(ratio), 0.1 * elastica_tip_angle(ratio)) << ratio;
+        EXPECT_LT(s.tip_position.y(), 0.0) << ratio;  // on the imperfection's side
+      }
+      EXPECT_LT(std::abs(s.tip_position.x()), 1e-9) << ratio;  // buckled about the weaker axis (x)
+    }
+  }
+}
+
+// Where no stable equilibrium exists (a compressive follower force of 10 P_cr on a straight rod:
+// Beck's column has no bent equilibria), the cold solve keeps the straight one and warns.
+TEST(Extreme, ColdSolveWithNoStableEquilibriumWarns) {
+  const double EI = 6.01e-4, L = 0.09;
+  rod::RodModel m = test::plain_rod(L, EI);
+  m.rod.stiffness.y() = 1.2 * EI;
+  rod::ShootingSolver solver(m, test::rk8(16));
+  rod::TipWrench w;
+  w.force.z() = -10.0 * M_PI * M_PI * EI / (4 * L * L);
+  const rod::RodSolution s = solver.solve(w);
+  ASSERT_TRUE(s.converged) << s.message;
+  EXPECT_LT((s.tip_position - Vec3(0, 0, L)).norm(), 1e-9);
+  EXPECT_NE(s.warning.find("unstable equilibrium"), std::string::npos) << s.warning;
+  EXPECT_LE(rod::stability(solver.compliance().body, rod::lateral_force_actuation()).eig_min, 0.0);
 }
 
 // Cold starts (no warm start) across the HydroJet workspace converge wherever the reference does.

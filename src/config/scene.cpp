@@ -298,6 +298,7 @@ Scene parse_scene(const std::string& text) {
   Scene s;
   parse_rod(t, &s);
   parse_tip(t, &s);
+  s.solver.cold_stability_check = s.actuated;
   s.model.gravity = t.vec3<rod::Vec3>("gravity");
   s.body.tip_mass = s.model.tip_mass;
   s.body.gravity = s.model.gravity;

@@ -1,8 +1,12 @@
 #include "hydrojet_control/rod/shooting_solver.h"
 
+#include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <limits>
 
 #include "hydrojet_control/rod/cvode_integrator.h"
 #include "kinsol_workspace.h"
@@ -194,6 +198,7 @@ RodSolution ShootingSolver::solve(const TipWrench& wrench) {
   RodSolution sol;
   FoldTracker folds;
   SingleShooting single{*this, target, &sol};
+  const bool cold = !have_solution_;
   const bool ok = single.reach_equilibrium(&folds);
   single.describe_tip();
   // Accuracy check. A refused solve gets no multiple-shooting retry: it would use the same steps.
@@ -201,7 +206,86 @@ RodSolution ShootingSolver::solve(const TipWrench& wrench) {
   single.finish(ok, &folds);
   // Multiple shooting when single shooting failed (automatic mode).
   if (!sol.converged && settings_.shooting_segments == 0 && fall_back_to_multiple(target, &sol)) return remember(sol);
-  return remember(report_folds(folds, &sol));
+  report_folds(folds, &sol);
+  if (cold && sol.converged) load_from_rest_if_unstable(target, &sol);
+  return remember(sol);
+}
+
+// The smallest eigenvalue of the stiffness on settings_.cold_stability_check at the stored
+// solution (≤ 0: unstable); +inf when no component is checked, NaN when C^b fails.
+double ShootingSolver::stability_indicator() {
+  const ActuatedSet& a = settings_.cold_stability_check;
+  if (std::none_of(a.begin(), a.end(), [](bool b) { return b; })) return std::numeric_limits<double>::infinity();
+  const Compliance c = compliance();
+  return c.ok ? stability(c.body, a).eig_min : std::nan("");
+}
+
+// A cold direct Newton may land on an equilibrium the rod cannot hold (the straight branch of a
+// column loaded past buckling, perfect or nearly so). Then the rod is loaded from rest with a small
+// push along its softest direction (the stiffness's eigenvector of the negative eigenvalue), which
+// bends it onto the stable branch, and the push is taken away along the load path. An unstable
+// result of both is kept and reported.
+void ShootingSolver::load_from_rest_if_unstable(const Load& target, RodSolution* sol) {
+  const double direct = stability_indicator();
+  if (!(direct <= 0.0)) return;
+  const Mat3 R_tip = R_tip_;  // the direct solution, committed: restored if the path does no better
+  const Eval eval = eval_;
+  Vec6 push = softest_push(compliance().body, target);
+  // Toward the rod's own imperfection (the unloaded tip's side), where a real column buckles.
+  if ((R_tip_ * push.head<3>()).dot(unloaded_.tip_position) < 0.0) push = -push;
+  const RodSolution kept = *sol;
+  RodSolution path;
+  FoldTracker folds;
+  if (push.allFinite() && push.norm() > 0.0) {
+    Load pushed = target;
+    pushed.wrench.force += push.head<3>();
+    pushed.wrench.moment += push.tail<3>();
+    SingleShooting to_pushed{*this, pushed, &path}, back{*this, target, &path};
+    folds.start(unloaded_.det);
+    const SingleShooting::Point rest{unloaded_.tip_rotation, Load::none(), unloaded_.tip_position, unloaded_.det};
+    if (internal::follow_load_path(to_pushed, rest, &folds) &&
+        internal::follow_load_path(back, {to_pushed.x, pushed, to_pushed.tip, to_pushed.det}, &folds)) {
+      back.describe_tip();
+      if (back.accurate_enough()) back.finish(true, &folds);
+    }
+  }
+  if (path.converged && stability_indicator() > 0.0) {
+    path.iterations += kept.iterations;
+    path.rhs_evaluations += kept.rhs_evaluations;
+    *sol = report_folds(folds, &path);
+    return;
+  }
+  commit_single(R_tip, target, eval, kept);
+  *sol = kept;
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "unstable equilibrium: stability indicator %.3g <= 0 (the rod cannot hold it; ",
+                direct);
+  sol->warning = (sol->warning.empty() ? "" : sol->warning + "; ") + buf +
+                 "loading from rest with a push along its softest direction found no stable one)";
+}
+
+// A body wrench along the softest direction of the checked components at the stored solution: the
+// eigenvector of the symmetric part of the stiffness S = (C^b block)⁻¹ with the smallest (most
+// negative) eigenvalue — the mode the rod buckles in first (for a column, about its weaker axis) —
+// scaled to a tenth of the load (tip force and weights; moments by the length).
+Vec6 ShootingSolver::softest_push(const Mat6& C, const Load& target) const {
+  const ActuatedSet& a = settings_.cold_stability_check;
+  int idx[6], n = 0;
+  for (int i = 0; i < 6; ++i)
+    if (a[i]) idx[n++] = i;
+  Eigen::MatrixXd block(n, n);
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < n; ++c) block(r, c) = C(idx[r], idx[c]);
+  const Eigen::MatrixXd S = block.completeOrthogonalDecomposition().pseudoInverse();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(0.5 * (S + S.transpose()));
+  if (es.info() != Eigen::Success) return Vec6::Constant(std::nan(""));
+  const double L = model_.rod.length;
+  const double load = target.wrench.force.norm() + target.wrench.moment.norm() / L +
+                      (model_.tip_mass + model_.rod.linear_density * L) * model_.gravity.norm();
+  Vec6 push = Vec6::Zero();
+  for (int k = 0; k < n; ++k)
+    push[idx[k]] = 0.1 * std::max(load, 1e-6) * es.eigenvectors()(k, 0) * (idx[k] < 3 ? 1.0 : L);
+  return push;
 }
 
 RodSolution ShootingSolver::remember(const RodSolution& sol) {

@@ -24,6 +24,7 @@
 
 #include "hydrojet_control/rod/integrators.h"
 #include "hydrojet_control/rod/rod_model.h"
+#include "hydrojet_control/rod/stability.h"
 
 namespace hydrojet {
 namespace rod {
@@ -53,6 +54,13 @@ struct ShootingOptions {
   /// M ≥ 2: always multiple shooting with M equal segments.
   int shooting_segments = 0;
   NewtonBackend newton = NewtonBackend::kEigen;
+  /// A cold solve (no warm start) whose direct Newton lands on an equilibrium with stability
+  /// indicator ≤ 0 on these components (stability(C^b, ...).eig_min; the scene's tip.actuated) is
+  /// done again: loaded from rest with a small push along the softest direction, the push then
+  /// taken away along the load path (this reaches the stable, buckled branch of a column loaded
+  /// past buckling); if that also ends unstable, the solution says so in `warning`. All false: no
+  /// check (cold solves then cost no C^b).
+  ActuatedSet cold_stability_check = lateral_force_actuation();
   /// Fixed-step methods (rk4, rk8) only: after convergence the tip-position error of the
   /// discretisation is estimated (Richardson: one state-only integration with half the steps,
   /// carried through the shooting Jacobian) and a solve whose estimate exceeds
@@ -192,6 +200,9 @@ class ShootingSolver {
   bool accurate_enough(RodSolution* sol, int segments) const;
   bool converged(bool ok, const RodSolution& sol) const;
   static const RodSolution& report_folds(const internal::FoldTracker& folds, RodSolution* sol);
+  double stability_indicator();
+  void load_from_rest_if_unstable(const Load& target, RodSolution* sol);
+  Vec6 softest_push(const Mat6& compliance_body, const Load& target) const;
 
   // Single shooting (shooting_solver.cpp, kinsol_newton.cpp, kernels/).
   Eval evaluate(const Mat3& R_tip, const Load& load, int* rhs) { return (this->*kernels_->evaluate)(R_tip, load, rhs); }
