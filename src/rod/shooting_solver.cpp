@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "hydrojet_control/rod/cvode_integrator.h"
+#include "damped_newton.h"
 #include "kinsol_workspace.h"
 #include "load_path.h"
 #include "rod_integration.h"
@@ -67,51 +68,8 @@ double ShootingSolver::growth_estimate(const TipWrench& w) const {
 
 bool ShootingSolver::newton(Mat3* R_tip, const Load& load, RodSolution* sol, Eval* last) {
   if (settings_.newton == NewtonBackend::kKinsol) return newton_kinsol(R_tip, load, sol, last);
-  Eval e = evaluate(*R_tip, load, &sol->rhs_evaluations);
-  for (int it = 0;; ++it) {
-    if (!e.ok) {
-      sol->message = "integration failed (non-finite state or step limit)";
-      return false;
-    }
-    sol->residual = e.r.norm();
-    if (sol->residual <= settings_.residual_tolerance) {
-      *last = e;
-      return true;
-    }
-    if (it >= settings_.max_iterations) {
-      sol->message = "Newton iteration limit reached";
-      *last = e;
-      return false;
-    }
-    ++sol->iterations;
-    Eigen::PartialPivLU<Mat3> lu(e.J);
-    Vec3 step = -lu.solve(e.r);
-    if (!step.allFinite() || std::abs(e.J.determinant()) < 1e-300) {
-      sol->message = "singular shooting Jacobian";
-      *last = e;
-      return false;
-    }
-    const double n = step.norm();
-    if (n > settings_.max_step) step *= settings_.max_step / n;
-    // Backtracking line search on |r|.
-    bool accepted = false;
-    double alpha = 1.0;
-    for (int k = 0; k < 10; ++k, alpha *= 0.5) {
-      const Mat3 R_try = *R_tip * so3::exp(alpha * step);
-      Eval t = evaluate(R_try, load, &sol->rhs_evaluations);
-      if (t.ok && t.r.norm() < (1.0 - 1e-4 * alpha) * sol->residual) {
-        *R_tip = so3::orthonormalize(R_try);
-        e = t;
-        accepted = true;
-        break;
-      }
-    }
-    if (!accepted) {
-      sol->message = "line search failed (no descent)";
-      *last = e;
-      return false;
-    }
-  }
+  return internal::damped_newton([&](const Mat3& R) { return evaluate(R, load, &sol->rhs_evaluations); }, settings_,
+                                 R_tip, sol, last);
 }
 
 /// Single shooting on the load path (load_path.h): the unknown is the tip orientation R(L) (the x

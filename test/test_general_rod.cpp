@@ -1,0 +1,339 @@
+// GeneralRodSolver (issue 14): segments, point loads and actuators along the body, checked against
+// closed forms of beam theory, against ShootingSolver where both apply (a uniform rod with its
+// actuation at the tip), and C^b / J_q against central differences of full solves.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "hydrojet_control/rod/general_rod_solver.h"
+#include "hydrojet_control/rod/so3.h"
+#include "test_helpers.h"
+
+using namespace hydrojet;
+using rod::Mat3;
+using rod::Vec3;
+using rod::Vec6;
+
+namespace {
+
+rod::RodSegment segment(double length, double EI, double GJ, const Vec3& precurvature = Vec3::Zero(),
+                        double density = 0.0) {
+  rod::RodSegment s;
+  s.length = length;
+  s.stiffness = Vec3(EI, EI, GJ);
+  s.precurvature = precurvature;
+  s.linear_density = density;
+  return s;
+}
+
+rod::Actuator actuator(double at, const Vec3& direction, const Vec3& position = Vec3::Zero()) {
+  rod::Actuator a;
+  a.at = at;
+  a.direction = direction.normalized();
+  a.position = position;
+  a.max_force = 1.0;
+  return a;
+}
+
+rod::ActuatorInputs inputs(std::initializer_list<double> q) {
+  rod::ActuatorInputs v(static_cast<int>(q.size()));
+  int i = 0;
+  for (double x : q) v[i++] = x;
+  return v;
+}
+
+/// The tip body twist (v, ω) that takes pose a to pose b, to first order: v = R_aᵀ(p_b − p_a),
+/// ω = log(R_aᵀ R_b) (the convention of C^b and J_q).
+Vec6 twist(const rod::RodSolution& a, const rod::RodSolution& b) {
+  Vec6 t;
+  t << a.tip_rotation.transpose() * (b.tip_position - a.tip_position),
+      so3::log(a.tip_rotation.transpose() * b.tip_rotation);
+  return t;
+}
+
+/// ∫₀ˡ exp(s û) e_z ds = l·J_l(l u) e_z, J_l the left Jacobian of SO(3): a constant-curvature arc.
+Vec3 arc_chord(const Vec3& u, double l) {
+  const Vec3 phi = l * u;
+  const double th = phi.norm();
+  const Mat3 P = so3::hat(phi);
+  Mat3 J = Mat3::Identity();
+  if (th > 1e-8) J += (1.0 - std::cos(th)) / (th * th) * P + (th - std::sin(th)) / (th * th * th) * P * P;
+  return l * J * Vec3::UnitZ();
+}
+
+/// A scene-like model with every kind of station: two segments (the distal precurved, with weight),
+/// a follower and a dead point load, a point mass, actuators at the tip and mid-body with moment arms.
+rod::GeneralRodModel busy_model(rod::RodKind kind) {
+  rod::GeneralRodModel m;
+  m.kind = kind;
+  m.segments = {segment(0.05, 1.5e-3, 5.6e-4, Vec3(0.0, 0.0, 0.0), 0.02),
+                segment(0.04, 4.0e-4, 1.5e-4, Vec3(0.3, 2.0, 0.0), 0.015)};
+  if (kind == rod::RodKind::kCosserat)
+    for (auto& s : m.segments) {
+      s.shear_stiffness = 40.0;
+      s.axial_stiffness = 120.0;
+    }
+  m.tip_mass = 0.003;
+  m.gravity = Vec3(0.0, 3.0, 9.3);
+  rod::PointLoad follower;
+  follower.at = 0.03;
+  follower.force = Vec3(0.01, -0.02, 0.005);
+  follower.moment = Vec3(0.0, 0.0, 4e-4);
+  rod::PointLoad dead;
+  dead.at = 0.05;
+  dead.mass = 0.001;
+  dead.force = Vec3(0.0, 0.015, 0.0);
+  dead.moment = Vec3(2e-4, 0.0, 0.0);
+  dead.frame = rod::LoadFrame::kBase;
+  m.loads = {follower, dead};
+  m.actuators = {actuator(0.09, Vec3(1, 0, 0)), actuator(0.09, Vec3(0, -1, 0), Vec3(0.004, 0, 0)),
+                 actuator(0.05, Vec3(1, 0, 0), Vec3(0, 0.005, 0)), actuator(0.07, Vec3(0, 1, 0.2))};
+  return m;
+}
+
+}  // namespace
+
+// Cantilever, force P at a along body x: δ_tip = P a²(3L − a)/(6EI), tip slope P a²/(2EI). The
+// linearisation about the straight rod is exactly Euler–Bernoulli, so J_q at q = 0 matches to the
+// integration error; a small full solve matches to O((PL²/EI)²).
+TEST(GeneralRodClosedForm, CantileverWithAForceAtA) {
+  const double L = 0.09, EI = 6.01e-4, GJ = 2.23e-4;
+  for (double a : {0.02, 0.045, 0.07, 0.09}) {
+    rod::GeneralRodModel m;
+    m.segments = {segment(L, EI, GJ)};
+    m.actuators = {actuator(a, Vec3::UnitX())};
+    rod::GeneralRodSolver solver(m, test::rk8(8));
+    ASSERT_TRUE(solver.solve(inputs({0.0})).converged);
+    const rod::GeneralCompliance c = solver.compliance();
+    ASSERT_TRUE(c.ok);
+    const double d = a * a * (3 * L - a) / (6 * EI), slope = a * a / (2 * EI);
+    EXPECT_NEAR(c.actuation(0, 0), d, 1e-9 * d) << "a = " << a;
+    EXPECT_NEAR(c.actuation(4, 0), slope, 1e-9 * slope) << "a = " << a;
+    EXPECT_NEAR(c.actuation.col(0).norm(), std::hypot(d, slope), 1e-9 * d);
+    const double P = 1e-3;
+    const rod::RodSolution s = solver.solve(inputs({P}));
+    ASSERT_TRUE(s.converged) << s.message;
+    EXPECT_NEAR(s.tip_position.x(), P * d, 1e-3 * P * d) << "a = " << a;
+  }
+}
+
+// Two segments (EI₁ on [0, a], EI₂ on [a, L]) under a tip force: δ = P[(L³ − b³)/(3EI₁) + b³/(3EI₂)],
+// b = L − a (∫ M(s)(L − s)/EI(s) ds with M = P(L − s)).
+TEST(GeneralRodClosedForm, TwoSegmentCantileverComposite) {
+  const double a = 0.05, b = 0.04, L = a + b, EI1 = 1.5e-3, EI2 = 4.0e-4;
+  rod::GeneralRodModel m;
+  m.segments = {segment(a, EI1, 5.6e-4), segment(b, EI2, 1.5e-4)};
+  rod::GeneralRodSolver solver(m, test::rk8(8));
+  ASSERT_TRUE(solver.solve(rod::ActuatorInputs(0)).converged);
+  const rod::GeneralCompliance c = solver.compliance();
+  ASSERT_TRUE(c.ok);
+  const double d = (L * L * L - b * b * b) / (3 * EI1) + b * b * b / (3 * EI2);
+  const double slope = (L * L - b * b) / (2 * EI1) + b * b / (2 * EI2);
+  EXPECT_NEAR(c.body(0, 0), d, 1e-9 * d);
+  EXPECT_NEAR(c.body(1, 1), d, 1e-9 * d);
+  EXPECT_NEAR(c.body(4, 0), slope, 1e-9 * slope);
+  // Torsion: L/GJ in series.
+  EXPECT_NEAR(c.body(5, 5), a / 5.6e-4 + b / 1.5e-4, 1e-9 * (a / 5.6e-4 + b / 1.5e-4));
+}
+
+// Precurved unloaded segments are piecewise arcs: tip frame Π exp(l_k ũ_k), tip position the chain of
+// the arcs' chords, and the shape passes through each segment's end.
+TEST(GeneralRodClosedForm, PrecurvedSegmentsArePiecewiseArcs) {
+  rod::GeneralRodModel m;
+  m.segments = {segment(0.03, 1e-3, 4e-4, Vec3(0.0, 4.0, 0.0)), segment(0.025, 5e-4, 2e-4, Vec3(-6.0, 0.0, 3.0)),
+                segment(0.035, 8e-4, 3e-4, Vec3(2.0, 5.0, -1.0))};
+  rod::GeneralRodSolver solver(m, test::rk8(12));
+  const rod::RodSolution s = solver.solve(rod::ActuatorInputs(0));
+  ASSERT_TRUE(s.converged) << s.message;
+  Mat3 R = Mat3::Identity();
+  Vec3 p = Vec3::Zero();
+  std::vector<Vec3> ends{p};
+  for (const auto& g : m.segments) {
+    p += R * arc_chord(g.precurvature, g.length);
+    R = R * so3::exp(g.length * g.precurvature);
+    ends.push_back(p);
+  }
+  EXPECT_LT((s.tip_position - p).norm(), 1e-10);
+  EXPECT_LT(so3::log(s.tip_rotation.transpose() * R).norm(), 1e-10);
+  // Shape at the segment ends (0, 0.03, 0.055, 0.09 m are points of a 90-point shape at 1 mm).
+  const std::vector<Vec3> shape = solver.shape(90);
+  ASSERT_EQ(shape.size(), 91u);
+  EXPECT_LT((shape[0] - ends[0]).norm(), 1e-12);
+  EXPECT_LT((shape[30] - ends[1]).norm(), 1e-10);
+  EXPECT_LT((shape[55] - ends[2]).norm(), 1e-10);
+  EXPECT_LT((shape[90] - ends[3]).norm(), 1e-10);
+  Mat3 Rs;
+  Vec3 ps;
+  ASSERT_TRUE(solver.frame_at(0.055, &Rs, &ps));
+  EXPECT_LT((ps - ends[2]).norm(), 1e-10);
+}
+
+// Two identical segments are one rod; actuators at the tip are the tip follower wrench B q; both give
+// ShootingSolver's solution, C^b, and J_q = C^b B. Kirchhoff and Cosserat, with weight and precurvature.
+TEST(GeneralRodEquivalence, IdenticalSegmentsAndTipActuatorsAreTheUniformRod) {
+  for (rod::RodKind kind : {rod::RodKind::kKirchhoff, rod::RodKind::kCosserat}) {
+    rod::RodModel u;
+    u.rod.length = 0.09;
+    u.rod.stiffness = Vec3(6.01e-4, 7.2e-4, 2.23e-4);
+    u.rod.precurvature = Vec3(0.034, 0.88, 0.1);
+    u.rod.linear_density = 0.03;
+    u.rod.kind = kind;
+    u.rod.shear_stiffness = 40.0;
+    u.rod.axial_stiffness = 150.0;
+    u.tip_mass = 0.00258;
+    u.gravity = Vec3(0.0, 4.9, 8.5);
+    rod::GeneralRodModel g = rod::general_model(u);
+    rod::RodSegment half = g.segments[0];
+    half.length = 0.045;
+    g.segments = {half, half};
+    g.actuators = {actuator(0.09, Vec3(1, 0, 0)), actuator(0.09, Vec3(-0.5, 0.8, 0.1), Vec3(0, 0, 0.003)),
+                   actuator(0.09, Vec3(0, -1, 0), Vec3(0.004, 0, 0))};
+    const rod::ActuatorInputs q = inputs({0.12, 0.05, 0.09});
+    Eigen::Matrix<double, 6, 3> B;
+    for (int j = 0; j < 3; ++j) B.col(j) = g.actuators[j].unit_wrench();
+    const Vec6 w = B * q;
+    rod::ShootingSolver ref(u, test::rk8(8));
+    rod::TipWrench tw;
+    tw.force = w.head<3>();
+    tw.moment = w.tail<3>();
+    const rod::RodSolution a = ref.solve(tw);
+    rod::GeneralRodSolver gen(g, test::rk8(8));
+    const rod::RodSolution b = gen.solve(q);
+    ASSERT_TRUE(a.converged && b.converged) << a.message << " / " << b.message;
+    EXPECT_LT((a.tip_position - b.tip_position).norm(), 1e-11);
+    EXPECT_LT(so3::log(a.tip_rotation.transpose() * b.tip_rotation).norm(), 1e-10);
+    const rod::Compliance ca = ref.compliance();
+    const rod::GeneralCompliance cb = gen.compliance();
+    ASSERT_TRUE(ca.ok && cb.ok);
+    EXPECT_LT((ca.body - cb.body).norm(), 1e-8 * ca.body.norm());
+    EXPECT_LT((cb.actuation - ca.body * B).norm(), 1e-8 * (ca.body * B).norm());
+  }
+}
+
+// The jets scene: its three actuators (built from the `jets` section) give the solution of the jet
+// map's tip force (eq. 24) on the uniform solver.
+TEST(GeneralRodEquivalence, JetsSceneIsItsThreeActuators) {
+  for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
+    const config::Scene sc = test::scene(name);
+    ASSERT_EQ(sc.body.actuators.size(), 3u);
+    rod::ShootingSolver ref(sc.model, sc.solver);
+    rod::GeneralRodSolver gen(sc.body, sc.solver);
+    for (const Vec3& jets : {Vec3(0.2, 0.05, 0.0), Vec3(0.0, 0.15, 0.21), Vec3(0.1, 0.1, 0.1)}) {
+      rod::TipWrench w;
+      w.force = test::jet_force(jets[0], jets[1], jets[2]);
+      const rod::RodSolution a = ref.solve(w);
+      const rod::RodSolution b = gen.solve(inputs({jets[0], jets[1], jets[2]}));
+      ASSERT_TRUE(a.converged && b.converged) << name;
+      EXPECT_LT((a.tip_position - b.tip_position).norm(), 1e-11) << name;
+      EXPECT_LT(so3::log(a.tip_rotation.transpose() * b.tip_rotation).norm(), 1e-10) << name;
+    }
+  }
+}
+
+// C^b and J_q from the sensitivities against central differences of full solves, on a model with
+// every kind of station (follower and dead loads, point mass, segment change, actuators with moment
+// arms mid-body and at the tip), Kirchhoff and Cosserat.
+TEST(GeneralRodSensitivities, ComplianceAndActuationJacobianMatchCentralDifferences) {
+  for (rod::RodKind kind : {rod::RodKind::kKirchhoff, rod::RodKind::kCosserat}) {
+    const rod::GeneralRodModel m = busy_model(kind);
+    rod::ShootingOptions opt = test::rk8(16, 1e-13);
+    rod::GeneralRodSolver solver(m, opt);
+    const rod::ActuatorInputs q = inputs({0.06, 0.03, 0.05, 0.04});
+    const rod::RodSolution s0 = solver.solve(q);
+    ASSERT_TRUE(s0.converged) << s0.message;
+    const rod::GeneralCompliance c = solver.compliance();
+    ASSERT_TRUE(c.ok);
+    const double h = 1e-5;
+    rod::GeneralRodSolver probe(m, opt);
+    for (int j = 0; j < 4; ++j) {
+      rod::ActuatorInputs qp = q, qm = q;
+      qp[j] += h;
+      qm[j] -= h;
+      probe.solve(q);
+      const rod::RodSolution sp = probe.solve(qp);
+      probe.solve(q);
+      const rod::RodSolution sm = probe.solve(qm);
+      ASSERT_TRUE(sp.converged && sm.converged);
+      const Vec6 fd = (twist(s0, sp) - twist(s0, sm)) / (2 * h);
+      EXPECT_LT((fd - c.actuation.col(j)).norm(), 1e-5 * c.actuation.col(j).norm()) << "actuator " << j;
+    }
+    for (int i = 0; i < 6; ++i) {
+      rod::TipWrench wp, wm;
+      const double hi = i < 3 ? h : h * 0.01;
+      (i < 3 ? wp.force : wp.moment)[i % 3] = hi;
+      (i < 3 ? wm.force : wm.moment)[i % 3] = -hi;
+      probe.solve(q);
+      const rod::RodSolution sp = probe.solve(q, wp);
+      probe.solve(q);
+      const rod::RodSolution sm = probe.solve(q, wm);
+      ASSERT_TRUE(sp.converged && sm.converged);
+      const Vec6 fd = (twist(s0, sp) - twist(s0, sm)) / (2 * hi);
+      EXPECT_LT((fd - c.body.col(i)).norm(), 1e-5 * c.body.col(i).norm()) << "wrench component " << i;
+    }
+  }
+}
+
+// A dead moment M at a on a straight rod bends only [0, a] (m(s) = M there, 0 beyond): tip slope
+// M a/EI, tip deflection M a(2L − a)/(2EI) (small M: linear).
+TEST(GeneralRodClosedForm, PointMomentAtABendsOnlyTheProximalPart) {
+  const double L = 0.09, EI = 6.01e-4, a = 0.04, M = 1e-6;
+  rod::GeneralRodModel m;
+  m.segments = {segment(L, EI, 2.23e-4)};
+  rod::PointLoad l;
+  l.at = a;
+  l.moment = Vec3(0.0, M, 0.0);
+  l.frame = rod::LoadFrame::kBase;
+  m.loads = {l};
+  rod::GeneralRodSolver solver(m, test::rk8(8));
+  const rod::RodSolution s = solver.solve(rod::ActuatorInputs(0));
+  ASSERT_TRUE(s.converged) << s.message;
+  const double slope = M * a / EI, d = M * a * (2 * L - a) / (2 * EI);
+  EXPECT_NEAR(so3::log(s.tip_rotation).y(), slope, 1e-6 * slope);
+  EXPECT_NEAR(s.tip_position.x(), d, 1e-5 * d);
+}
+
+TEST(GeneralRodErrors, BadModelsAndInputsAreNamed) {
+  rod::GeneralRodModel m;
+  m.segments = {segment(0.09, 6e-4, 2e-4)};
+  m.actuators = {actuator(0.09, Vec3::UnitX())};
+  rod::GeneralRodModel bad = m;
+  bad.segments[0].length = -1.0;
+  try {
+    rod::GeneralRodSolver s(bad, test::rk8(4));
+    FAIL() << "a negative length must be refused";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("segments[0].length"), std::string::npos) << e.what();
+  }
+  bad = m;
+  bad.actuators[0].at = 0.2;
+  EXPECT_NE(bad.validate().find("actuators[0].at"), std::string::npos);
+  bad = m;
+  bad.actuators[0].direction = Vec3(1.0, 0.1, 0.0);
+  EXPECT_NE(bad.validate().find("actuators[0].direction"), std::string::npos);
+  rod::GeneralRodSolver solver(m, test::rk8(4));
+  const rod::RodSolution wrong = solver.solve(inputs({0.1, 0.2}));
+  EXPECT_FALSE(wrong.converged);
+  EXPECT_NE(wrong.message.find("expected 1 actuator input"), std::string::npos) << wrong.message;
+  const rod::RodSolution nan = solver.solve(inputs({std::nan("")}));
+  EXPECT_FALSE(nan.converged);
+  EXPECT_NE(nan.message.find("non-finite"), std::string::npos);
+  EXPECT_FALSE(solver.compliance().ok);  // nothing converged yet
+}
+
+// The shipped second robot solves at its full inputs, cold and warm, within the accuracy contract
+// (1e-6 m against a 64-step reference).
+TEST(GeneralRodScenes, TwoSegmentThrustersSolvesWithinTheAccuracyContract) {
+  const config::Scene sc = test::scene("two_segment_thrusters");
+  rod::GeneralRodSolver solver(sc.body, sc.solver);
+  rod::ShootingOptions fine = sc.solver;
+  fine.integrator.steps = 64;
+  rod::GeneralRodSolver ref(sc.body, fine);
+  const int N = static_cast<int>(sc.body.actuators.size());
+  for (int k = 0; k < 6; ++k) {
+    rod::ActuatorInputs q(N);
+    for (int j = 0; j < N; ++j) q[j] = sc.body.actuators[j].max_force * (0.5 + 0.5 * std::sin(1.3 * k + 2.1 * j));
+    const rod::RodSolution s = solver.solve(q), r = ref.solve(q);
+    ASSERT_TRUE(s.converged && r.converged) << s.message << " / " << r.message;
+    EXPECT_LT((s.tip_position - r.tip_position).norm(), 1e-6) << k;
+  }
+}
