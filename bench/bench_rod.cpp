@@ -5,6 +5,10 @@
 //   BM_WarmSolveGeneral, BM_WarmSolveComplianceGeneral
 //                            the same with the general right-hand side (every term, Cosserat form)
 //                            instead of the one compiled for the scene's terms: the specialization gain
+//   BM_GeneralWarmSolveJacobian  the second robot (config/scenes/two_segment_thrusters.yaml, GeneralRodSolver):
+//                            warm solve + C^b and J_q along a 200-point input path
+//   BM_GeneralWarmSolveJacobianHydroJet  the HydroJet's 30° scene on GeneralRodSolver (its three jets
+//                            as actuators), for the cost of the general path against BM_WarmSolveCompliance
 //   BM_StabilityMap3000/0, /30
 //                            σ_c over 3000 jet-force combinations (paper Figs. 12–13), 0° and 30°
 //                            scenes, warm-started along a serpentine: solve + C^b + stability
@@ -26,6 +30,7 @@
 #include "hydrojet_control/config/scene.h"
 #include "hydrojet_control/control/look_at.h"
 #include "hydrojet_control/control/reachable_set.h"
+#include "hydrojet_control/rod/general_rod_solver.h"
 #include "hydrojet_control/rod/shooting_solver.h"
 #include "hydrojet_control/rod/stability.h"
 
@@ -130,6 +135,32 @@ void BM_WarmSolveComplianceGeneral(benchmark::State& state) {
   state.SetLabel(s.variant_name());
 }
 
+/// Warm solve + C^b + J_q of a general scene along 200 inputs, each actuator swept between 10 % and
+/// 90 % of its range with its own phase.
+void general_path_benchmark(benchmark::State& state, const std::string& name) {
+  const auto sc = hydrojet::config::load_scene(std::string(HYDROJET_SOURCE_DIR) + "/config/scenes/" + name + ".yaml");
+  hydrojet::rod::GeneralRodSolver s(sc.body, sc.solver);
+  const int N = s.actuator_count();
+  std::vector<hydrojet::rod::ActuatorInputs> qs;
+  for (int i = 0; i < 200; ++i) {
+    hydrojet::rod::ActuatorInputs q(N);
+    for (int j = 0; j < N; ++j) {
+      const auto& a = sc.body.actuators[j];
+      q[j] = a.min_force + (a.max_force - a.min_force) * (0.5 + 0.4 * std::sin(2.0 * M_PI * i / 200.0 + 1.7 * j));
+    }
+    qs.push_back(q);
+  }
+  size_t i = 0, failed = 0;
+  for (auto _ : state) {
+    failed += !s.solve(qs[i++ % qs.size()]).converged;
+    benchmark::DoNotOptimize(s.compliance());
+  }
+  state.counters["failed_solves"] = static_cast<double>(failed);
+}
+
+void BM_GeneralWarmSolveJacobian(benchmark::State& state) { general_path_benchmark(state, "two_segment_thrusters"); }
+void BM_GeneralWarmSolveJacobianHydroJet(benchmark::State& state) { general_path_benchmark(state, "hydrojet_30deg"); }
+
 void BM_StabilityMap3000(benchmark::State& state) {
   const auto sc = hydrojet::config::load_scene(std::string(HYDROJET_SOURCE_DIR) + "/config/scenes/hydrojet_" +
                                                std::to_string(state.range(0)) + "deg.yaml");
@@ -212,6 +243,8 @@ BENCHMARK(BM_WarmSolve)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_WarmSolveCompliance)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_WarmSolveGeneral)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_WarmSolveComplianceGeneral)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_GeneralWarmSolveJacobian)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_GeneralWarmSolveJacobianHydroJet)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_StabilityMap3000)->Arg(0)->Arg(30)->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_LookAt)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ReachableClip)->Unit(benchmark::kMicrosecond);

@@ -337,3 +337,33 @@ TEST(GeneralRodScenes, TwoSegmentThrustersSolvesWithinTheAccuracyContract) {
     EXPECT_LT((s.tip_position - r.tip_position).norm(), 1e-6) << k;
   }
 }
+
+// Stability for a general actuator set (the block of C^b on the span of the actuators' equivalent tip
+// wrenches) reduces to today's {f_x, f_y} block on the HydroJet: its jets span exactly that plane.
+// For actuators along the body the equivalent tip wrenches (C^b)^† J_q move the tip as they do.
+TEST(GeneralRodStability, ReducesToTheLateralForceBlockOnTheHydroJet) {
+  for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
+    const config::Scene sc = test::scene(name);
+    rod::GeneralRodSolver gen(sc.body, sc.solver);
+    for (const Vec3& jets : {Vec3(0.2, 0.05, 0.0), Vec3(0.0, 0.15, 0.21), Vec3(0.02, 0.01, 0.03)}) {
+      ASSERT_TRUE(gen.solve(inputs({jets[0], jets[1], jets[2]})).converged);
+      const rod::GeneralCompliance c = gen.compliance();
+      ASSERT_TRUE(c.ok);
+      const rod::StabilityReport today = rod::stability(c.body, rod::lateral_force_actuation());
+      const rod::StabilityReport general = rod::stability(c.body, rod::equivalent_tip_wrenches(c.body, c.actuation));
+      ASSERT_TRUE(today.ok && general.ok);
+      EXPECT_NEAR(general.margin, today.margin, 1e-9 * today.margin) << name;
+      EXPECT_NEAR(general.eig_min, today.eig_min, 1e-9 * std::abs(today.eig_min)) << name;
+    }
+  }
+  const config::Scene sc = test::scene("two_segment_thrusters");
+  rod::GeneralRodSolver gen(sc.body, sc.solver);
+  ASSERT_TRUE(gen.solve(rod::ActuatorInputs::Constant(6, 0.03)).converged);
+  const rod::GeneralCompliance c = gen.compliance();
+  ASSERT_TRUE(c.ok);
+  const Eigen::Matrix<double, 6, Eigen::Dynamic> W = rod::equivalent_tip_wrenches(c.body, c.actuation);
+  EXPECT_LT((c.body * W - c.actuation).norm(), 1e-6 * c.actuation.norm());
+  const rod::StabilityReport st = rod::stability(c.body, W);
+  ASSERT_TRUE(st.ok);
+  EXPECT_GT(st.eig_min, 0.0);  // a moderate load on a cantilever: stable
+}

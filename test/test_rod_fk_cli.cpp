@@ -197,6 +197,10 @@ struct Pose {
 };
 Pose pose_of(const std::string& json) {
   const auto p = array_field(json, "tip_position"), q = array_field(json, "tip_quaternion_wxyz");
+  if (p.size() != 3 || q.size() != 4) {
+    ADD_FAILURE() << "no tip pose in: '" << json << "'";
+    return {Eigen::Vector3d::Constant(NAN), Eigen::Matrix3d::Constant(NAN)};
+  }
   return {Eigen::Vector3d(p[0], p[1], p[2]), Eigen::Quaterniond(q[0], q[1], q[2], q[3]).toRotationMatrix()};
 }
 
@@ -214,12 +218,15 @@ actuators:
 // --actuators: the inputs go through the scene's actuators (the equivalent tip wrench gives the same
 // pose), and actuation_jacobian matches central differences of full solves (columns: body twist
 // (v, ω) = (Rᵀ δp, (Rᵀ δR)^∨) per unit input).
-TEST(RodFkCli, ActuatorsAndTheirJacobian) {
-  const std::string sc = write_scene(kTipActuators);
-  const double q[3] = {0.05, -0.04, 0.02}, h = 1e-5;
+/// rod_fk's actuation_jacobian at inputs q on scene file sc against central differences of full
+/// solves through the CLI (columns: body twist (v, ω) = (Rᵀ δp, (Rᵀ δR)^∨) per unit input). Returns
+/// the JSON line of the solve at q.
+std::string expect_jacobian_matches_central_differences(const std::string& sc, const std::vector<double>& q) {
+  const double h = 1e-5;
+  const int N = static_cast<int>(q.size());
   auto args = [&](int k, double dq) {
     std::string a = " --actuators";
-    for (int i = 0; i < 3; ++i) {
+    for (int i = 0; i < N; ++i) {
       char v[32];
       std::snprintf(v, sizeof(v), " %.17g", q[i] + (i == k ? dq : 0.0));
       a += v;
@@ -227,21 +234,15 @@ TEST(RodFkCli, ActuatorsAndTheirJacobian) {
     return "--scene " + sc + a;
   };
   const CliRun r = run(args(-1, 0.0) + " --compliance");
-  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.status, 0) << r.err;
   const auto J = rows_field(r.out, "actuation_jacobian");
-  ASSERT_EQ(J.size(), 6u) << r.out;
-  ASSERT_EQ(J[0].size(), 3u);
-  // The equivalent tip wrench: Σ q_i (d_i, p_i × d_i).
-  const Eigen::Vector3d d[3] = {{1, 0, 0}, {0, 0.6, 0.8}, {0, -1, 0}},
-                        p[3] = {{0, 0.004, 0.002}, {0, 0, 0}, {0.003, 0, 0}};
-  Eigen::Vector3d f = Eigen::Vector3d::Zero(), m = Eigen::Vector3d::Zero();
-  for (int i = 0; i < 3; ++i) f += q[i] * d[i], m += q[i] * p[i].cross(d[i]);
-  char buf[256];
-  std::snprintf(buf, sizeof(buf), " --force %.17g %.17g %.17g --moment %.17g %.17g %.17g", f.x(), f.y(), f.z(), m.x(),
-                m.y(), m.z());
-  const Pose base = pose_of(r.out), same = pose_of(run("--scene " + sc + buf).out);
-  EXPECT_LT((base.p - same.p).norm(), 1e-12);
-  for (int k = 0; k < 3; ++k) {
+  EXPECT_EQ(J.size(), 6u) << r.out;
+  if (J.size() != 6u || static_cast<int>(J[0].size()) != N) {
+    ADD_FAILURE() << "actuation_jacobian is not 6 x " << N << ": " << r.out;
+    return r.out;
+  }
+  const Pose base = pose_of(r.out);
+  for (int k = 0; k < N; ++k) {
     const Pose plus = pose_of(run(args(k, h)).out), minus = pose_of(run(args(k, -h)).out);
     Eigen::Matrix<double, 6, 1> fd;
     fd.head<3>() = base.R.transpose() * (plus.p - minus.p) / (2 * h);
@@ -253,6 +254,23 @@ TEST(RodFkCli, ActuatorsAndTheirJacobian) {
                                                     << col.transpose() << "\n"
                                                     << fd.transpose();
   }
+  return r.out;
+}
+
+TEST(RodFkCli, ActuatorsAndTheirJacobian) {
+  const std::string sc = write_scene(kTipActuators);
+  const double q[3] = {0.05, -0.04, 0.02};
+  const std::string out = expect_jacobian_matches_central_differences(sc, {q[0], q[1], q[2]});
+  // The equivalent tip wrench: Σ q_i (d_i, p_i × d_i).
+  const Eigen::Vector3d d[3] = {{1, 0, 0}, {0, 0.6, 0.8}, {0, -1, 0}},
+                        p[3] = {{0, 0.004, 0.002}, {0, 0, 0}, {0.003, 0, 0}};
+  Eigen::Vector3d f = Eigen::Vector3d::Zero(), m = Eigen::Vector3d::Zero();
+  for (int i = 0; i < 3; ++i) f += q[i] * d[i], m += q[i] * p[i].cross(d[i]);
+  char buf[256];
+  std::snprintf(buf, sizeof(buf), " --force %.17g %.17g %.17g --moment %.17g %.17g %.17g", f.x(), f.y(), f.z(), m.x(),
+                m.y(), m.z());
+  const Pose base = pose_of(out), same = pose_of(run("--scene " + sc + buf).out);
+  EXPECT_LT((base.p - same.p).norm(), 1e-12);
   // Wrong count and out-of-bounds inputs are named.
   const CliRun few = run("--scene " + sc + " --actuators 0.1 0.1");
   EXPECT_EQ(few.status, 2);
@@ -260,4 +278,29 @@ TEST(RodFkCli, ActuatorsAndTheirJacobian) {
   const CliRun big = run("--scene " + sc + " --actuators 0.1 0.1 0.5");
   EXPECT_EQ(big.status, 2);
   EXPECT_NE(big.err.find("input 3 (c)"), std::string::npos) << big.err;
+}
+
+// A general scene (the second robot: two segments, a point mass, thrusters mid-body and at the tip):
+// rod_fk solves it with the general solver, J_q from its sensitivities matches central differences,
+// and --shape spans all segments (base at the origin, tip at tip_position, arc length L).
+TEST(RodFkCli, GeneralSceneJacobianAndShape) {
+  const std::string sc = scene("two_segment_thrusters");
+  expect_jacobian_matches_central_differences(sc, {0.05, 0.01, 0.08, 0.02, 0.04, 0.03});
+  const CliRun r = run("--scene " + sc + " --actuators 0.05 0.01 0.08 0.02 0.04 0.03 --shape 90");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto pts = rows_field(r.out, "shape");
+  ASSERT_EQ(pts.size(), 91u) << r.out;
+  const auto tip = array_field(r.out, "tip_position");
+  double arc = 0.0;
+  for (size_t i = 1; i < pts.size(); ++i)
+    arc += std::sqrt(std::pow(pts[i][0] - pts[i - 1][0], 2) + std::pow(pts[i][1] - pts[i - 1][1], 2) +
+                     std::pow(pts[i][2] - pts[i - 1][2], 2));
+  EXPECT_NEAR(arc, 0.09, 1e-5);  // chords of 1 mm arcs: short by ~L κ² h²/24
+  EXPECT_LT(std::abs(pts[0][0]) + std::abs(pts[0][1]) + std::abs(pts[0][2]), 1e-12);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(pts[90][k], tip[k], 1e-12);
+  // The tip moved away from its unloaded place (the thrusters act).
+  const CliRun rest = run("--scene " + sc + " --actuators 0 0 0 0 0 0");
+  ASSERT_EQ(rest.status, 0) << rest.err;
+  const auto tip0 = array_field(rest.out, "tip_position");
+  EXPECT_GT(std::hypot(tip[0] - tip0[0], tip[1] - tip0[1]), 1e-3);
 }

@@ -2,22 +2,20 @@
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
+#include <cmath>
 #include <limits>
 
 namespace hydrojet {
 namespace rod {
 
-StabilityReport stability(const Mat6& C, const ActuatedSet& actuated) {
-  using Block = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
-  int idx[6];
-  int n = 0;
-  for (int i = 0; i < 6; ++i)
-    if (actuated[i]) idx[n++] = i;
+namespace {
+
+using Block = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
+
+/// σ_c and the eigenvalue indicator of one compliance block (eqs. 21–23).
+StabilityReport block_report(const Block& Cb) {
   StabilityReport rep;
-  if (n == 0 || !C.allFinite()) return rep;
-  Block Cb(n, n);
-  for (int r = 0; r < n; ++r)
-    for (int c = 0; c < n; ++c) Cb(r, c) = C(idx[r], idx[c]);
+  const int n = static_cast<int>(Cb.rows());
   // eq. (21)–(22): S = (C^b)^† = V Σ^† Uᵀ.
   Eigen::JacobiSVD<Block> svd(Cb, Eigen::ComputeFullU | Eigen::ComputeFullV);
   const auto& sv = svd.singularValues();
@@ -32,6 +30,44 @@ StabilityReport stability(const Mat6& C, const ActuatedSet& actuated) {
   rep.eig_min = es.eigenvalues().real().minCoeff();
   rep.ok = std::isfinite(rep.margin) && std::isfinite(rep.eig_min);
   return rep;
+}
+
+}  // namespace
+
+StabilityReport stability(const Mat6& C, const ActuatedSet& actuated) {
+  int idx[6];
+  int n = 0;
+  for (int i = 0; i < 6; ++i)
+    if (actuated[i]) idx[n++] = i;
+  if (n == 0 || !C.allFinite()) return StabilityReport();
+  Block Cb(n, n);
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < n; ++c) Cb(r, c) = C(idx[r], idx[c]);
+  return block_report(Cb);
+}
+
+StabilityReport stability(const Mat6& C, const Eigen::Ref<const Eigen::Matrix<double, 6, Eigen::Dynamic>>& wrenches) {
+  if (wrenches.cols() == 0 || !C.allFinite() || !wrenches.allFinite()) return StabilityReport();
+  // U: an orthonormal basis of the span of the actuators' tip wrenches (rank by the SVD).
+  Eigen::JacobiSVD<Eigen::Matrix<double, 6, Eigen::Dynamic>> svd(wrenches, Eigen::ComputeThinU);
+  const auto& sv = svd.singularValues();
+  if (!(sv(0) > 0.0)) return StabilityReport();
+  int r = 0;
+  while (r < sv.size() && sv(r) > 1e-9 * sv(0)) ++r;
+  const Eigen::Matrix<double, 6, Eigen::Dynamic> U = svd.matrixU().leftCols(r);
+  return block_report(Block(U.transpose() * C * U));
+}
+
+Eigen::Matrix<double, 6, Eigen::Dynamic> equivalent_tip_wrenches(
+    const Mat6& C, const Eigen::Ref<const Eigen::Matrix<double, 6, Eigen::Dynamic>>& actuation_jacobian) {
+  // Pseudo-inverse with singular values below 1e-9 σ_max dropped (the inextensible rod's axial
+  // directions): a twist the actuators cannot make must not become a huge wrench.
+  Eigen::JacobiSVD<Mat6> svd(C, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const auto& sv = svd.singularValues();
+  Vec6 inv = Vec6::Zero();
+  for (int i = 0; i < 6; ++i)
+    if (sv(i) > 1e-9 * sv(0)) inv(i) = 1.0 / sv(i);
+  return svd.matrixV() * inv.asDiagonal() * svd.matrixU().transpose() * actuation_jacobian;
 }
 
 Mat6 hybrid_compliance(const Mat3& R, const Mat6& C) {

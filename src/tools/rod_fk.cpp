@@ -1,5 +1,5 @@
-// rod_fk: solves the HydroJet rod model for tip wrenches and prints one JSON object per solve.
-// The interface is a contract other tools rely on (docs/numerics.md, "rod_fk"); keep it stable.
+// rod_fk: solves the scene's rod model (the HydroJet, or any follower-actuated rod) for tip wrenches and prints one
+// JSON object per solve. The interface is a contract other tools rely on (docs/numerics.md, "rod_fk"); keep it stable.
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "hydrojet_control/config/scene.h"
+#include "hydrojet_control/rod/general_rod_solver.h"
 #include "hydrojet_control/rod/shooting_solver.h"
 #include "hydrojet_control/rod/stability.h"
 #include "hydrojet_control/util/json_writer.h"
@@ -150,7 +151,17 @@ std::vector<hydrojet::rod::TipWrench> read_batch(const std::string& src) {
   return out;
 }
 
-/// Column i: actuator i's tip body wrench per unit input (all actuators at the tip: require_uniform).
+/// True when the scene is more than one uniform rod with its actuation at the tip: segments, point
+/// loads or actuators along the body. Those scenes are solved by GeneralRodSolver; the others by
+/// ShootingSolver's fast path, the actuators then entering as the tip wrench B q.
+bool needs_general_solver(const hydrojet::config::Scene& scene) {
+  if (!scene.uniform()) return true;
+  for (const auto& a : scene.body.actuators)
+    if (a.at < scene.body.length()) return true;
+  return false;
+}
+
+/// Column i: actuator i's tip body wrench per unit input (the actuators at the tip).
 Eigen::Matrix<double, 6, Eigen::Dynamic> actuator_wrenches(const hydrojet::config::Scene& scene) {
   Eigen::Matrix<double, 6, Eigen::Dynamic> B(6, scene.body.actuators.size());
   for (size_t i = 0; i < scene.body.actuators.size(); ++i) B.col(i) = scene.body.actuators[i].unit_wrench();
@@ -174,7 +185,6 @@ void check_inputs(const hydrojet::config::Scene& scene, const std::vector<double
 /// the scene's jet map.
 hydrojet::config::Scene load_scene(Options* opt) {
   hydrojet::config::Scene scene = hydrojet::config::load_scene(opt->scene);
-  hydrojet::config::require_uniform(scene, "rod_fk");
   if (!opt->integrator.empty() && !hydrojet::rod::parse_integrator(opt->integrator, &scene.solver.integrator.type))
     throw BadInput{"--integrator: unknown integrator '" + opt->integrator + "' (" + hydrojet::rod::integrator_names() +
                    ")"};
@@ -185,7 +195,7 @@ hydrojet::config::Scene load_scene(Options* opt) {
     opt->actuators.assign(opt->jets.data(), opt->jets.data() + 3);
   }
   if (opt->have_actuators) check_inputs(scene, opt->actuators);
-  if (opt->have_jets || opt->have_actuators) {
+  if ((opt->have_jets || opt->have_actuators) && !needs_general_solver(scene)) {
     const hydrojet::rod::Vec6 w =
         actuator_wrenches(scene) * Eigen::Map<const Eigen::VectorXd>(opt->actuators.data(), opt->actuators.size());
     opt->wrench.force = w.head<3>();
@@ -216,21 +226,15 @@ void add_compliance(hydrojet::rod::ShootingSolver& solver, const hydrojet::confi
   if (actuated) j->add("actuation_jacobian", Eigen::MatrixXd(c.body * actuator_wrenches(scene)));
 }
 
-/// One solve for the tip wrench w as its JSON line.
-std::string solve_json(hydrojet::rod::ShootingSolver& solver, const hydrojet::config::Scene& scene, const Options& opt,
-                       const hydrojet::rod::TipWrench& w, bool* converged) {
-  const auto t0 = std::chrono::steady_clock::now();
-  const hydrojet::rod::RodSolution sol = solver.solve(w);
-  const auto t1 = std::chrono::steady_clock::now();
-  *converged = sol.converged;
-
+/// The fields of every solve's JSON line.
+JsonObject solution_json(const hydrojet::rod::RodSolution& sol, const hydrojet::config::Scene& scene, double time_us) {
   JsonObject j;
   j.add("converged", sol.converged)
       .add("iterations", sol.iterations)
       .add("residual", sol.residual)
       .add("tip_position", sol.tip_position)
       .add("tip_quaternion_wxyz", hydrojet::so3::quaternion_wxyz(sol.tip_rotation))
-      .add("solve_time_us", std::chrono::duration<double, std::micro>(t1 - t0).count())
+      .add("solve_time_us", time_us)
       .add("rhs_evaluations", sol.rhs_evaluations)
       .add("continuation_steps", sol.continuation_steps)
       .add("shooting_jacobian_det", sol.jacobian_det)
@@ -238,18 +242,93 @@ std::string solve_json(hydrojet::rod::ShootingSolver& solver, const hydrojet::co
       .add("fold_crossings", sol.fold_crossings);
   if (!sol.warning.empty()) j.add("warning", sol.warning);
   if (!sol.converged) j.add("message", sol.message);
-  if (opt.compliance) add_compliance(solver, scene, sol.converged, &j);
-  if (opt.shape > 0) {
-    if (sol.converged) {
-      std::string pts = "[";
-      const auto shape = solver.shape(opt.shape);
-      for (size_t i = 0; i < shape.size(); ++i) pts += (i ? ", " : "") + JsonObject::matrix(shape[i]);
-      j.raw("shape", pts + "]");
-    } else {
-      j.add_null("shape");
-    }
+  return j;
+}
+
+/// --shape K: K+1 backbone points from base to tip over all segments (null when not converged).
+template <class Solver>
+void add_shape(const Solver& solver, bool converged, int K, JsonObject* j) {
+  if (!converged) {
+    j->add_null("shape");
+    return;
   }
+  std::string pts = "[";
+  const auto shape = solver.shape(K);
+  for (size_t i = 0; i < shape.size(); ++i) pts += (i ? ", " : "") + JsonObject::matrix(shape[i]);
+  j->raw("shape", pts + "]");
+}
+
+/// One solve for the tip wrench w as its JSON line.
+std::string solve_json(hydrojet::rod::ShootingSolver& solver, const hydrojet::config::Scene& scene, const Options& opt,
+                       const hydrojet::rod::TipWrench& w, bool* converged) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const hydrojet::rod::RodSolution sol = solver.solve(w);
+  const auto t1 = std::chrono::steady_clock::now();
+  *converged = sol.converged;
+  JsonObject j = solution_json(sol, scene, std::chrono::duration<double, std::micro>(t1 - t0).count());
+  if (opt.compliance) add_compliance(solver, scene, sol.converged, &j);
+  if (opt.shape > 0) add_shape(solver, sol.converged, opt.shape, &j);
   return j.str();
+}
+
+/// --compliance on a general scene: C^b, J_q from the sensitivities, and the stability of the block
+/// of C^b on the actuators' equivalent tip wrenches (the scene's tip.actuated when it has none).
+void add_general_compliance(hydrojet::rod::GeneralRodSolver& solver, const hydrojet::config::Scene& scene,
+                            bool converged, JsonObject* j) {
+  const bool actuated = solver.actuator_count() > 0;
+  if (!converged) {
+    j->add_null("compliance").add_null("stability_margin").add_null("stability_eig_min");
+    if (actuated) j->add_null("actuation_jacobian");
+    return;
+  }
+  const auto tc0 = std::chrono::steady_clock::now();
+  const hydrojet::rod::GeneralCompliance c = solver.compliance();
+  const auto tc1 = std::chrono::steady_clock::now();
+  const auto st = actuated
+                      ? hydrojet::rod::stability(c.body, hydrojet::rod::equivalent_tip_wrenches(c.body, c.actuation))
+                      : hydrojet::rod::stability(c.body, scene.actuated);
+  j->add("compliance", c.body)
+      .add("stability_margin", st.margin)
+      .add("stability_eig_min", st.eig_min)
+      .add("compliance_time_us", std::chrono::duration<double, std::micro>(tc1 - tc0).count());
+  if (actuated) j->add("actuation_jacobian", Eigen::MatrixXd(c.actuation));
+}
+
+/// One solve of a general scene: the actuators' inputs q and the tip wrench w.
+std::string solve_general_json(hydrojet::rod::GeneralRodSolver& solver, const hydrojet::config::Scene& scene,
+                               const Options& opt, const hydrojet::rod::TipWrench& w, bool* converged) {
+  hydrojet::rod::ActuatorInputs q = hydrojet::rod::ActuatorInputs::Zero(solver.actuator_count());
+  for (int i = 0; i < q.size() && i < static_cast<int>(opt.actuators.size()); ++i) q[i] = opt.actuators[i];
+  const auto t0 = std::chrono::steady_clock::now();
+  const hydrojet::rod::RodSolution sol = solver.solve(q, w);
+  const auto t1 = std::chrono::steady_clock::now();
+  *converged = sol.converged;
+  JsonObject j = solution_json(sol, scene, std::chrono::duration<double, std::micro>(t1 - t0).count());
+  if (opt.compliance) add_general_compliance(solver, scene, sol.converged, &j);
+  if (opt.shape > 0) add_shape(solver, sol.converged, opt.shape, &j);
+  return j.str();
+}
+
+/// Solves every wrench with the solver the scene needs, one JSON line each; true when all converged.
+bool run_all(const hydrojet::config::Scene& scene, const Options& opt,
+             const std::vector<hydrojet::rod::TipWrench>& wrenches) {
+  const auto each = [&](auto&& solve_one) {
+    bool all_converged = true;
+    for (const auto& w : wrenches) {
+      bool converged = false;
+      std::cout << solve_one(w, &converged) << "\n";
+      all_converged = all_converged && converged;
+    }
+    std::cout.flush();
+    return all_converged;
+  };
+  if (needs_general_solver(scene)) {
+    hydrojet::rod::GeneralRodSolver solver(scene.body, scene.solver);
+    return each(
+        [&](const hydrojet::rod::TipWrench& w, bool* c) { return solve_general_json(solver, scene, opt, w, c); });
+  }
+  hydrojet::rod::ShootingSolver solver(scene.model, scene.solver);
+  return each([&](const hydrojet::rod::TipWrench& w, bool* c) { return solve_json(solver, scene, opt, w, c); });
 }
 
 }  // namespace
@@ -270,13 +349,5 @@ int main(int argc, char** argv) {
     return 2;
   }
 
-  hydrojet::rod::ShootingSolver solver(scene.model, scene.solver);
-  bool all_converged = true;
-  for (const auto& w : wrenches) {
-    bool converged = false;
-    std::cout << solve_json(solver, scene, opt, w, &converged) << "\n";
-    all_converged = all_converged && converged;
-  }
-  std::cout.flush();
-  return all_converged ? 0 : 1;
+  return run_all(scene, opt, wrenches) ? 0 : 1;
 }

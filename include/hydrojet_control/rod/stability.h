@@ -27,6 +27,19 @@ struct StabilityReport {
 
 StabilityReport stability(const Mat6& compliance_body, const ActuatedSet& actuated);
 
+/// The same for a general actuator set (issue 14): the block of C^b on the span of the actuators'
+/// tip body wrenches (columns of `wrenches`), Uᵀ C^b U with U an orthonormal basis of that span. For
+/// actuators at the tip pass their unit wrenches (d, p × d); the HydroJet's three jets span {f_x, f_y},
+/// so this equals stability(C, lateral_force_actuation()) up to rounding (U rotates within the block).
+StabilityReport stability(const Mat6& compliance_body,
+                          const Eigen::Ref<const Eigen::Matrix<double, 6, Eigen::Dynamic>>& wrenches);
+
+/// The tip body wrenches that move the tip as the actuators do: (C^b)^† J_q (for actuators at the tip
+/// their unit wrenches, up to the null space of C^b). Their span is where a general actuator set
+/// loads the tip; stability(C, equivalent_tip_wrenches(C, J_q)) is its indicator.
+Eigen::Matrix<double, 6, Eigen::Dynamic> equivalent_tip_wrenches(
+    const Mat6& compliance_body, const Eigen::Ref<const Eigen::Matrix<double, 6, Eigen::Dynamic>>& actuation_jacobian);
+
 /// Hybrid compliance R^h(L) C^b of eq. (19): tip twist in base-frame axes per body wrench.
 Mat6 hybrid_compliance(const Mat3& tip_rotation, const Mat6& compliance_body);
 
