@@ -24,7 +24,8 @@ function(hydrojet_gtest name)
 endfunction()
 
 foreach(t test_rod_closed_form test_rod_compliance test_scene test_rod_fk_cli test_actuation test_controller
-          test_dynamic_rod test_numerics_models test_numerics_extreme test_general_rod)
+          test_dynamic_rod test_numerics_models test_numerics_extreme test_general_rod
+          test_bounded_allocation)
   hydrojet_gtest(${t} LIBS hydrojet_config)
 endforeach()
 add_dependencies(test_rod_fk_cli rod_fk)
