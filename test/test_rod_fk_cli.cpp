@@ -297,7 +297,9 @@ TEST(RodFkCli, GeneralSceneJacobianAndShape) {
                      std::pow(pts[i][2] - pts[i - 1][2], 2));
   EXPECT_NEAR(arc, 0.09, 1e-5);  // chords of 1 mm arcs: short by ~L κ² h²/24
   EXPECT_LT(std::abs(pts[0][0]) + std::abs(pts[0][1]) + std::abs(pts[0][2]), 1e-12);
-  for (int k = 0; k < 3; ++k) EXPECT_NEAR(pts[90][k], tip[k], 1e-12);
+  // The shape is integrated with extra cuts at its points: the same tip within the solver's
+  // accuracy contract (1e-6 m).
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(pts[90][k], tip[k], 1e-6);
   // The tip moved away from its unloaded place (the thrusters act).
   const CliRun rest = run("--scene " + sc + " --actuators 0 0 0 0 0 0");
   ASSERT_EQ(rest.status, 0) << rest.err;

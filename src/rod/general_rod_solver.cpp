@@ -62,10 +62,12 @@ struct GeneralRodSolver::Sweep {
   IntegratorOptions integrator;
   CvodeWorkspace* cvode;
   int rhs = 0;
+  int step_multiplier = 1;  ///< 2: every piece with exactly twice its steps (the Richardson estimate)
 
   /// Steps of a fixed-step method over a piece of length ds: the rod's steps in proportion, ≥ 1.
   int piece_steps(double ds) const {
-    return std::max(1, static_cast<int>(std::ceil(integrator.steps * ds / solver.model_.length() - 1e-9)));
+    const double share = integrator.steps * ds / solver.model_.length();
+    return step_multiplier * std::max(1, static_cast<int>(std::ceil(share - 1e-9)));
   }
 
   /// Adds what station `st` applies to the internal wrench (n base frame, M body frame) and to the
@@ -115,6 +117,8 @@ struct GeneralRodSolver::Sweep {
     using Block = Eigen::Matrix<double, 3, (D > 0 ? D : 1)>;
     const GeneralRodModel& m = solver.model_;
     const auto& sts = solver.stations_;
+    // One input per actuator (a load built without them would read past q: refuse instead).
+    if (load.q.size() != static_cast<Eigen::Index>(m.actuators.size())) return false;
     y->setZero();
     Eigen::Map<Mat3>(y->data() + 3) = R_tip;
     for (int d = 0; d < D; ++d) y->template segment<3>(O::kBase + O::kPerDir * d) = dirs[d].eta_tip;
@@ -321,11 +325,9 @@ GeneralRodSolver::Eval GeneralRodSolver::evaluate(const Mat3& R_tip, const Load&
 // steps on every piece (exact − coarse ≈ (fine − coarse)·2^p/(2^p − 1)), carried through the shooting
 // problem as in ShootingSolver.
 double GeneralRodSolver::error_estimate(const Mat3& R_tip, const Load& load, const Eval& e) {
-  IntegratorOptions fine = settings_.integrator;
-  fine.steps *= 2;
-  const double q = fine.type == IntegratorType::kRk4 ? 16.0 : 256.0;
+  const double q = settings_.integrator.type == IntegratorType::kRk4 ? 16.0 : 256.0;
   const double f = q / (q - 1.0);
-  Sweep sw{*this, load, fine, cvode()};
+  Sweep sw{*this, load, settings_.integrator, cvode(), 0, 2};
   RodOde<0, CosseratGeneral>::State y;
   if (!sw.sweep<0>(R_tip, nullptr, &y)) return std::numeric_limits<double>::infinity();
   const Mat3 R0f = Eigen::Map<const Mat3>(y.data() + 3);
