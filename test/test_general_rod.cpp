@@ -367,3 +367,42 @@ TEST(GeneralRodStability, ReducesToTheLateralForceBlockOnTheHydroJet) {
   ASSERT_TRUE(st.ok);
   EXPECT_GT(st.eig_min, 0.0);  // a moderate load on a cantilever: stable
 }
+
+// A column past buckling (tip weight 1.1 P_cr, upright, EIy = 1.2 EIx) cut into two identical
+// segments: a cold solve leaves the straight, unstable branch (which it reaches with the check off)
+// for the buckled one, as ShootingSolver does on the same rod: the same deflection about the weaker
+// axis, stable.
+TEST(GeneralRodStability, ColdSolvePastBucklingReachesTheBuckledBranchAsTheUniformRod) {
+  const double EI = 6.01e-4, L = 0.09, g = 9.81;
+  const double Pcr = M_PI * M_PI * EI / (4 * L * L);
+  rod::RodModel u = test::plain_rod(L, EI);
+  u.rod.stiffness.y() = 1.2 * EI;
+  u.gravity = Vec3(0, 0, -g);
+  u.tip_mass = 1.1 * Pcr / g;
+  rod::GeneralRodModel m = rod::general_model(u);
+  rod::RodSegment half = m.segments[0];
+  half.length = L / 2;
+  m.segments = {half, half};
+  const rod::ShootingOptions opt = test::rk8(16);
+  rod::ShootingSolver uniform(u, opt);
+  rod::GeneralRodSolver general(m, opt);
+  const rod::RodSolution a = uniform.solve(rod::TipWrench());
+  const rod::RodSolution b = general.solve(rod::ActuatorInputs(0));
+  ASSERT_TRUE(a.converged && b.converged) << a.message << " / " << b.message;
+  EXPECT_TRUE(b.warning.find("unstable") == std::string::npos) << b.warning;
+  EXPECT_GT(std::abs(b.tip_position.y()), 0.01);  // buckled, about the weaker (x) axis
+  EXPECT_LT(std::abs(b.tip_position.x()), 1e-9);
+  EXPECT_NEAR(std::abs(b.tip_position.y()), std::abs(a.tip_position.y()), 1e-9);
+  EXPECT_NEAR(b.tip_position.z(), a.tip_position.z(), 1e-9);
+  const rod::GeneralCompliance c = general.compliance();
+  ASSERT_TRUE(c.ok);
+  EXPECT_GT(rod::stability(c.body, rod::lateral_force_actuation()).eig_min, 0.0);
+  // With the check off the cold solve stays on the straight branch, which is unstable.
+  rod::ShootingOptions off = opt;
+  off.cold_stability_check.fill(false);
+  rod::GeneralRodSolver straight(m, off);
+  const rod::RodSolution s = straight.solve(rod::ActuatorInputs(0));
+  ASSERT_TRUE(s.converged);
+  EXPECT_LT(std::hypot(s.tip_position.x(), s.tip_position.y()), 1e-9);
+  EXPECT_LE(rod::stability(straight.compliance().body, rod::lateral_force_actuation()).eig_min, 0.0);
+}

@@ -3,11 +3,14 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <limits>
 #include <stdexcept>
 
 #include "damped_newton.h"
 #include "hydrojet_control/rod/cvode_integrator.h"
 #include "load_path.h"
+#include "hydrojet_control/rod/stability.h"
 #include "rod_integration.h"
 
 namespace hydrojet {
@@ -282,16 +285,21 @@ void GeneralRodSolver::update_unloaded_shape() {
 
 void GeneralRodSolver::reset() { have_solution_ = false; }
 
-double GeneralRodSolver::growth_estimate(const ActuatorInputs& q, const TipWrench& tip) const {
+// A bound on |n(s)| [N]: every force on the rod (tip wrench, inputs, point loads, weights; the tip
+// moment counted as |l|/L).
+double GeneralRodSolver::load_bound(const ActuatorInputs& q, const TipWrench& tip) const {
   const double g = model_.gravity.norm();
-  double n = tip.force.norm() + model_.tip_mass * g, ei = 1e300;
+  double n = tip.force.norm() + tip.moment.norm() / model_.length() + model_.tip_mass * g;
   for (int j = 0; j < q.size(); ++j) n += std::abs(q[j]);
   for (const PointLoad& l : model_.loads) n += l.force.norm() + l.mass * g;
-  for (const RodSegment& s : model_.segments) {
-    n += s.linear_density * g * s.length;
-    ei = std::min(ei, std::min(s.stiffness.x(), s.stiffness.y()));
-  }
-  return model_.length() * std::sqrt(n / ei);
+  for (const RodSegment& s : model_.segments) n += s.linear_density * g * s.length;
+  return n;
+}
+
+double GeneralRodSolver::growth_estimate(const ActuatorInputs& q, const TipWrench& tip) const {
+  double ei = 1e300;
+  for (const RodSegment& s : model_.segments) ei = std::min(ei, std::min(s.stiffness.x(), s.stiffness.y()));
+  return model_.length() * std::sqrt(load_bound(q, tip) / ei);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -398,41 +406,107 @@ RodSolution GeneralRodSolver::solve(const ActuatorInputs& q, const TipWrench& ti
   target.wrench = tip;
   target.q = q;
   // Newton from the warm solution (or the unloaded shape) → load continuation from the warm solution
-  // → from the unloaded shape (load_path.h).
+  // → from the unloaded shape (load_path.h) → accuracy check → fold report → for a cold solve, the
+  // stability check (load from rest with a push when the equilibrium reached is unstable).
+  const bool cold = !have_solution_;
   FoldTracker folds;
   Shooting p{*this, target, &sol, Mat3::Identity(), 0.0, Vec3::Zero(), Eval()};
   const Shooting::Point unloaded{unloaded_tip_, no_load(actuator_count()), unloaded_pos_, unloaded_det_};
   const Shooting::Point start = have_solution_ ? Shooting::Point{R_tip_, load_, tip_pos_, det_} : unloaded;
   const bool ok = internal::reach_equilibrium(p, start, have_solution_, unloaded, &folds);
-  if (p.e.ok) {
-    sol.tip_rotation = so3::orthonormalize(p.e.R0.transpose() * p.x);
-    sol.tip_position = -p.e.R0.transpose() * p.e.p0;
-    sol.jacobian_det = p.e.J.determinant();
-  }
-  bool accurate = true;
-  if (ok && settings_.accuracy_tolerance > 0.0 && !is_adaptive(settings_.integrator.type)) {
-    sol.error_estimate = error_estimate(p.x, target, p.e);
-    accurate = accurate_enough(&sol);
-  }
-  sol.converged = ok && accurate && p.e.ok && std::isfinite(sol.residual) &&
-                  sol.residual <= settings_.residual_tolerance && sol.tip_position.allFinite();
-  if (!sol.converged) {
-    if (sol.message.empty()) sol.message = "did not converge";
+  if (!finish(&p, ok, &folds)) {
     if (growth_estimate(q, tip) > ShootingSolver::kSingleShootingGrowthLimit)
       sol.message +=
           " (the load is beyond what single shooting handles, λL > 12; multiple shooting is not "
           "available for general rods yet)";
     return remember(sol);
   }
-  folds.note(sol.jacobian_det);
+  if (cold) load_from_rest_if_unstable(target, &sol);
+  return remember(sol);
+}
+
+// The end of a load path at p->x: tip pose, accuracy check (fixed-step methods), convergence; a
+// converged equilibrium is committed (the next warm start) with its fold report.
+bool GeneralRodSolver::finish(Shooting* p, bool ok, FoldTracker* folds) {
+  RodSolution& sol = *p->sol;
+  if (p->e.ok) {
+    sol.tip_rotation = so3::orthonormalize(p->e.R0.transpose() * p->x);
+    sol.tip_position = -p->e.R0.transpose() * p->e.p0;
+    sol.jacobian_det = p->e.J.determinant();
+  }
+  bool accurate = true;
+  if (ok && settings_.accuracy_tolerance > 0.0 && !is_adaptive(settings_.integrator.type)) {
+    sol.error_estimate = error_estimate(p->x, p->target, p->e);
+    accurate = accurate_enough(&sol);
+  }
+  sol.converged = ok && accurate && p->e.ok && std::isfinite(sol.residual) &&
+                  sol.residual <= settings_.residual_tolerance && sol.tip_position.allFinite();
+  if (!sol.converged) {
+    if (sol.message.empty()) sol.message = "did not converge";
+    return false;
+  }
+  folds->note(sol.jacobian_det);
   sol.message.clear();
-  commit(p.x, target, p.e, sol);
-  sol.fold_crossings = folds.crossings;
-  if (folds.crossings > 0)
-    sol.warning = "the load path crossed a fold or bifurcation " + std::to_string(folds.crossings) +
+  commit(p->x, p->target, p->e, sol);
+  sol.fold_crossings = folds->crossings;
+  if (folds->crossings > 0)
+    sol.warning = "the load path crossed a fold or bifurcation " + std::to_string(folds->crossings) +
                   " time(s) (det of the shooting Jacobian changed sign, or the equilibrium snapped through); "
                   "the result may lie on another branch than the start: check stability (stability_eig_min)";
-  return remember(sol);
+  return true;
+}
+
+// The smallest eigenvalue of the stiffness on settings_.cold_stability_check at the stored solution
+// (≤ 0: unstable); +inf when no component is checked, NaN when C^b fails (as ShootingSolver's).
+double GeneralRodSolver::stability_indicator() {
+  const ActuatedSet& a = settings_.cold_stability_check;
+  if (std::none_of(a.begin(), a.end(), [](bool b) { return b; })) return std::numeric_limits<double>::infinity();
+  const GeneralCompliance c = compliance();
+  return c.ok ? stability(c.body, a).eig_min : std::nan("");
+}
+
+// As ShootingSolver::load_from_rest_if_unstable: a cold solve that reached an equilibrium the rod
+// cannot hold (a column past buckling) is loaded again from rest with a small tip push along its
+// softest direction, toward the unloaded tip's side, and the push is then taken away along the load
+// path; an unstable result of both is kept and says so in `warning`.
+void GeneralRodSolver::load_from_rest_if_unstable(const Load& target, RodSolution* sol) {
+  const double direct = stability_indicator();
+  if (!(direct <= 0.0)) return;
+  const Mat3 R_tip = R_tip_;
+  const Eval eval = eval_;
+  const RodSolution kept = *sol;
+  const double L = model_.length();
+  Vec6 push = 0.1 * std::max(load_bound(target.q, target.wrench), 1e-6) *
+              softest_wrench_direction(compliance().body, settings_.cold_stability_check);
+  push.tail<3>() *= L;
+  if ((R_tip_ * push.head<3>()).dot(unloaded_pos_) < 0.0) push = -push;
+  RodSolution path;
+  FoldTracker folds;
+  if (push.allFinite() && push.norm() > 0.0) {
+    Load pushed = target;
+    pushed.wrench.force += push.head<3>();
+    pushed.wrench.moment += push.tail<3>();
+    Shooting to_pushed{*this, pushed, &path, Mat3::Identity(), 0.0, Vec3::Zero(), Eval()};
+    Shooting back{*this, target, &path, Mat3::Identity(), 0.0, Vec3::Zero(), Eval()};
+    folds.start(unloaded_det_);
+    const Shooting::Point rest{unloaded_tip_, no_load(actuator_count()), unloaded_pos_, unloaded_det_};
+    if (internal::follow_load_path(to_pushed, rest, &folds) &&
+        internal::follow_load_path(back, {to_pushed.x, pushed, to_pushed.tip, to_pushed.det}, &folds))
+      finish(&back, true, &folds);
+  }
+  if (path.converged && stability_indicator() > 0.0) {
+    path.iterations += kept.iterations;
+    path.rhs_evaluations += kept.rhs_evaluations;
+    *sol = path;
+    return;
+  }
+  commit(R_tip, target, eval, kept);
+  *sol = kept;
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "unstable equilibrium: stability indicator %.3g <= 0 (the rod cannot hold it; ",
+                direct);
+  sol->warning = (sol->warning.empty() ? "" : sol->warning + "; ") + buf +
+                 "loading from rest with a push along its softest direction found no stable one)";
 }
 
 bool GeneralRodSolver::accurate_enough(RodSolution* sol) const {

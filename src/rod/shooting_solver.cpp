@@ -227,22 +227,11 @@ void ShootingSolver::load_from_rest_if_unstable(const Load& target, RodSolution*
 // negative) eigenvalue — the mode the rod buckles in first (for a column, about its weaker axis) —
 // scaled to a tenth of the load (tip force and weights; moments by the length).
 Vec6 ShootingSolver::softest_push(const Mat6& C, const Load& target) const {
-  const ActuatedSet& a = settings_.cold_stability_check;
-  int idx[6], n = 0;
-  for (int i = 0; i < 6; ++i)
-    if (a[i]) idx[n++] = i;
-  Eigen::MatrixXd block(n, n);
-  for (int r = 0; r < n; ++r)
-    for (int c = 0; c < n; ++c) block(r, c) = C(idx[r], idx[c]);
-  const Eigen::MatrixXd S = block.completeOrthogonalDecomposition().pseudoInverse();
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(0.5 * (S + S.transpose()));
-  if (es.info() != Eigen::Success) return Vec6::Constant(std::nan(""));
   const double L = model_.rod.length;
   const double load = target.wrench.force.norm() + target.wrench.moment.norm() / L +
                       (model_.tip_mass + model_.rod.linear_density * L) * model_.gravity.norm();
-  Vec6 push = Vec6::Zero();
-  for (int k = 0; k < n; ++k)
-    push[idx[k]] = 0.1 * std::max(load, 1e-6) * es.eigenvectors()(k, 0) * (idx[k] < 3 ? 1.0 : L);
+  Vec6 push = 0.1 * std::max(load, 1e-6) * softest_wrench_direction(C, settings_.cold_stability_check);
+  push.tail<3>() *= L;
   return push;
 }
 

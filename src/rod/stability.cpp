@@ -1,6 +1,7 @@
 #include "hydrojet_control/rod/stability.h"
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 #include <Eigen/SVD>
 #include <cmath>
 #include <limits>
@@ -56,6 +57,22 @@ StabilityReport stability(const Mat6& C, const Eigen::Ref<const Eigen::Matrix<do
   while (r < sv.size() && sv(r) > 1e-9 * sv(0)) ++r;
   const Eigen::Matrix<double, 6, Eigen::Dynamic> U = svd.matrixU().leftCols(r);
   return block_report(Block(U.transpose() * C * U));
+}
+
+Vec6 softest_wrench_direction(const Mat6& C, const ActuatedSet& a) {
+  int idx[6], n = 0;
+  for (int i = 0; i < 6; ++i)
+    if (a[i]) idx[n++] = i;
+  if (n == 0 || !C.allFinite()) return Vec6::Constant(std::nan(""));
+  Eigen::MatrixXd block(n, n);
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < n; ++c) block(r, c) = C(idx[r], idx[c]);
+  const Eigen::MatrixXd S = block.completeOrthogonalDecomposition().pseudoInverse();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(0.5 * (S + S.transpose()));
+  if (es.info() != Eigen::Success) return Vec6::Constant(std::nan(""));
+  Vec6 d = Vec6::Zero();
+  for (int k = 0; k < n; ++k) d[idx[k]] = es.eigenvectors()(k, 0);
+  return d;
 }
 
 Eigen::Matrix<double, 6, Eigen::Dynamic> equivalent_tip_wrenches(

@@ -19,8 +19,10 @@
 // Robustness ladder of solve(): Newton from the warm solution (or the unloaded, piecewise-arc
 // shape) → load continuation (src/rod/load_path.h, the same component as ShootingSolver's) →
 // accuracy check (fixed-step integrators: Richardson estimate against accuracy_tolerance·L) →
-// fold/branch report. Multiple shooting is not offered for general rods yet (a solve the single
-// shooting cannot do says so in `message`); the KINSOL backend option is ignored (Eigen Newton).
+// fold/branch report → for a cold solve, ShootingSolver's stability check (an equilibrium with
+// indicator ≤ 0 on settings.cold_stability_check is loaded again from rest with a push, else warned).
+// Multiple shooting is not offered for general rods yet (a solve the single shooting cannot do says
+// so in `message`); the KINSOL backend option is ignored (Eigen Newton).
 #pragma once
 
 #include <Eigen/Core>
@@ -114,6 +116,10 @@ class GeneralRodSolver {
   Eval evaluate(const Mat3& R_tip, const Load& load, int* rhs);
   double error_estimate(const Mat3& R_tip, const Load& load, const Eval& e);
   bool accurate_enough(RodSolution* sol) const;
+  bool finish(Shooting* p, bool ok, internal::FoldTracker* folds);
+  double stability_indicator();
+  void load_from_rest_if_unstable(const Load& target, RodSolution* sol);
+  double load_bound(const ActuatorInputs& q, const TipWrench& tip) const;
   void commit(const Mat3& R_tip, const Load& load, const Eval& e, const RodSolution& sol);
   RodSolution remember(const RodSolution& sol);
   CvodeWorkspace* cvode();

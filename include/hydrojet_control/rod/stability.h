@@ -34,6 +34,12 @@ StabilityReport stability(const Mat6& compliance_body, const ActuatedSet& actuat
 StabilityReport stability(const Mat6& compliance_body,
                           const Eigen::Ref<const Eigen::Matrix<double, 6, Eigen::Dynamic>>& wrenches);
 
+/// The unit body wrench along the softest direction of the `actuated` components at C^b: the
+/// eigenvector of the symmetric part of the stiffness S = (C^b block)^† with the smallest (most
+/// negative) eigenvalue, i.e. the mode an unstable equilibrium leaves along first (a column buckles
+/// about its weaker axis). NaN when the eigen-solve fails or nothing is actuated.
+Vec6 softest_wrench_direction(const Mat6& compliance_body, const ActuatedSet& actuated);
+
 /// The tip body wrenches that move the tip as the actuators do: (C^b)^† J_q (for actuators at the tip
 /// their unit wrenches, up to the null space of C^b). Their span is where a general actuator set
 /// loads the tip; stability(C, equivalent_tip_wrenches(C, J_q)) is its indicator.
