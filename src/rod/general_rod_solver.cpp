@@ -448,11 +448,7 @@ bool GeneralRodSolver::finish(Shooting* p, bool ok, FoldTracker* folds) {
   folds->note(sol.jacobian_det);
   sol.message.clear();
   commit(p->x, p->target, p->e, sol);
-  sol.fold_crossings = folds->crossings;
-  if (folds->crossings > 0)
-    sol.warning = "the load path crossed a fold or bifurcation " + std::to_string(folds->crossings) +
-                  " time(s) (det of the shooting Jacobian changed sign, or the equilibrium snapped through); "
-                  "the result may lie on another branch than the start: check stability (stability_eig_min)";
+  internal::report_folds(*folds, &sol);
   return true;
 }
 
@@ -502,11 +498,7 @@ void GeneralRodSolver::load_from_rest_if_unstable(const Load& target, RodSolutio
   }
   commit(R_tip, target, eval, kept);
   *sol = kept;
-  char buf[160];
-  std::snprintf(buf, sizeof buf, "unstable equilibrium: stability indicator %.3g <= 0 (the rod cannot hold it; ",
-                direct);
-  sol->warning = (sol->warning.empty() ? "" : sol->warning + "; ") + buf +
-                 "loading from rest with a push along its softest direction found no stable one)";
+  internal::warn_unstable(direct, sol);
 }
 
 bool GeneralRodSolver::accurate_enough(RodSolution* sol) const {

@@ -15,6 +15,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <string>
 
 #include "hydrojet_control/rod/rod_model.h"
 #include "hydrojet_control/rod/shooting_solver.h"
@@ -53,6 +55,25 @@ struct FoldTracker {
     det = std::nan("");
   }
 };
+
+/// Sets the fold report of a solution: the crossings and, when there were any, the warning.
+inline void report_folds(const FoldTracker& folds, RodSolution* sol) {
+  sol->fold_crossings = folds.crossings;
+  if (folds.crossings > 0)
+    sol->warning = "the load path crossed a fold or bifurcation " + std::to_string(folds.crossings) +
+                   " time(s) (det of the shooting Jacobian changed sign, or the equilibrium snapped through); "
+                   "the result may lie on another branch than the start: check stability (stability_eig_min)";
+}
+
+/// Adds to sol's warning that its equilibrium is unstable (stability indicator ≤ 0) and that loading
+/// from rest with a push found no stable one.
+inline void warn_unstable(double indicator, RodSolution* sol) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "unstable equilibrium: stability indicator %.3g <= 0 (the rod cannot hold it; ",
+                indicator);
+  sol->warning = (sol->warning.empty() ? "" : sol->warning + "; ") + buf +
+                 "loading from rest with a push along its softest direction found no stable one)";
+}
 
 /// One equilibrium of a load path: the unknowns at `load`, the tip position, det ∂r/∂x.
 template <class Unknowns, class Load>

@@ -215,11 +215,7 @@ void ShootingSolver::load_from_rest_if_unstable(const Load& target, RodSolution*
   }
   commit_single(R_tip, target, eval, kept);
   *sol = kept;
-  char buf[160];
-  std::snprintf(buf, sizeof buf, "unstable equilibrium: stability indicator %.3g <= 0 (the rod cannot hold it; ",
-                direct);
-  sol->warning = (sol->warning.empty() ? "" : sol->warning + "; ") + buf +
-                 "loading from rest with a push along its softest direction found no stable one)";
+  internal::warn_unstable(direct, sol);
 }
 
 // A body wrench along the softest direction of the checked components at the stored solution: the
@@ -297,11 +293,7 @@ bool ShootingSolver::converged(bool ok, const RodSolution& sol) const {
 }
 
 const RodSolution& ShootingSolver::report_folds(const FoldTracker& folds, RodSolution* sol) {
-  sol->fold_crossings = folds.crossings;
-  if (folds.crossings > 0)
-    sol->warning = "the load path crossed a fold or bifurcation " + std::to_string(folds.crossings) +
-                   " time(s) (det of the shooting Jacobian changed sign, or the equilibrium snapped through); "
-                   "the result may lie on another branch than the start: check stability (stability_eig_min)";
+  internal::report_folds(folds, sol);
   return *sol;
 }
 
