@@ -354,39 +354,15 @@ bool GeneralRodSolver::newton(Mat3* R_tip, const Load& load, RodSolution* sol, E
 // The solve
 
 /// Single shooting on the load path (load_path.h), as ShootingSolver::SingleShooting.
-struct GeneralRodSolver::Shooting {
-  using Unknowns = Mat3;
-  using Load = GeneralRodSolver::Load;
-  using Point = internal::PathPoint<Mat3, Load>;
-  using Saved = Eval;
-  static constexpr bool kNewtonFromUnloaded = true;
+struct GeneralRodSolver::Shooting : internal::TipOrientationShooting<Shooting, Load, Eval> {
+  Shooting(GeneralRodSolver& s, const Load& t, RodSolution* out) : TipOrientationShooting(t, out), solver(s) {}
 
   GeneralRodSolver& solver;
-  Load target;
-  RodSolution* sol;
-  Mat3 x = Mat3::Identity();
-  double det = 0.0;
-  Vec3 tip = Vec3::Zero();
-  Eval e;
 
   const ShootingOptions& options() const { return solver.settings_; }
   double length() const { return solver.model_.length(); }
   double growth() const { return solver.growth_estimate(target.q, target.wrench); }
-  bool newton(Mat3* R, const Load& load, double* d, Vec3* p) {
-    if (!solver.newton(R, load, sol, &e)) return false;
-    *d = e.J.determinant();
-    *p = -e.R0.transpose() * e.p0;
-    return true;
-  }
-  bool turned_far(const Mat3& a, const Mat3& b) const {
-    return so3::log(a.transpose() * b).norm() > options().max_step;
-  }
-  Saved save() const { return e; }
-  void restore(const Saved& direct) {
-    e = direct;
-    sol->residual = e.r.norm();
-    sol->message.clear();
-  }
+  bool newton_at(Mat3* R, const Load& load, Eval* last) { return solver.newton(R, load, sol, last); }
 };
 
 RodSolution GeneralRodSolver::solve(const ActuatorInputs& q, const TipWrench& tip) {
@@ -410,7 +386,7 @@ RodSolution GeneralRodSolver::solve(const ActuatorInputs& q, const TipWrench& ti
   // stability check (load from rest with a push when the equilibrium reached is unstable).
   const bool cold = !have_solution_;
   FoldTracker folds;
-  Shooting p{*this, target, &sol, Mat3::Identity(), 0.0, Vec3::Zero(), Eval()};
+  Shooting p{*this, target, &sol};
   const Shooting::Point unloaded{unloaded_tip_, no_load(actuator_count()), unloaded_pos_, unloaded_det_};
   const Shooting::Point start = have_solution_ ? Shooting::Point{R_tip_, load_, tip_pos_, det_} : unloaded;
   const bool ok = internal::reach_equilibrium(p, start, have_solution_, unloaded, &folds);
@@ -482,8 +458,8 @@ void GeneralRodSolver::load_from_rest_if_unstable(const Load& target, RodSolutio
     Load pushed = target;
     pushed.wrench.force += push.head<3>();
     pushed.wrench.moment += push.tail<3>();
-    Shooting to_pushed{*this, pushed, &path, Mat3::Identity(), 0.0, Vec3::Zero(), Eval()};
-    Shooting back{*this, target, &path, Mat3::Identity(), 0.0, Vec3::Zero(), Eval()};
+    Shooting to_pushed{*this, pushed, &path};
+    Shooting back{*this, target, &path};
     folds.start(unloaded_det_);
     const Shooting::Point rest{unloaded_tip_, no_load(actuator_count()), unloaded_pos_, unloaded_det_};
     if (internal::follow_load_path(to_pushed, rest, &folds) &&

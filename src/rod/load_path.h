@@ -20,6 +20,7 @@
 
 #include "hydrojet_control/rod/rod_model.h"
 #include "hydrojet_control/rod/shooting_solver.h"
+#include "hydrojet_control/rod/so3.h"
 
 namespace hydrojet {
 namespace rod {
@@ -82,6 +83,44 @@ struct PathPoint {
   Load load;
   Vec3 tip;
   double det;
+};
+
+/// The load-path Problem of shooting on the tip orientation R(L) (ShootingSolver::SingleShooting,
+/// GeneralRodSolver::Shooting derive from it): the current equilibrium and Newton's last evaluation
+/// `e` (with ok, r, J, R0, p0). Derived provides options(), length(), growth() and
+/// newton_at(&R, load, &e), the solver's damped Newton.
+template <class Derived, class LoadT, class EvalT>
+struct TipOrientationShooting {
+  using Unknowns = Mat3;
+  using Load = LoadT;
+  using Point = PathPoint<Mat3, LoadT>;
+  using Saved = EvalT;
+  static constexpr bool kNewtonFromUnloaded = true;
+
+  TipOrientationShooting(const LoadT& t, RodSolution* s) : target(t), sol(s) {}
+
+  LoadT target;
+  RodSolution* sol;
+  Mat3 x = Mat3::Identity();
+  double det = 0.0;
+  Vec3 tip = Vec3::Zero();
+  EvalT e;
+
+  bool newton(Mat3* R, const LoadT& load, double* d, Vec3* p) {
+    if (!static_cast<Derived*>(this)->newton_at(R, load, &e)) return false;
+    *d = e.J.determinant();
+    *p = -e.R0.transpose() * e.p0;
+    return true;
+  }
+  bool turned_far(const Mat3& a, const Mat3& b) const {
+    return so3::log(a.transpose() * b).norm() > static_cast<const Derived*>(this)->options().max_step;
+  }
+  Saved save() const { return e; }
+  void restore(const Saved& direct) {
+    e = direct;
+    sol->residual = e.r.norm();
+    sol->message.clear();
+  }
 };
 
 /// The load a fraction t of the way from `from` to `to`.

@@ -74,39 +74,15 @@ bool ShootingSolver::newton(Mat3* R_tip, const Load& load, RodSolution* sol, Eva
 
 /// Single shooting on the load path (load_path.h): the unknown is the tip orientation R(L) (the x
 /// of eq. 15); Newton's last evaluation `e` describes the equilibrium reached.
-struct ShootingSolver::SingleShooting {
-  using Unknowns = Mat3;
-  using Load = ShootingSolver::Load;
-  using Point = internal::PathPoint<Mat3, Load>;
-  using Saved = Eval;
-  static constexpr bool kNewtonFromUnloaded = true;
+struct ShootingSolver::SingleShooting : internal::TipOrientationShooting<SingleShooting, Load, Eval> {
+  SingleShooting(ShootingSolver& s, const Load& t, RodSolution* out) : TipOrientationShooting(t, out), solver(s) {}
 
   ShootingSolver& solver;
-  Load target;
-  RodSolution* sol;
-  Mat3 x = Mat3::Identity();
-  double det = 0.0;
-  Vec3 tip = Vec3::Zero();
-  Eval e;
 
   const ShootingOptions& options() const { return solver.settings_; }
   double length() const { return solver.model_.rod.length; }
   double growth() const { return solver.growth_estimate(target.wrench); }
-  bool newton(Mat3* R, const Load& load, double* d, Vec3* p) {
-    if (!solver.newton(R, load, sol, &e)) return false;
-    *d = e.J.determinant();
-    *p = -e.R0.transpose() * e.p0;
-    return true;
-  }
-  bool turned_far(const Mat3& a, const Mat3& b) const {
-    return so3::log(a.transpose() * b).norm() > options().max_step;
-  }
-  Saved save() const { return e; }
-  void restore(const Saved& direct) {
-    e = direct;
-    sol->residual = e.r.norm();
-    sol->message.clear();
-  }
+  bool newton_at(Mat3* R, const Load& load, Eval* last) { return solver.newton(R, load, sol, last); }
 
   /// Newton from the warm solution (or the unloaded shape) → load continuation from the warm
   /// solution → from the unloaded shape.
