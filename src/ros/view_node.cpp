@@ -11,6 +11,7 @@
 // and again with each DELETEALL (it is large and rarely changes); everything else with each rod/state.
 // Not latched: the per-subscriber welcome replaces the latch (a latched array would reach a late
 // subscriber after, not before, its DELETEALL, and would hold only the last of the arrays).
+#include <algorithm>
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
@@ -118,7 +119,12 @@ class ViewNode {
     pnh.param<std::string>("base_frame", base_frame_, "base");
 
     markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>(
-        names::kViewMarkers, 2, [this](const ros::SingleSubscriberPublisher& p) { p.publish(reset_markers()); });
+        names::kViewMarkers, 2,
+        [this](const ros::SingleSubscriberPublisher& p) {
+          p.publish(reset_markers());
+          ++welcomed_;
+        },
+        [this](const ros::SingleSubscriberPublisher&) { welcomed_ = std::max(0, welcomed_ - 1); });
     rod_sub_ = nh.subscribe(names::kRodState, 2, &ViewNode::on_rod_state, this);
     status_sub_ = nh.subscribe(names::kControllerStatus, 2, &ViewNode::on_status, this);
     jets_sub_ = nh.subscribe(names::kJetState, 2, &ViewNode::on_jet_state, this);
@@ -146,7 +152,14 @@ class ViewNode {
     arr.markers.insert(arr.markers.end(), reachable_markers_.begin(), reachable_markers_.end());
     return arr;
   }
-  void delete_all() { markers_pub_.publish(reset_markers()); }
+  void delete_all() { broadcast(reset_markers()); }
+  /// Publishes to every subscriber once each has had its welcome. roscpp links a new subscriber
+  /// before its connect callback runs (that is queued), so a broadcast in between would reach it
+  /// before its DELETEALL; such a broadcast is skipped: the welcome carries the reachable set, and
+  /// the rod's markers come again with the next rod state.
+  void broadcast(const visualization_msgs::MarkerArray& arr) {
+    if (static_cast<int>(markers_pub_.getNumSubscribers()) <= welcomed_) markers_pub_.publish(arr);
+  }
 
   /// A new reachable set: its markers replace the previous ones (or delete them when it is empty).
   void on_reachable_set(const hydrojet_control::ReachableSet::ConstPtr& m) {
@@ -167,7 +180,7 @@ class ViewNode {
         arr.markers.push_back(k);
       }
     }
-    markers_pub_.publish(arr);
+    broadcast(arr);
   }
 
   void on_status(const hydrojet_control::ControllerStatus::ConstPtr& m) {
@@ -221,7 +234,7 @@ class ViewNode {
     add_directions(stamp, tip, &arr);
     add_stability_text(stamp, tip, m->stability_margin, tube, &arr);
     add_camera_frustum(stamp, tip, &arr);
-    markers_pub_.publish(arr);
+    broadcast(arr);
   }
 
   /// base → tip_model on tf2.
@@ -385,6 +398,7 @@ class ViewNode {
   hydrojet_control::ControllerStatus status_;
   Eigen::Vector3d jet_force_ = Eigen::Vector3d::Zero();
   ros::Publisher markers_pub_;
+  int welcomed_ = 0;  ///< subscribers of markers_pub_ that have had their welcome DELETEALL
   std::vector<visualization_msgs::Marker> reachable_markers_;  ///< the last set's markers (empty: none)
   ros::Subscriber rod_sub_, status_sub_, jets_sub_, reachable_sub_;
   tf2_ros::TransformBroadcaster tf_;
