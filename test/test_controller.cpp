@@ -9,7 +9,9 @@
 #include <yaml-cpp/yaml.h>
 
 #include "hydrojet_control/config/controller_config.h"
+#include "hydrojet_control/actuation/allocation.h"
 #include "hydrojet_control/control/controller.h"
+#include "hydrojet_control/rod/so3.h"
 #include "test_helpers.h"
 
 using namespace hydrojet;
@@ -543,36 +545,103 @@ TEST(ControllerSafety, WrongNumberOfFlowReadingsAborts) {
   expect_aborted(r.step(in), "flow: 2 readings for 3 jets");
 }
 
-// --- Force limiter --------------------------------------------------------------------------------
+// --- The step on the actuation Jacobian (eqs. 19-20) ----------------------------------------------
 
-TEST(ForceLimiter, StepIsRateLimitedAlongItsDirection) {
-  control::ForceLimiter lim(0.3, 1.0);  // 0.3 N, 1 N/s
-  lim.reset(Eigen::Vector2d(0.1, 0.0));
-  const Eigen::Vector2d f = lim.limit(Eigen::Vector2d(0.1, 0.2), 0.01);  // wants +0.2 N in y
-  EXPECT_NEAR(f.x(), 0.1, 1e-15);
-  EXPECT_NEAR(f.y(), 0.01, 1e-15);  // 1 N/s · 10 ms
-  EXPECT_EQ(lim.previous(), f);
-  // A small step passes unchanged.
-  EXPECT_NEAR((lim.limit(Eigen::Vector2d(0.1, 0.015), 0.01) - Eigen::Vector2d(0.1, 0.015)).norm(), 0.0, 1e-15);
-  // dt = 0: no change at all.
-  EXPECT_EQ(lim.limit(Eigen::Vector2d(0.2, 0.2), 0.0), Eigen::Vector2d(0.1, 0.015));
+namespace {
+
+/// The HydroJet model at rest-ish: its tip frame, C^b and the jets' J_q = C^b W at a tip force.
+struct HydroJetLinearisation {
+  control::Mat3 R;
+  control::ActuatedModel::Linearisation lin;
+  control::JetVector lower, upper;
+};
+
+HydroJetLinearisation hydrojet_linearisation(const Eigen::Vector3d& q) {
+  control::ActuatedModel m(config::make_controller_model(test::scene("hydrojet_0deg"), flow_gains()));
+  EXPECT_TRUE(m.fast_path());
+  const rod::RodSolution sol = m.solve(q);
+  EXPECT_TRUE(sol.converged);
+  return {sol.tip_rotation, m.linearise(), m.lower(), m.upper()};
 }
 
-TEST(ForceLimiter, MagnitudeIsLimitedAfterTheRate) {
-  control::ForceLimiter lim(0.3, 100.0);
-  // Within the rate, beyond the magnitude: scaled back onto the 0.3 N circle, same direction.
-  const Eigen::Vector2d f = lim.limit(Eigen::Vector2d(0.4, 0.3), 0.01);
-  EXPECT_NEAR(f.norm(), 0.3, 1e-15);
-  EXPECT_NEAR(f.x() / f.y(), 0.4 / 0.3, 1e-12);
-  // New limits apply from the next step; reset() sets the previous command without limiting.
-  lim.set_limits(0.1, 1.0);
-  lim.reset(Eigen::Vector2d(0.5, 0.0));
-  EXPECT_EQ(lim.previous(), Eigen::Vector2d(0.5, 0.0));
-  const Eigen::Vector2d g = lim.limit(Eigen::Vector2d(0.5, 0.0), 0.01);
-  EXPECT_NEAR(g.x(), 0.1, 1e-15);
-  EXPECT_NEAR(g.y(), 0.0, 1e-15);
-  lim.reset();
-  EXPECT_EQ(lim.previous(), Eigen::Vector2d::Zero());
+}  // namespace
+
+// Away from the bounds, the tip force W q takes exactly eq. (19)'s step on the force block of C^b,
+// δf = (MᵀM + μ²)⁻¹Mᵀ(x_cntr × d) with M = −d̂ R C^b_ω[:, f_x f_y], and q is eq. (20)'s allocation of
+// the new force (the 27-set enumeration of allocation.h, an independent solver).
+TEST(InputStep, OnTheHydroJetIsEquationNineteenThenTwenty) {
+  const Eigen::Vector3d q0(0.05, 0.03, 0.02);
+  const HydroJetLinearisation h = hydrojet_linearisation(q0);
+  const actuation::JetMap jets(actuation::hydrojet_geometry());
+  const Vec3 d = h.R.col(2);
+  const Vec3 x_cntr(0.004, -0.003, 0.0005);
+  control::InputStepOptions o;
+  o.max_force_step = 1.0;  // no rate limit here
+  const control::InputStep step = control::input_step(h.R, h.lin, x_cntr, q0, h.lower, h.upper, o);
+  ASSERT_TRUE(step.ok) << step.message;
+  const Eigen::Matrix<double, 3, 2> M = -so3::hat(d) * h.R * h.lin.body_compliance.block<3, 2>(3, 0);
+  const Eigen::Vector2d df = (M.transpose() * M + o.damping * o.damping * Eigen::Matrix2d::Identity())
+                                 .ldlt()
+                                 .solve(M.transpose() * x_cntr.cross(d));
+  const Eigen::Vector2d f = jets.planar() * q0 + df;
+  const Eigen::Vector3d q = step.q;
+  EXPECT_NEAR((jets.planar() * q - f).norm(), 0.0, 1e-7 * f.norm()) << "W q = f + δf (λ = 1e-6 moves it by ~λ)";
+  const actuation::AllocationResult ref = actuation::allocate(jets.planar(), f, h.lower, h.upper, 0.0);
+  ASSERT_TRUE(ref.ok);
+  EXPECT_NEAR((q - ref.q).norm(), 0.0, 1e-6) << "the smallest jet forces for that force";
+  EXPECT_LE(step.bound_cost, 1e-6);
+}
+
+TEST(InputStep, StepAndMagnitudeAreLimitedInTipForce) {
+  const Eigen::Vector3d q0(0.05, 0.03, 0.02);
+  const HydroJetLinearisation h = hydrojet_linearisation(q0);
+  const actuation::JetMap jets(actuation::hydrojet_geometry());
+  const Vec3 x_cntr = 0.3 * h.R.col(0);  // a large turn about the tip x-axis (δf ≈ 0.045 N)
+  control::InputStepOptions o;
+  o.max_force_step = 0.01;  // 1 N/s · 10 ms
+  const control::InputStep a = control::input_step(h.R, h.lin, x_cntr, q0, h.lower, h.upper, o);
+  o.max_force_step = 10.0;
+  const control::InputStep b = control::input_step(h.R, h.lin, x_cntr, q0, h.lower, h.upper, o);
+  ASSERT_TRUE(a.ok && b.ok);
+  const Eigen::Vector3d qa = a.q, qb = b.q;
+  const Eigen::Vector2d fa = jets.planar() * (qa - q0), fb = jets.planar() * (qb - q0);
+  EXPECT_NEAR(fa.norm(), 0.01, 1e-12) << "the step's tip-force change is cut to the limit";
+  EXPECT_GT(fb.norm(), 0.02);
+  EXPECT_NEAR(fa.normalized().dot(fb.normalized()), 1.0, 1e-9) << "along the unlimited step";
+  // The magnitude: the force itself is scaled onto max_force, and every input stays in its bounds.
+  o.max_force = 0.05;
+  const control::InputStep c = control::input_step(h.R, h.lin, x_cntr, q0, h.lower, h.upper, o);
+  ASSERT_TRUE(c.ok);
+  const Eigen::Vector3d qc = c.q;
+  EXPECT_NEAR((jets.planar() * qc).norm(), 0.05, 1e-12);
+  EXPECT_TRUE((qc.array() >= -1e-15).all() && (qc.array() <= h.upper.array()).all());
+}
+
+TEST(InputStep, AtTheBoundsTheBestAllowedStepAndItsCost) {
+  // Every jet at q_max but jet 1 at 0: a turn that needs more of jets 2 and 3 is out of reach.
+  const Eigen::Vector3d q0(0.0, 0.224, 0.244);
+  const HydroJetLinearisation h = hydrojet_linearisation(q0);
+  const actuation::JetMap jets(actuation::hydrojet_geometry());
+  const Vec3 d = h.R.col(2);
+  const Eigen::Matrix<double, 3, 2> M = -so3::hat(d) * h.R * h.lin.body_compliance.block<3, 2>(3, 0);
+  // The direction change that the force (jets 2 + 3 more) would cause.
+  const Eigen::Vector2d push = jets.planar() * Eigen::Vector3d(0.0, 0.05, 0.05);
+  const Vec3 dd = M * push;
+  const Vec3 x_cntr = d.cross(dd);  // x_cntr × d = dd
+  control::InputStepOptions o;
+  o.max_force_step = 1.0;
+  const control::InputStep s = control::input_step(h.R, h.lin, x_cntr, q0, h.lower, h.upper, o);
+  ASSERT_TRUE(s.ok);
+  const Eigen::Vector3d q = s.q;
+  EXPECT_TRUE((q.array() >= -1e-15).all() && (q.array() <= h.upper.array() + 1e-15).all());
+  EXPECT_GT(s.bound_cost, 1e-3) << "the bounds cost tip force";
+  // No input vector in the box does better on the task (the objective is convex; compare with a grid).
+  auto task = [&](const Eigen::Vector3d& qq) { return (M * (jets.planar() * (qq - q0)) - dd).norm(); };
+  double best = 1e9;
+  for (int i = 0; i <= 40; ++i)
+    for (int j = 0; j <= 40; ++j)
+      for (int k = 0; k <= 40; ++k) best = std::min(best, task(Eigen::Vector3d(i, j, k).cwiseProduct(h.upper) / 40.0));
+  EXPECT_LE(task(q), best + 1e-4);
 }
 
 // --- Options ----------------------------------------------------------------------------------

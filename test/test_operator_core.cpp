@@ -268,7 +268,7 @@ TEST_P(Reachable, ContainsAgreesWithTheSweepSamples) {
               set.samples().size(), worst);
   // The polyline is inscribed (its vertices are samples), so it cuts the corners of the image of the
   // force polygon: a few samples lie outside it, by at most the chords' sag there (measured 1.2e-2 rad
-  // at 0°, 1.3e-2 rad at 30°).
+  // at 0°, 1.4e-2 rad at 30°).
   EXPECT_LT(worst, 2e-2) << "a sample outside the boundary polyline by more than its chords' sag";
   EXPECT_LT(outside, static_cast<int>(set.samples().size()) / 500);
   // Random directions against the samples: one with a sample farther out at nearly its azimuth is

@@ -10,7 +10,7 @@ namespace actuation {
 
 namespace {
 
-using Hessian = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, kMaxInputs, kMaxInputs>;
+using Hessian = InputHessian;
 
 /// Where an input is in the working set.
 enum Bound : int { kFree = 0, kLower = -1, kUpper = 1 };
@@ -120,6 +120,36 @@ bool minimise(const InputMatrix& A, const AllocVector& w, const InputVector& lo,
 }
 
 }  // namespace
+
+BoxQpResult minimise_box_qp(const InputHessian& H, const InputVector& g, const InputVector& q_min,
+                            const InputVector& q_max, const InputVector* start) {
+  BoxQpResult r;
+  const Eigen::Index n = g.size();
+  r.q = InputVector::Zero(n);
+  if (n < 1 || H.rows() != n || H.cols() != n)
+    r.message = "H: must be N x N with N = g.size() in 1..8";
+  else if (q_min.size() != n || q_max.size() != n)
+    r.message = "q_min/q_max: one bound per entry of g";
+  else if (start && start->size() != n)
+    r.message = "start: one entry per entry of g";
+  else if (!H.allFinite() || !g.allFinite())
+    r.message = "H/g: non-finite entry";
+  else if (!q_min.allFinite() || !q_max.allFinite())
+    r.message = "q_min/q_max: non-finite entry";
+  else if (!(q_min.array() <= q_max.array()).all())
+    r.message = "q_min/q_max: q_min > q_max";
+  else if (start && !start->allFinite())
+    r.message = "start: non-finite entry";
+  if (!r.message.empty()) return r;
+  InputVector q = (start ? *start : InputVector::Zero(n)).cwiseMax(q_min).cwiseMin(q_max);
+  if (!active_set(H, g, q_min, q_max, &q, &r.iterations)) {
+    r.message = "the active-set iteration did not finish (iteration limit or H not positive definite)";
+    return r;
+  }
+  r.q = q;
+  r.ok = true;
+  return r;
+}
 
 double bounded_allocation_objective(const InputMatrix& A, const AllocVector& w_des, const InputVector& q,
                                     double lambda) {

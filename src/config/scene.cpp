@@ -266,22 +266,6 @@ void parse_nozzle(Tree& t, Scene* s) {
 
 /// The three jets of eq. (24) as actuators at the tip: direction = the jet's force direction, the
 /// nozzle offset as the point of application (moment (d e_z) × f).
-std::vector<rod::Actuator> jet_actuators(const Scene& s) {
-  const actuation::JetMap map(s.jets);
-  std::vector<rod::Actuator> out;
-  for (int i = 0; i < 3; ++i) {
-    rod::Actuator a;
-    a.name = "jet" + std::to_string(i + 1);
-    a.at = s.body.length();
-    a.direction = map.wrench_matrix().col(i).head<3>();
-    a.position = rod::Vec3(0.0, 0.0, s.jets.nozzle_offset);
-    a.max_force = s.max_jet_force[i];
-    a.type = rod::ActuatorType::kJet;
-    out.push_back(a);
-  }
-  return out;
-}
-
 }  // namespace
 
 Scene parse_scene(const std::string& text) {
@@ -305,7 +289,7 @@ Scene parse_scene(const std::string& text) {
   if (t.has("solver")) parse_solver(t, &s.solver);
   if (t.has("jets") && t.has("actuators")) t.fail("actuators", "give either jets (the HydroJet's three) or actuators");
   if (t.has("jets")) parse_jets(t, &s);
-  if (s.has_jets) s.body.actuators = jet_actuators(s);
+  if (s.has_jets) s.body.actuators = control::jet_actuators(s.jets, s.max_jet_force, s.body.length());
   if (t.has("loads")) parse_loads(t, root, &s);
   if (t.has("actuators")) parse_actuators(t, root, &s);
   if (t.has("nozzle")) parse_nozzle(t, &s);
@@ -340,8 +324,8 @@ void require_uniform(const Scene& scene, const std::string& who) {
 }
 
 control::RobotModel make_controller_model(const Scene& scene, const actuation::FlowRegulatorOptions& flow) {
-  require_uniform(scene, "the controller");
-  if (!scene.has_jets) throw SceneError("jets", "missing (the controller needs the jet geometry)");
+  if (scene.body.actuators.empty())
+    throw SceneError("jets", "missing (the controller needs the jets, or an actuators section)");
   control::RobotModel m;
   m.rod = scene.model;
   m.solver = scene.solver;
@@ -350,6 +334,7 @@ control::RobotModel make_controller_model(const Scene& scene, const actuation::F
   m.nozzle = scene.nozzle;
   m.max_jet_force = scene.max_jet_force;
   m.flow = flow;
+  if (!scene.has_jets || !scene.uniform()) m.body = scene.body;  // the HydroJet description stays as it was
   return m;
 }
 

@@ -7,10 +7,14 @@ namespace control {
 
 namespace {
 
-/// The reachable set of `model` with each jet's q_max scaled by `force_fraction` (0, 1].
+/// The reachable set of `model` with each actuator's bounds scaled by `force_fraction` (0, 1].
 std::shared_ptr<const ReachableSet> sweep_reachable_set(RobotModel model, const ControllerOptions& params,
                                                         double force_fraction) {
   model.max_jet_force *= force_fraction;
+  for (rod::Actuator& a : model.body.actuators) {
+    a.min_force *= force_fraction;
+    a.max_force *= force_fraction;
+  }
   ReachableSetOptions o;
   o.min_stability_margin = params.min_stability_margin;
   return std::make_shared<const ReachableSet>(ReachableSet::compute(model, o));
@@ -29,12 +33,11 @@ const char* to_string(ControllerState s) {
 }
 
 Controller::Controller(const RobotModel& model, const ControllerOptions& params)
-    : actuated_(model.actuated),
-      params_(params),
-      jets_(model),
-      solver_(model.rod, model.solver),
+    : params_(params),
+      model_(model),
+      jets_(model_.body(), model.nozzle, model.flow),
       monitor_(params, jets_.jet_count()),
-      limiter_(params.max_force, params.max_force_rate),
+      previous_command_(jets_.zeros()),
       path_reachable_(sweep_reachable_set(model, params, 1.0)),
       reachable_(params.reachable_force_fraction == 1.0
                      ? path_reachable_
@@ -47,7 +50,7 @@ void Controller::start(double t) {
   t_start_ = t;
   t_last_ = t;
   first_cycle_ = true;
-  limiter_.reset();
+  previous_command_ = jets_.zeros();
   monitor_.reset();
   pd_.reset();
   jets_.reset();
@@ -57,7 +60,7 @@ void Controller::start(double t) {
 
 void Controller::stop() {
   state_ = ControllerState::kIdle;
-  limiter_.reset();
+  previous_command_ = jets_.zeros();
   jets_.reset();
   commands_pending_ = false;
 }
@@ -65,7 +68,6 @@ void Controller::stop() {
 void Controller::set_params(const ControllerOptions& p) {
   params_ = p;
   monitor_.set_options(p);
-  limiter_.set_limits(p.max_force, p.max_force_rate);
   reference_.set_max_angular_rate(p.max_angular_rate);
 }
 
@@ -105,7 +107,7 @@ void Controller::commanded() {
     state_ = ControllerState::kRunning;
 }
 
-rod::RodSolution Controller::model_fk(const JetVector& q) { return solve_model(jets_.wrench(q)); }
+rod::RodSolution Controller::model_fk(const JetVector& q) { return solve_model(q); }
 
 ControllerOutput Controller::update(const ControllerInputs& in) {
   ControllerOutput out = resting_output();
@@ -122,19 +124,19 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   if (std::string why = monitor_.check_sensors(in); !why.empty()) return abort(out, why);
   if (std::string why = monitor_.check_flow_faults(in.flows, dt); !why.empty()) return abort(out, why);
 
-  observe_jets(in.flows, out);                                    // Algorithm 1, line 4
-  const rod::RodSolution sol = solve_model(out.wrench_observed);  // line 6
+  if (std::string why = observe_jets(in, out); !why.empty()) return abort(out, why);  // Algorithm 1, line 4
+  const rod::RodSolution sol = solve_model(out.jet_force_observed);                   // line 6
   out.solver_converged = sol.converged;
   if (std::string why = monitor_.check_solver(sol); !why.empty()) return abort(out, why);
   if (!sol.converged) return hold(out, in.flows, dt);
   out.model_tip_rotation = sol.tip_rotation;
-  const rod::Compliance compliance = solver_.compliance();  // C^b of line 6 (eq. 14)
-  if (std::string why = check_stability(compliance, out); !why.empty()) return abort(out, why);
+  const ActuatedModel::Linearisation lin = model_.linearise();  // C^b (eq. 14) and J_q of line 6
+  if (std::string why = check_stability(lin, out); !why.empty()) return abort(out, why);
 
   track_reference(in, sol, dt, out);
   if (std::string why = monitor_.check_oscillation(out.error_geodesic); !why.empty()) return abort(out, why);
 
-  if (std::string why = command_force(sol, compliance, dt, out); !why.empty()) return abort(out, why);
+  if (std::string why = command_inputs(sol, lin, dt, out); !why.empty()) return abort(out, why);
   if (std::string why = actuate(in.flows, dt, out); !why.empty()) return abort(out, why);
   return finish_cycle(out);
 }
@@ -148,36 +150,45 @@ ControllerOutput Controller::resting_output() const {
   return out;
 }
 
-// Algorithm 1, line 4: w_a = A q_obs, with q_obs from measured flow by the thrust equation (26).
-void Controller::observe_jets(const JetVector& flows, ControllerOutput& out) const {
-  out.jet_force_observed = jets_.forces_from_flows(flows);
-  out.wrench_observed = jets_.wrench(out.jet_force_observed);
+// Algorithm 1, line 4: q_obs from measured flow by the thrust equation (26) (jets) or the measured
+// force (force actuators), and w_a = W q_obs.
+std::string Controller::observe_jets(const ControllerInputs& in, ControllerOutput& out) const {
+  const JetVector none = jets_.zeros();
+  const bool have_forces = in.forces.size() == jets_.jet_count();
+  out.jet_force_observed = jets_.observed_forces(in.flows, have_forces ? in.forces : none);
+  for (int i = 0; i < jets_.jet_count(); ++i) {
+    if (jets_.is_jet(i)) continue;
+    if (!have_forces) return "force: no reading for actuator " + model_.body().actuators[i].name;
+    if (!std::isfinite(in.forces[i]))
+      return "force: actuator " + model_.body().actuators[i].name + " reading invalid (" +
+             std::to_string(in.forces[i]) + " N)";
+  }
+  out.wrench_observed = model_.tip_wrench(out.jet_force_observed);
+  return "";
 }
 
-// Line 6: forward kinematics at the tip wrench w_a (eqs. 6, 9, 12, 14); C^b follows from
-// solver_.compliance().
-rod::RodSolution Controller::solve_model(const rod::Vec6& wrench) {
-  rod::TipWrench w;
-  w.force = wrench.head<3>();
-  w.moment = wrench.tail<3>();
-  return solver_.solve(w);
-}
+// Line 6: forward kinematics at the inputs q (eqs. 6, 9, 12, 14); C^b and J_q follow from
+// model_.linearise().
+rod::RodSolution Controller::solve_model(const JetVector& q) { return model_.solve(q); }
 
 // The solver did not converge (fewer times in a row than max_solver_failures): no new force this
 // cycle; the flow regulators keep the jets at the flows of the observed jet forces.
 ControllerOutput Controller::hold(ControllerOutput out, const JetVector& flows, double dt) {
   out.jet_force_command.setZero();
   out.flow_command = jets_.flows_for_forces(out.jet_force_observed);
-  out.valve_command = jets_.regulate(out.flow_command, flows, dt);
+  out.valve_command = jets_.regulate(out.jet_force_observed, out.flow_command, flows, dt);
   last_output_ = out;
   return out;
 }
 
 // Elastic stability of the model's equilibrium (§4.1, eqs. 21–23), reported and checked.
-std::string Controller::check_stability(const rod::Compliance& compliance, ControllerOutput& out) const {
-  const rod::StabilityReport st = rod::stability(compliance.body, actuated_);
+std::string Controller::check_stability(const ActuatedModel::Linearisation& lin, ControllerOutput& out) const {
+  const rod::StabilityReport st = model_.stability(lin);
   out.stability_margin = st.margin;
   out.stability_eig_min = st.eig_min;
+  rod::Compliance compliance;
+  compliance.ok = lin.ok;
+  compliance.body = lin.body_compliance;
   return monitor_.check_stability(compliance, st);
 }
 
@@ -199,33 +210,35 @@ void Controller::track_reference(const ControllerInputs& in, const rod::RodSolut
   out.error_pitch_yaw = pitch_yaw_error(out.desired_direction, out.measured_direction);
 }
 
-// Lines 5, 7 and 9/12 up to the wrench: x_cntr by PD (eqs. 17–18), ẇ^b by eq. (19), and the new
-// force = base + ẇ^b, rate- and magnitude-limited. The paper's base is w_a (measured); by default
-// the previous command is the base, which keeps the flow loop's lag out of this integrator
-// (docs/controller.md).
-std::string Controller::command_force(const rod::RodSolution& sol, const rod::Compliance& compliance, double dt,
-                                      ControllerOutput& out) {
+// Lines 5, 7, 9/12: x_cntr by PD (eqs. 17–18), then the new inputs by eq. (19) on J_q within the
+// bounds of eq. (20), rate- and magnitude-limited (input_step). The paper's base is w_a (measured);
+// by default the previous command is the base, which keeps the flow loop's lag out of this
+// integrator (docs/controller.md).
+std::string Controller::command_inputs(const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin, double dt,
+                                       ControllerOutput& out) {
   const Vec3 x_cntr = pd_.correction(out.observed_direction, out.desired_direction, dt, params_);
-  const Eigen::Vector2d df = force_change(sol.tip_rotation, compliance.body, x_cntr, params_.damping);
-  const Eigen::Vector2d measured = out.wrench_observed.head<2>();
-  if (first_cycle_) limiter_.reset(measured);
-  const Eigen::Vector2d base = params_.integrate_from_measured ? measured : limiter_.previous();
-  const Eigen::Vector2d f = limiter_.limit(base + df, dt);
-  if (!f.allFinite()) return "control: non-finite force command";
-  out.wrench_command.setZero();
-  out.wrench_command.head<2>() = f;
+  if (first_cycle_) previous_command_ = out.jet_force_observed;
+  InputStepOptions o;
+  o.damping = params_.damping;
+  o.allocation_weight = params_.allocation_weight;
+  o.max_force_step = params_.max_force_rate * dt;
+  o.max_force = params_.max_force;
+  o.length = model_.body().length();
+  const JetVector& base = params_.integrate_from_measured ? out.jet_force_observed : previous_command_;
+  const InputStep step = input_step(sol.tip_rotation, lin, x_cntr, base, model_.lower(), model_.upper(), o);
+  if (!step.ok) return step.message;
+  previous_command_ = step.q;
+  out.jet_force_command = step.q;
+  out.force_reachable = step.bound_cost <= params_.unreachable_tolerance;
+  out.wrench_command = model_.tip_wrench(step.q);
   return "";
 }
 
-// eq. (20) (line 12): bounded allocation over the jets; then the actuator feedback: flow for each
-// jet force by eq. (26) and the per-jet PI flow regulators.
+// Eq. (26) and the actuator feedback: flow for each jet force and the per-jet PI flow regulators;
+// force actuators get their drive.
 std::string Controller::actuate(const JetVector& flows, double dt, ControllerOutput& out) {
-  const actuation::AllocationResult alloc = jets_.allocate(out.wrench_command.head<2>(), params_.allocation_weight);
-  if (!alloc.ok) return "allocation: " + alloc.message;
-  out.jet_force_command = alloc.q;
-  out.force_reachable = alloc.residual_norm <= params_.unreachable_tolerance;
   out.flow_command = jets_.flows_for_forces(out.jet_force_command);
-  out.valve_command = jets_.regulate(out.flow_command, flows, dt);
+  out.valve_command = jets_.regulate(out.jet_force_command, out.flow_command, flows, dt);
   monitor_.record_flow_command(out.flow_command);
   return "";
 }
@@ -244,7 +257,7 @@ ControllerOutput Controller::abort(ControllerOutput out, const std::string& why)
   state_ = ControllerState::kAborted;
   abort_reason_ = why;
   jets_.reset();
-  limiter_.reset();
+  previous_command_ = jets_.zeros();
   out.state = state_;
   out.reason = why;
   out.valve_command.setZero();

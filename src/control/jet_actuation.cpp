@@ -1,42 +1,41 @@
 #include "hydrojet_control/control/jet_actuation.h"
 
-#include <stdexcept>
-#include <string>
+#include <algorithm>
+#include <cmath>
 
 namespace hydrojet {
 namespace control {
 
-JetActuation::JetActuation(const RobotModel& model)
-    : map_(model.jets),
-      nozzle_(model.nozzle),
-      max_force_(model.max_jet_force),
-      regulators_(map_.wrench_matrix().cols(), actuation::FlowRegulator(model.flow)) {
-  if (max_force_.size() != jet_count())
-    throw std::invalid_argument("max_jet_force: " + std::to_string(max_force_.size()) + " entries for " +
-                                std::to_string(jet_count()) + " jets");
+JetActuation::JetActuation(const rod::GeneralRodModel& body, const actuation::Nozzle& nozzle,
+                           const actuation::FlowRegulatorOptions& flow)
+    : nozzle_(nozzle),
+      drive_scale_(JetVector::Zero(static_cast<int>(body.actuators.size()))),
+      regulators_(body.actuators.size(), actuation::FlowRegulator(flow)) {
+  for (size_t i = 0; i < body.actuators.size(); ++i) {
+    const rod::Actuator& a = body.actuators[i];
+    jet_.push_back(a.type == rod::ActuatorType::kJet);
+    drive_scale_[i] = std::max(std::abs(a.min_force), std::abs(a.max_force));
+  }
 }
 
-JetVector JetActuation::forces_from_flows(const JetVector& flows) const {
-  JetVector q(flows.size());
-  for (int i = 0; i < flows.size(); ++i) q[i] = actuation::force_from_flow(flows[i], nozzle_);
+JetVector JetActuation::observed_forces(const JetVector& flows, const JetVector& forces) const {
+  JetVector q(jet_count());
+  for (int i = 0; i < jet_count(); ++i) q[i] = jet_[i] ? actuation::force_from_flow(flows[i], nozzle_) : forces[i];
   return q;
 }
 
 JetVector JetActuation::flows_for_forces(const JetVector& forces) const {
   JetVector flows(forces.size());
-  for (int i = 0; i < forces.size(); ++i) flows[i] = actuation::flow_from_force(forces[i], nozzle_);
+  for (int i = 0; i < forces.size(); ++i) flows[i] = jet_[i] ? actuation::flow_from_force(forces[i], nozzle_) : 0.0;
   return flows;
 }
 
-rod::Vec6 JetActuation::wrench(const JetVector& q) const { return map_.wrench(q); }
-
-actuation::AllocationResult JetActuation::allocate(const Eigen::Vector2d& force, double weight) const {
-  return actuation::allocate(map_.planar(), force, zeros(), max_force_, weight);
-}
-
-JetVector JetActuation::regulate(const JetVector& flow_command, const JetVector& measured_flows, double dt) {
+JetVector JetActuation::regulate(const JetVector& q, const JetVector& flow_command, const JetVector& measured_flows,
+                                 double dt) {
   JetVector duty(jet_count());
-  for (int i = 0; i < jet_count(); ++i) duty[i] = regulators_[i].update(flow_command[i], measured_flows[i], dt);
+  for (int i = 0; i < jet_count(); ++i)
+    duty[i] = jet_[i] ? regulators_[i].update(flow_command[i], measured_flows[i], dt)
+                      : (drive_scale_[i] > 0.0 ? std::clamp(q[i] / drive_scale_[i], -1.0, 1.0) : 0.0);
   return duty;
 }
 

@@ -5,7 +5,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "force_polygon.h"
+#include "hydrojet_control/actuation/bounded_allocation.h"
 #include "hydrojet_control/rod/so3.h"
 
 namespace hydrojet {
@@ -15,12 +15,6 @@ namespace {
 /// Line-search halvings of a Gauss–Newton step before the iteration gives up.
 constexpr int kMaxHalvings = 12;
 constexpr const char* kOutOfReach = "the point is out of the jets' reach: the closest aim misses it by";
-
-Eigen::Vector3d jet_force_bounds(const RobotModel& model) {
-  if (model.max_jet_force.size() != 3)
-    throw std::invalid_argument("max_jet_force: " + std::to_string(model.max_jet_force.size()) + " entries for 3 jets");
-  return model.max_jet_force;
-}
 
 std::string metres(const char* what, double v) {
   std::ostringstream os;
@@ -42,68 +36,79 @@ std::string LookAtOptions::validate() const {
 }
 
 struct LookAtSolver::Impl {
+  using TaskJacobian = Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxJets>;
+
   /// One model equilibrium of the iteration.
   struct State {
-    Eigen::Vector2d force = Eigen::Vector2d::Zero();  ///< lateral tip force [N], tip frame
+    JetVector q;  ///< actuator inputs [N], within their bounds
     Mat3 rotation = Mat3::Identity();
     Vec3 tip = Vec3::Zero();
-    Eigen::Matrix<double, 6, 2> twist_per_force;  ///< C^b times the wrench per lateral force
+    rod::ActuationJacobian twist_per_input;  ///< J_q at this equilibrium
     Vec3 d() const { return rotation.col(2); }
   };
 
-  Impl(const RobotModel& model, const LookAtOptions& o)
-      : options(o),
-        jets(model.jets),
-        polygon(jets.planar(), jet_force_bounds(model)),
-        wrench_per_force(control::wrench_per_force(jets)),
-        solver(model.rod, model.solver) {
+  Impl(const RobotModel& m, const LookAtOptions& o) : options(o), model(m) {
     if (std::string err = o.validate(); !err.empty()) throw std::invalid_argument(err);
   }
 
-  /// The model at a lateral tip force (false when the solve does not converge).
-  bool equilibrium(const Eigen::Vector2d& force, State* s) {
-    const rod::Vec6 w = wrench_per_force * force;
-    rod::TipWrench tip;
-    tip.force = w.head<3>();
-    tip.moment = w.tail<3>();
-    const rod::RodSolution sol = solver.solve(tip);
+  /// The model at inputs q (false when the solve does not converge).
+  bool equilibrium(const JetVector& q, State* s) {
+    const rod::RodSolution sol = model.solve(q);
     if (!sol.converged) return false;
-    s->force = force;
+    s->q = q;
     s->rotation = sol.tip_rotation;
     s->tip = sol.tip_position;
     return true;
   }
 
-  /// C^b at the solver's last converged solution, which must be s's.
+  /// J_q at the model's last converged solution, which must be s's.
   bool linearise(State* s) {
-    const rod::Compliance C = solver.compliance();
-    s->twist_per_force = C.body * wrench_per_force;
-    return C.ok;
+    const ActuatedModel::Linearisation lin = model.linearise();
+    s->twist_per_input = lin.actuation;
+    return lin.ok;
   }
 
   /// The fixed-point residual u − d: zero iff P lies on the tip's axis, in front.
   static Vec3 residual(const State& s, const Vec3& P) { return (P - s.tip).normalized() - s.d(); }
 
-  /// Damped Gauss–Newton step of the residual in the lateral tip force [N].
-  static Eigen::Vector2d newton_step(const State& s, const Vec3& P) {
+  /// ∂(u − d)/∂q: the tip direction turns by −d̂ R J_q,ω per input and the tip moves by R J_q,v, which
+  /// turns u.
+  static TaskJacobian jacobian(const State& s, const Vec3& P) {
     const Vec3 to_point = P - s.tip;
     const Vec3 u = to_point.normalized();
-    const Eigen::Matrix<double, 3, 2> dp = s.rotation * s.twist_per_force.topRows<3>();  // tip motion
-    const Eigen::Matrix<double, 3, 2> dd = -so3::hat(s.d()) * s.rotation * s.twist_per_force.bottomRows<3>();
-    const Eigen::Matrix<double, 3, 2> J = -(Mat3::Identity() - u * u.transpose()) * dp / to_point.norm() - dd;
-    const Eigen::Matrix2d H = J.transpose() * J + 1e-12 * J.squaredNorm() * Eigen::Matrix2d::Identity();
-    return -H.ldlt().solve(J.transpose() * residual(s, P));
+    const TaskJacobian dp = s.rotation * s.twist_per_input.topRows<3>();
+    const TaskJacobian dd = -so3::hat(s.d()) * s.rotation * s.twist_per_input.bottomRows<3>();
+    return -(Mat3::Identity() - u * u.transpose()) * dp / to_point.norm() - dd;
   }
 
-  /// Backtracking along the step, each trial force clamped into the polygon the jets can allocate
-  /// (so that at the edge the iteration slides along it): the first trial whose residual is smaller
-  /// than s's replaces s (then linearised). False when none is.
-  bool line_search(State* s, const Vec3& P, const Eigen::Vector2d& step) {
+  /// Gauss–Newton step of the residual in the inputs [N] within their bounds (q + step stays in the
+  /// box); *blocked: the bounds keep the step from most of the reduction the free step would give.
+  JetVector newton_step(const State& s, const Vec3& P, bool* blocked = nullptr) const {
+    const TaskJacobian J = jacobian(s, P);
+    const Vec3 r = residual(s, P);
+    actuation::InputHessian H = J.transpose() * J;
+    H.diagonal().array() += 1e-12 * H.trace() / static_cast<double>(s.q.size()) + 1e-300;
+    const JetVector g = -J.transpose() * r;
+    const JetVector lo = model.lower() - s.q, hi = model.upper() - s.q;
+    const actuation::BoxQpResult qp = actuation::minimise_box_qp(H, g, lo, hi);
+    const JetVector step = qp.ok ? qp.q : JetVector(JetVector::Zero(s.q.size()));
+    if (blocked) {
+      const double free_gain = r.norm() - (J * JetVector(H.ldlt().solve(g)) + r).norm();
+      const double box_gain = r.norm() - (J * step + r).norm();
+      *blocked = free_gain > 0.0 && box_gain < 0.1 * free_gain;
+    }
+    return step;
+  }
+
+  /// Backtracking along the step (within the bounds, as the box is convex; at the edge the iteration
+  /// slides along it): the first trial whose residual is smaller than s's replaces s (then
+  /// linearised). False when none is.
+  bool line_search(State* s, const Vec3& P, const JetVector& step) {
     const double r0 = residual(*s, P).norm();
     State trial;
     double fraction = 1.0;
     for (int k = 0; k < kMaxHalvings; ++k, fraction *= 0.5) {
-      if (!equilibrium(polygon.clamp(s->force + fraction * step), &trial)) continue;
+      if (!equilibrium(s->q + fraction * step, &trial)) continue;
       if (residual(trial, P).norm() >= r0) continue;
       *s = trial;
       return linearise(s);
@@ -125,7 +130,8 @@ struct LookAtSolver::Impl {
     LookAtResult r;
     r.direction = s.d();
     r.tip_position = s.tip;
-    r.tip_force = s.force;
+    r.inputs = s.q;
+    r.tip_force = model.tip_wrench(s.q).head<2>();
     r.miss_distance = miss_distance(s, P);
     r.iterations = iterations;
     r.message = message;
@@ -141,20 +147,24 @@ struct LookAtSolver::Impl {
       return metres("the point is closer to the tip than min_distance", options.min_distance);
     if (to_point.dot(s.d()) <= 0.0) return "the point is behind the camera: no reachable direction has it in front";
     if (aimed(s, P)) return "";
-    if (polygon.edge_gap(s.force) < 1e-9) return metres(kOutOfReach, miss_distance(s, P));
+    bool blocked = false;
+    newton_step(s, P, &blocked);
+    if (blocked) return metres(kOutOfReach, miss_distance(s, P));
     return metres(stalled ? "no convergence (the line search stalled); the aim misses by"
                           : "no convergence within max_iterations; the aim misses by",
                   miss_distance(s, P));
   }
 
-  /// The iteration's start: the last successful solution (kept with its C^b), else the jets off.
+  /// The iteration's start: the last successful solution (kept with its J_q), else the inputs at rest
+  /// (0, or the bound nearest to it).
   bool start(State* s) {
     if (have_warm) {
       *s = warm;
       return true;
     }
-    solver.reset();
-    return equilibrium(Eigen::Vector2d::Zero(), s) && linearise(s);
+    model.reset();
+    const JetVector rest = JetVector::Zero(model.input_count()).cwiseMax(model.lower()).cwiseMin(model.upper());
+    return equilibrium(rest, s) && linearise(s);
   }
 
   LookAtResult solve(const Vec3& P) {
@@ -179,10 +189,7 @@ struct LookAtSolver::Impl {
   }
 
   LookAtOptions options;
-  actuation::JetMap jets;
-  ForcePolygon polygon;
-  Eigen::Matrix<double, 6, 2> wrench_per_force;
-  rod::ShootingSolver solver;
+  ActuatedModel model;
   bool have_warm = false;
   State warm;  ///< the last successful solution: the warm start
 };
@@ -194,7 +201,7 @@ LookAtResult LookAtSolver::solve(const Vec3& point) { return impl_->solve(point)
 
 void LookAtSolver::reset() {
   impl_->have_warm = false;
-  impl_->solver.reset();
+  impl_->model.reset();
 }
 
 }  // namespace control

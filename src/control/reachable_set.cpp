@@ -1,11 +1,14 @@
 #include "hydrojet_control/control/reachable_set.h"
 
 #include <chrono>
+#include <memory>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
 
 #include "force_polygon.h"
+#include "hydrojet_control/actuation/bounded_allocation.h"
+#include "hydrojet_control/rod/so3.h"
 
 namespace hydrojet {
 namespace control {
@@ -17,70 +20,79 @@ constexpr double kTwoPi = 2.0 * M_PI;
 /// precurvature), so several edge samples per bin keep every bin filled.
 constexpr int kRaysPerBin = 2;
 
-/// Jet forces of `model` as the 3-jet vector of eq. (24).
-Eigen::Vector3d jet_force_bounds(const RobotModel& model) {
-  if (model.max_jet_force.size() != 3)
-    throw std::invalid_argument("max_jet_force: " + std::to_string(model.max_jet_force.size()) + " entries for 3 jets");
-  return model.max_jet_force;
-}
-
-/// The force-space sweep: solve + C^b + stability (eq. 23) per lateral tip force, warm-started
-/// along a serpentine of rays of the force polygon (outward on even rays, inward on odd ones).
+/// The sweep over the inputs: solve + C^b + stability (eq. 23) per point, warm-started along a
+/// serpentine of rays (outward on even rays, inward on odd ones) in the steering plane: the tip
+/// direction's change per input at rest, S = Eᵀ(−d̂ R J_q,ω) (2×N, E a basis ⊥ d), maps the input box
+/// onto a polygon (the jets' force polygon of eq. 24 turned by the rest compliance, for the HydroJet);
+/// each point s of a ray is reached by the inputs of eq. (20) for it, q = argmin ‖S q − s‖² + λ‖q‖²
+/// within the bounds (the smallest inputs that steer there), and the model is solved at q.
 class ForceSweep {
  public:
-  ForceSweep(const RobotModel& model, const ReachableSetOptions& options)
-      : model_(model),
-        options_(options),
-        jets_(model.jets),
-        polygon_(jets_.planar(), jet_force_bounds(model)),
-        wrench_per_force_(wrench_per_force(jets_)),
-        solver_(model.rod, model.solver) {}
+  ForceSweep(const RobotModel& model, const ReachableSetOptions& options) : model_(model), options_(options) {}
 
-  /// The tip z-axis with the jets off (unit, base frame); false when the solve fails.
-  bool zero_force_direction(Vec3* d) { return tip_direction(Eigen::Vector2d::Zero(), d); }
+  /// The tip z-axis at rest (inputs at 0, or at the bound nearest to it; unit, base frame), and the
+  /// steering plane there; false when the solve fails.
+  bool zero_force_direction(Vec3* d) {
+    rest_ = JetVector::Zero(model_.input_count()).cwiseMax(model_.lower()).cwiseMin(model_.upper());
+    const rod::RodSolution s = model_.solve(rest_);
+    const ActuatedModel::Linearisation lin = s.converged ? model_.linearise() : ActuatedModel::Linearisation();
+    if (!lin.ok) return false;
+    *d = s.tip_rotation.col(2);
+    Vec3 e1 = Vec3::UnitX() - d->x() * *d;
+    if (e1.norm() < 1e-6) e1 = Vec3::UnitY() - d->y() * *d;
+    e1.normalize();
+    const Vec3 e2 = d->cross(e1);
+    const Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxJets> M =
+        -so3::hat(*d) * s.tip_rotation * lin.actuation.bottomRows<3>();
+    steering_.resize(2, model_.input_count());
+    steering_.row(0) = e1.transpose() * M;
+    steering_.row(1) = e2.transpose() * M;
+    lambda_ = 1e-9 * steering_.squaredNorm() / model_.input_count();
+    polygon_ = std::make_unique<ForcePolygon>(steering_, model_.lower(), model_.upper(), steering_ * rest_);
+    return true;
+  }
 
   /// The accepted directions: converged, σ_c ≥ min_stability_margin and eig_min > 0.
   std::vector<Vec3> accepted_directions() {
     std::vector<Vec3> out;
     const int rays = kRaysPerBin * options_.azimuth_bins, rings = options_.force_samples;
+    const Eigen::Vector2d o = polygon_->origin();
     Vec3 d;
-    if (accepted(Eigen::Vector2d::Zero(), &d)) out.push_back(d);
+    JetVector q = rest_;
+    if (accepted(o, &q, &d)) out.push_back(d);
     for (int j = 0; j < rays; ++j) {
       const Eigen::Vector2d u(std::cos(kTwoPi * j / rays), std::sin(kTwoPi * j / rays));
-      const double extent = polygon_.extent(u);
+      const double extent = polygon_->extent(u);
       for (int kk = 1; kk <= rings; ++kk) {
         const int k = j % 2 == 0 ? kk : rings + 1 - kk;
-        if (accepted(extent * k / rings * u, &d)) out.push_back(d);
+        if (accepted(o + extent * k / rings * u, &q, &d)) out.push_back(d);
       }
     }
     return out;
   }
 
  private:
-  bool tip_direction(const Eigen::Vector2d& force, Vec3* d) {
-    const rod::Vec6 w = wrench_per_force_ * force;
-    rod::TipWrench tip;
-    tip.force = w.head<3>();
-    tip.moment = w.tail<3>();
-    const rod::RodSolution s = solver_.solve(tip);
-    *d = s.tip_rotation.col(2);
-    return s.converged;
-  }
-
-  bool accepted(const Eigen::Vector2d& force, Vec3* d) {
-    if (!tip_direction(force, d)) return false;
-    const rod::Compliance C = solver_.compliance();
-    if (!C.ok) return false;
-    const rod::StabilityReport st = rod::stability(C.body, model_.actuated);
+  /// The model at the inputs that steer to s (warm-started from *q, which they replace).
+  bool accepted(const Eigen::Vector2d& s, JetVector* q, Vec3* d) {
+    const actuation::BoundedAllocationResult a =
+        actuation::allocate_bounded(steering_, s, model_.lower(), model_.upper(), lambda_, 1e-9, q);
+    if (!a.ok) return false;
+    *q = a.q;
+    const rod::RodSolution sol = model_.solve(*q);
+    if (!sol.converged) return false;
+    *d = sol.tip_rotation.col(2);
+    const ActuatedModel::Linearisation lin = model_.linearise();
+    if (!lin.ok) return false;
+    const rod::StabilityReport st = model_.stability(lin);
     return st.ok && st.margin >= options_.min_stability_margin && st.eig_min > 0.0;
   }
 
-  const RobotModel& model_;
+  ActuatedModel model_;
   const ReachableSetOptions& options_;
-  actuation::JetMap jets_;
-  ForcePolygon polygon_;
-  Eigen::Matrix<double, 6, 2> wrench_per_force_;
-  rod::ShootingSolver solver_;
+  JetVector rest_;
+  actuation::InputMatrix steering_;
+  double lambda_ = 0.0;
+  std::unique_ptr<ForcePolygon> polygon_;
 };
 
 /// The point of the great-circle arc a→b (shorter than π) nearest to the unit vector p.

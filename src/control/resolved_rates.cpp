@@ -1,6 +1,9 @@
 #include "hydrojet_control/control/resolved_rates.h"
 
 #include <Eigen/Cholesky>
+#include <algorithm>
+
+#include "hydrojet_control/actuation/bounded_allocation.h"
 
 #include "hydrojet_control/rod/so3.h"
 
@@ -21,14 +24,67 @@ Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, double d
   return x_cntr;
 }
 
-Eigen::Vector2d force_change(const Mat3& tip_rotation, const rod::Mat6& body_compliance, const Vec3& x_cntr,
-                             double damping) {
+namespace {
+
+using WrenchRows = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxJets>;
+
+/// The step's QP: H = MᵀM + μ²W̃ᵀW̃ + λI, g = Mᵀ(δd + M base) + μ²W̃ᵀW̃ base (½qᵀHq − gᵀq).
+void step_qp(const Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxJets>& M, const WrenchRows& W, const Vec3& dd,
+             const JetVector& base, const InputStepOptions& o, actuation::InputHessian* H, JetVector* g) {
+  const int n = static_cast<int>(base.size());
+  const actuation::InputHessian WtW = W.transpose() * W;
+  *H = M.transpose() * M + o.damping * o.damping * WtW;
+  // λ, made definite as bounded_allocation.h does for λ = 0.
+  H->diagonal().array() += std::max(o.allocation_weight, 1e-12 * H->trace() / n + 1e-300);
+  *g = M.transpose() * (dd + M * base) + o.damping * o.damping * (WtW * base);
+}
+
+/// Scales the step q − base so that its tip-force change is at most max_step [N], then q so that its
+/// tip force is at most max_force [N] (toward 0, clamped into the box should 0 lie outside it).
+JetVector limit(JetVector q, const JetVector& base, const WrenchRows& W, const JetVector& lower, const JetVector& upper,
+                const InputStepOptions& o) {
+  const double step = (W.topRows<3>() * (q - base)).norm();
+  if (step > o.max_force_step) q = base + (q - base) * (o.max_force_step / step);
+  const double force = (W.topRows<3>() * q).norm();
+  if (force > o.max_force) q *= o.max_force / force;
+  return q.cwiseMax(lower).cwiseMin(upper);
+}
+
+}  // namespace
+
+InputStep input_step(const Mat3& tip_rotation, const ActuatedModel::Linearisation& lin, const Vec3& x_cntr,
+                     const JetVector& base_in, const JetVector& lower, const JetVector& upper,
+                     const InputStepOptions& o) {
+  InputStep out;
+  const JetVector base = base_in.cwiseMax(lower).cwiseMin(upper);
+  out.q = base;
+  const int n = static_cast<int>(base.size());
+  if (!lin.ok || lin.actuation.cols() != n || lin.wrenches.cols() != n || lower.size() != n || upper.size() != n) {
+    out.message = "control: actuation Jacobian missing or of the wrong size";
+    return out;
+  }
   const Vec3 d = tip_rotation.col(2);  // the model's tip direction
-  const Eigen::Matrix<double, 3, 2> J_omega = tip_rotation * body_compliance.block<3, 2>(3, 0);
-  const Eigen::Matrix<double, 3, 2> M = -so3::hat(d) * J_omega;
-  const Vec3 dd = x_cntr.cross(d);
-  const Eigen::Matrix2d H = M.transpose() * M + damping * damping * Eigen::Matrix2d::Identity();
-  return H.ldlt().solve(M.transpose() * dd);
+  const Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxJets> M =
+      -so3::hat(d) * tip_rotation * lin.actuation.bottomRows<3>();
+  WrenchRows W = lin.wrenches;
+  W.bottomRows<3>() /= o.length;  // moments as forces at the arm L
+  actuation::InputHessian H;
+  JetVector g;
+  step_qp(M, W, x_cntr.cross(d), base, o, &H, &g);
+  const actuation::BoxQpResult qp = actuation::minimise_box_qp(H, g, lower, upper, &base);
+  if (!qp.ok) {
+    out.message = "control: " + qp.message;
+    return out;
+  }
+  const JetVector q_free = H.ldlt().solve(g);
+  out.bound_cost = (W.topRows<3>() * (qp.q - q_free)).norm();
+  out.q = limit(qp.q, base, W, lower, upper, o);
+  out.ok = out.q.allFinite();
+  if (!out.ok) {
+    out.message = "control: non-finite input command";
+    out.q = base;
+  }
+  return out;
 }
 
 }  // namespace control

@@ -47,6 +47,22 @@ BoundedAllocationResult allocate_bounded(const InputMatrix& A, const AllocVector
                                          const InputVector& q_max, double lambda, double tolerance = 1e-9,
                                          const InputVector* start = nullptr);
 
+/// Symmetric N×N matrix of a box-constrained QP.
+using InputHessian = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, kMaxInputs, kMaxInputs>;
+
+struct BoxQpResult {
+  InputVector q;        ///< the minimiser; zeros when !ok
+  bool ok = false;      ///< false on invalid input or when the iteration did not finish
+  int iterations = 0;   ///< active-set iterations
+  std::string message;  ///< empty when ok, else names the argument or the failure
+};
+
+/// The problem under eq. (20) in its general form: minimise ½ qᵀ H q − gᵀ q over q_min ≤ q ≤ q_max,
+/// H symmetric positive definite (N ≤ 8), by the same active-set iteration; `start` as above. The
+/// controller's step on the actuation Jacobian (resolved_rates.h) is one.
+BoxQpResult minimise_box_qp(const InputHessian& H, const InputVector& g, const InputVector& q_min,
+                            const InputVector& q_max, const InputVector* start = nullptr);
+
 /// Objective of eq. (20) for N inputs: ‖A q − w_des‖² + λ‖q‖².
 double bounded_allocation_objective(const InputMatrix& A, const AllocVector& w_des, const InputVector& q,
                                     double lambda);

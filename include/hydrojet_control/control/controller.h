@@ -2,10 +2,13 @@
 // with tracker feedback or open loop with the model's prediction (§7.3), guarded by the safety
 // monitor. One cycle, update(), runs these named steps:
 //   time and sensor checks (SafetyMonitor) → observe_jets (Algorithm 1, line 4) → solve_model
-//   (line 6) → solver and stability checks → track_reference (x_des from the Reference: the
-//   operator's source, rate-limited and clipped to the reachable set; x_obs) → oscillation check →
-//   command_force (lines 5, 7, 9/12: DirectionPd, force_change, ForceLimiter) → actuate (eq. 20,
-//   eq. 26, flow regulators: JetActuation) → finish_cycle.
+//   (line 6: equilibrium, C^b and the actuation Jacobian J_q, ActuatedModel) → solver and stability
+//   checks → track_reference (x_des from the Reference: the operator's source, rate-limited and
+//   clipped to the reachable set; x_obs) → oscillation check → command_inputs (lines 5, 7, 9/12:
+//   DirectionPd, then input_step: eq. 19 on J_q and eq. 20's bounds in one box QP, rate and magnitude
+//   limits) → actuate (eq. 26, flow regulators: JetActuation) → finish_cycle.
+// Any robot of issue 14 (segments, point loads, N actuators anywhere); the HydroJet's results are
+// those of the tip-force formulation (resolved_rates.h).
 // ROS-free (Eigen, the rod and actuation libraries). Time is passed in; nothing reads a clock.
 #pragma once
 
@@ -15,7 +18,6 @@
 
 #include "hydrojet_control/control/controller_io.h"
 #include "hydrojet_control/control/controller_options.h"
-#include "hydrojet_control/control/force_limiter.h"
 #include "hydrojet_control/control/jet_actuation.h"
 #include "hydrojet_control/control/reachable_set.h"
 #include "hydrojet_control/control/reference.h"
@@ -74,34 +76,33 @@ class Controller {
   ControllerOutput update(const ControllerInputs& in);
 
   /// Backbone of the model at the last converged solve: segments+1 points [m], base frame.
-  std::vector<Vec3> model_shape(int segments) const { return solver_.shape(segments); }
+  std::vector<Vec3> model_shape(int segments) const { return model_.shape(segments); }
 
-  /// The model's forward kinematics at jet forces q [N] (for open-loop prediction and tests).
+  /// The model's forward kinematics at inputs q [N] (for open-loop prediction and tests).
   rod::RodSolution model_fk(const JetVector& q);
 
  private:
   // The steps of update(), in order. Those returning a string return the abort reason (empty: go on).
   ControllerOutput resting_output() const;
-  void observe_jets(const JetVector& flows, ControllerOutput& out) const;
-  rod::RodSolution solve_model(const rod::Vec6& wrench);
+  std::string observe_jets(const ControllerInputs& in, ControllerOutput& out) const;
+  rod::RodSolution solve_model(const JetVector& q);
   ControllerOutput hold(ControllerOutput out, const JetVector& flows, double dt);
-  std::string check_stability(const rod::Compliance& compliance, ControllerOutput& out) const;
+  std::string check_stability(const ActuatedModel::Linearisation& lin, ControllerOutput& out) const;
   void start_configured_path(double t);
   void commanded();
   void track_reference(const ControllerInputs& in, const rod::RodSolution& sol, double dt, ControllerOutput& out);
-  std::string command_force(const rod::RodSolution& sol, const rod::Compliance& compliance, double dt,
-                            ControllerOutput& out);
+  std::string command_inputs(const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin, double dt,
+                             ControllerOutput& out);
   std::string actuate(const JetVector& flows, double dt, ControllerOutput& out);
   ControllerOutput finish_cycle(ControllerOutput out);
   ControllerOutput abort(ControllerOutput out, const std::string& why);
 
-  rod::ActuatedSet actuated_;  ///< the actuated wrench components (stability of eq. 23)
   ControllerOptions params_;
+  ActuatedModel model_;  ///< equilibrium, C^b, J_q and stability at inputs q
   JetActuation jets_;
-  rod::ShootingSolver solver_;
   SafetyMonitor monitor_;
   DirectionPd pd_;
-  ForceLimiter limiter_;
+  JetVector previous_command_;                          ///< the last commanded inputs [N] (the base of the next step)
   std::shared_ptr<const ReachableSet> path_reachable_;  ///< full q_max: path points
   std::shared_ptr<const ReachableSet> reachable_;       ///< with reserve: operator targets
   Reference reference_;
@@ -110,7 +111,7 @@ class Controller {
   std::string abort_reason_;
   double t_start_ = 0.0;
   double t_last_ = 0.0;
-  bool first_cycle_ = true;       ///< no complete cycle since start(): dt = sample_period, limiter from w_a
+  bool first_cycle_ = true;       ///< no complete cycle since start(): dt = sample_period, the step's base from q_obs
   ControllerOutput last_output_;  ///< returned again for a repeated tick at the same time
 };
 

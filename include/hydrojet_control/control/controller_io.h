@@ -23,25 +23,29 @@ struct ControllerInputs {
   Mat3 tip_rotation = Mat3::Identity();  ///< measured tip frame in the base frame
   bool flow_valid = false;
   double flow_stamp = -1e300;  ///< [s]
-  JetVector flows;             ///< measured flow per jet [m^3/s] (one entry per jet)
+  JetVector flows;             ///< measured flow per jet [m^3/s] (one entry per actuator; 0 for force actuators)
+  /// Measured force per actuator [N] (same stamp as the flows): read for actuators of type force only
+  /// (a jet's force comes from its flow); may stay empty when the robot has none.
+  JetVector forces;
 };
 
 /// One control cycle's result. valve_command is what goes to the valves.
 struct ControllerOutput {
   ControllerState state = ControllerState::kIdle;
-  std::string reason;                             ///< why it aborted (empty otherwise)
-  JetVector valve_command;                        ///< valve duty per jet [0, 1]
-  JetVector jet_force_command;                    ///< q from eq. (20) [N]
-  JetVector flow_command;                         ///< flow for q by the thrust equation (26) [m^3/s]
-  JetVector jet_force_observed;                   ///< q_obs from measured flow [N]
-  rod::Vec6 wrench_observed = rod::Vec6::Zero();  ///< w_a = A q_obs (Algorithm 1, line 4)
-  rod::Vec6 wrench_command = rod::Vec6::Zero();   ///< w_a + ẇ^b after limits
-  Vec3 desired_direction = Vec3::UnitZ();         ///< x_des: tip z-axis, base frame (the reference)
-  Source source = Source::kHold;                  ///< who drives the reference
-  bool clipped = false;                           ///< the target was outside the reachable set ...
-  double clip_angle = 0.0;                        ///< ... and moved by this much [rad]
-  Vec3 observed_direction = Vec3::UnitZ();        ///< x_obs used by the loop (tracker or model)
-  Vec3 measured_direction = Vec3::UnitZ();        ///< from the tracker (for metrics, both modes)
+  std::string reason;            ///< why it aborted (empty otherwise)
+  JetVector valve_command;       ///< per actuator: valve duty [0, 1] (jets), drive [−1, 1] (force actuators)
+  JetVector jet_force_command;   ///< inputs q [N] of the step on J_q (eqs. 19–20)
+  JetVector flow_command;        ///< flow for q by the thrust equation (26) [m^3/s]; 0 for force actuators
+  JetVector jet_force_observed;  ///< q_obs [N] from measured flow (jets) or force (force actuators)
+  /// w_a = W q_obs: tip body wrench of the actuators at the tip (Algorithm 1, line 4) [N, N m]
+  rod::Vec6 wrench_observed = rod::Vec6::Zero();
+  rod::Vec6 wrench_command = rod::Vec6::Zero();  ///< W q: the same for the commanded inputs
+  Vec3 desired_direction = Vec3::UnitZ();        ///< x_des: tip z-axis, base frame (the reference)
+  Source source = Source::kHold;                 ///< who drives the reference
+  bool clipped = false;                          ///< the target was outside the reachable set ...
+  double clip_angle = 0.0;                       ///< ... and moved by this much [rad]
+  Vec3 observed_direction = Vec3::UnitZ();       ///< x_obs used by the loop (tracker or model)
+  Vec3 measured_direction = Vec3::UnitZ();       ///< from the tracker (for metrics, both modes)
   Mat3 model_tip_rotation = Mat3::Identity();
   double error_geodesic = 0.0;   ///< ∠(x_des, measured) [rad]
   double error_pitch_yaw = 0.0;  ///< the paper's norm of the (pitch, yaw) difference [rad]

@@ -1,14 +1,14 @@
-// The jets' side of a control cycle, sized by the jet map (three jets for the HydroJet's eq. 24):
-//   observation: measured flows → jet forces q_obs by the thrust equation (26) → w_a = A q_obs
-//                (eq. 24, Algorithm 1 line 4);
-//   command:     tip force → jet forces q by the bounded allocation of eq. (20) (Algorithm 1,
-//                line 12) → flows by eq. (26) → valve duties by the per-jet PI flow regulators.
+// The actuators' side of a control cycle, one entry per actuator of the model (the HydroJet's three
+// jets of eq. 24, or any follower actuators of issue 14):
+//   observation: jets: measured flows → jet forces q_obs by the thrust equation (26); actuators of
+//                type force: their measured force (Algorithm 1, line 4);
+//   command:     inputs q → jets: flows by eq. (26) → valve duties by the per-jet PI flow
+//                regulators; force actuators: the drive q / max(|q_min|, |q_max|) in [−1, 1] (0 = off).
 // ROS-free (Eigen, the rod and actuation libraries).
 #pragma once
 
 #include <vector>
 
-#include "hydrojet_control/actuation/allocation.h"
 #include "hydrojet_control/control/robot_model.h"
 
 namespace hydrojet {
@@ -16,36 +16,33 @@ namespace control {
 
 class JetActuation {
  public:
-  /// The jets, nozzle, q_max and flow regulator of the model. Throws std::invalid_argument when
-  /// max_jet_force does not have one entry per jet.
-  explicit JetActuation(const RobotModel& model);
+  /// The actuators of `body` (at least one), the jets' nozzle and flow regulator.
+  JetActuation(const rod::GeneralRodModel& body, const actuation::Nozzle& nozzle,
+               const actuation::FlowRegulatorOptions& flow);
 
-  int jet_count() const { return static_cast<int>(regulators_.size()); }
-  /// A zero entry per jet.
+  int jet_count() const { return static_cast<int>(jet_.size()); }
+  /// Actuator i is a water jet (flow-driven, eq. 26); else it takes its force directly.
+  bool is_jet(int i) const { return jet_[i]; }
+  /// A zero entry per actuator.
   JetVector zeros() const { return JetVector::Zero(jet_count()); }
 
-  /// Jet forces [N] for flows [m^3/s], eq. (26).
-  JetVector forces_from_flows(const JetVector& flows) const;
-  /// Flows [m^3/s] for jet forces [N], eq. (26) inverted.
+  /// Inputs q_obs [N]: jets from their measured flows [m^3/s] by eq. (26), force actuators their
+  /// measured forces [N].
+  JetVector observed_forces(const JetVector& flows, const JetVector& forces) const;
+  /// Flows [m^3/s] for inputs q [N] by eq. (26) inverted; 0 for force actuators.
   JetVector flows_for_forces(const JetVector& forces) const;
-  /// Tip body wrench [N, N m] of jet forces q [N], eq. (24).
-  rod::Vec6 wrench(const JetVector& q) const;
 
-  /// eq. (20): jet forces within [0, q_max] whose planar force A q is closest to the tip force
-  /// (f_x, f_y) [N], regularised by weight λ.
-  actuation::AllocationResult allocate(const Eigen::Vector2d& force, double weight) const;
-
-  /// One step of the per-jet PI flow regulators: valve duties [0, 1] for the commanded and
-  /// measured flows [m^3/s] after dt [s].
-  JetVector regulate(const JetVector& flow_command, const JetVector& measured_flows, double dt);
+  /// One step of the drives: jets by their PI flow regulators (valve duty [0, 1] for the commanded
+  /// and measured flows [m^3/s] after dt [s]); force actuators the drive of the commanded input q.
+  JetVector regulate(const JetVector& q, const JetVector& flow_command, const JetVector& measured_flows, double dt);
   /// Zeroes the regulators' integrators.
   void reset();
 
  private:
-  actuation::JetMap map_;
   actuation::Nozzle nozzle_;
-  JetVector max_force_;
-  std::vector<actuation::FlowRegulator> regulators_;  ///< one per jet
+  std::vector<bool> jet_;
+  JetVector drive_scale_;                             ///< max(|q_min|, |q_max|) [N] per actuator
+  std::vector<actuation::FlowRegulator> regulators_;  ///< one per actuator (used by the jets)
 };
 
 }  // namespace control

@@ -1,17 +1,16 @@
 // Aim the camera at a point (issue 13): the camera looks along the tip z-axis, so the tip direction d
 // must make the line through the tip p_tip along d pass through the point P, with P in front. The tip
 // position moves with the direction, so d is found on the model as the fixed point d = u(d),
-// u = (P − p_tip)/|P − p_tip|, solved by a damped Gauss–Newton iteration on the lateral tip force
-// (f_x, f_y) of the residual u − d. Its Jacobian comes from C^b (the map of force_change, eq. 19): the
-// tip direction turns by −d̂ R C^b_ω[:, 0:2] per force (as in resolved_rates.cpp) and the tip moves by
-// R C^b_v[:, 0:2], which turns u. The plain iteration d ← u(d) ignores that second term: its error
-// shrinks per step only by the factor |∂p_tip/∂d| / |P − p_tip|, and |∂p_tip/∂d| ≈ 0.060 m/rad for
-// the HydroJet at rest, so it stalls at 6 cm and diverges closer; the Newton iteration converges in
-// 2–3 iterations from 8 mm to 1 m (test_operator_core). Forces stay within the polygon the jets can
-// allocate (eq. 24, 0 ≤ q ≤ q_max). Warm-started from the previous successful call (its solution and
-// C^b are kept: a call for a point that moved a little costs one solve + C^b). The controller then
-// tracks d in closed loop with the tracker. ROS-free; own solver, so the controller's warm start is
-// not disturbed.
+// u = (P − p_tip)/|P − p_tip|, solved by a damped Gauss–Newton iteration on the actuator inputs q of
+// the residual u − d, each step a box QP within the inputs' bounds. Its Jacobian comes from the
+// actuation Jacobian J_q (as the controller's step, resolved_rates.h): the tip direction turns by
+// −d̂ R J_q,ω per input and the tip moves by R J_q,v, which turns u. The plain iteration d ← u(d) ignores that second
+// term: its error shrinks per step only by the factor |∂p_tip/∂d| / |P − p_tip|, and |∂p_tip/∂d| ≈ 0.060 m/rad for the
+// HydroJet at rest, so it stalls at 6 cm and diverges closer; the Newton iteration converges in 2–3 iterations from 8
+// mm to 1 m (test_operator_core). Inputs stay within their bounds (for the HydroJet 0 ≤ q ≤ q_max, eq. 24).
+// Warm-started from the previous successful call (its solution and J_q are kept: a call for a point that moved a little
+// costs one solve + J_q). The controller then tracks d in closed loop with the tracker. ROS-free; own solver, so the
+// controller's warm start is not disturbed.
 #pragma once
 
 #include <memory>
@@ -35,20 +34,21 @@ struct LookAtResult {
   Vec3 direction = Vec3::UnitZ();    ///< unit, base frame
   Vec3 tip_position = Vec3::Zero();  ///< model tip position [m] for that direction, base frame
   double miss_distance = 0.0;        ///< distance of P from the line through the tip along direction [m]
-  /// Lateral tip force (f_x, f_y) [N], tip frame, of that model solution (allocatable by the jets).
+  JetVector inputs;                  ///< actuator inputs q [N] of that model solution, within their bounds
+  /// Lateral tip force (f_x, f_y) [N], tip frame, of the actuators at the tip at those inputs.
   Eigen::Vector2d tip_force = Eigen::Vector2d::Zero();
   int iterations = 0;
   /// Why not ok (behind the camera, too close, out of the jets' reach, no convergence, ...). When not
   /// ok, direction, tip_position and tip_force are the last iterate (the warm start is not moved).
   std::string message;
   /// Not ok only because the point is out of the jets' reach: `direction` is then the closest aim
-  /// (the force at the edge of the allocatable polygon), a usable clipped target.
+  /// (the inputs' bounds block the step toward it), a usable clipped target.
   bool out_of_reach = false;
 };
 
 class LookAtSolver {
  public:
-  /// Throws std::invalid_argument when the options are invalid or max_jet_force is not one per jet.
+  /// Throws std::invalid_argument when the options or the model are invalid.
   LookAtSolver(const RobotModel& model, const LookAtOptions& options = LookAtOptions());
   /// Direction that aims the tip's z-axis at `point` [m] (base frame), warm-started from the last
   /// successful call.

@@ -1,9 +1,11 @@
-// The tip directions the robot can reach (issue 13): jet forces within their bounds and the model's
-// equilibrium elastically stable with σ_c (eq. 23) ≥ min_stability_margin and eig_min > 0. Computed
-// once per model by a force-space sweep like bench/stability_map.cpp (solve + C^b + stability per
-// point, warm-started along a serpentine), over the lateral tip forces the jets can allocate (the
-// polygon {A q : 0 ≤ q ≤ q_max} of eq. 24; the tip wrench depends on A q only): rays from zero force
-// to the polygon's edge, two per azimuth bin, force_samples points each, outward and inward in turn.
+// The tip directions the robot can reach (issue 13): actuator inputs within their bounds and the
+// model's equilibrium elastically stable with σ_c (eq. 23) ≥ min_stability_margin and eig_min > 0.
+// Computed once per model by a sweep like bench/stability_map.cpp (solve + C^b + stability per point,
+// warm-started along a serpentine) over the steering plane: the tip direction's change per input at
+// rest maps the input box onto a polygon (for the HydroJet, the lateral tip forces the jets can
+// allocate, {A q : 0 ≤ q ≤ q_max} of eq. 24, turned by the rest compliance); rays from the rest point
+// to the polygon's edge, two per azimuth bin, force_samples points each, outward and inward in turn,
+// each point reached by the smallest bounded inputs that steer there (eq. 20).
 // The result is kept as a region of the unit sphere star-shaped about the zero-force direction: the
 // largest reachable angle from the centre per azimuth bin. A target outside is moved to the nearest
 // direction of the set (clip). ROS-free.
@@ -27,7 +29,7 @@ struct ReachableSetOptions {
 
 class ReachableSet {
  public:
-  /// Sweeps the jet forces of `model` (bounds [0, max_jet_force] per jet).
+  /// Sweeps the inputs of `model` (the HydroJet's jets: bounds [0, max_jet_force]).
   static ReachableSet compute(const RobotModel& model, const ReachableSetOptions& options);
 
   /// No stable, converged point was found (then clip() returns the centre).
@@ -43,7 +45,7 @@ class ReachableSet {
 
   /// Inside the boundary polyline (great-circle arcs between consecutive boundary points). The
   /// polyline is inscribed: its vertices are reachable samples, and between them it cuts the corners
-  /// of the reachable region by at most the chords' sag (≤ 1.3e-2 rad, measured, where the jets'
+  /// of the reachable region by at most the chords' sag (≤ 1.5e-2 rad, measured, where the jets'
   /// force polygon has its corners), so it never claims an unreachable direction there.
   bool contains(const Vec3& direction) const;
   /// `direction` (normalised) when inside; else the nearest direction of the set (on its boundary,

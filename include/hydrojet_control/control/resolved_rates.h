@@ -1,11 +1,14 @@
-// The resolved-rates law of the paper, §4, eqs. (17)–(19) (Algorithm 1, lines 5 and 7): a PD
-// correction plus feedforward on the tip-direction error, resolved into a tip-force change through
-// the damped pseudo-inverse of R^h C^b. ROS-free (Eigen, the rod library).
+// The resolved-rates law of the paper, §4, eqs. (17)–(20) (Algorithm 1, lines 5 to 12): a PD
+// correction plus feedforward on the tip-direction error, resolved into new actuator inputs through
+// the damped pseudo-inverse of R^h J_q (the actuation Jacobian; R^h C^b W for tip actuators), bounded.
+// ROS-free (Eigen, the rod and actuation libraries).
 #pragma once
 
 #include <Eigen/Core>
+#include <string>
 
 #include "hydrojet_control/control/controller_options.h"
+#include "hydrojet_control/control/robot_model.h"
 #include "hydrojet_control/rod/shooting_solver.h"
 
 namespace hydrojet {
@@ -30,13 +33,38 @@ class DirectionPd {
   Vec3 prev_desired_ = Vec3::UnitZ();
 };
 
-/// eq. (19), Algorithm 1 line 7: ẇ^b = (R^h C^b)^† x_cntr on the actuated force columns (f_x, f_y)
-/// of the body compliance C^b. Only the change of the tip direction d matters,
-/// δd = ω × d = −d^ R(L) C^b_ω δf, so the map is projected onto the plane ⊥ d and inverted with a
-/// damped pseudo-inverse (Levenberg–Marquardt damping μ [rad/N] near singularities).
-/// tip_rotation: R^h(L) of the model; returns the tip-force change (δf_x, δf_y) [N].
-Eigen::Vector2d force_change(const Mat3& tip_rotation, const rod::Mat6& body_compliance, const Vec3& x_cntr,
-                             double damping);
+/// Limits and weights of one step of the law on the actuation Jacobian (ControllerOptions' names).
+struct InputStepOptions {
+  double damping = 0.02;            ///< μ of eq. (19) [rad/N], on the tip-force change
+  double allocation_weight = 1e-6;  ///< λ of eq. (20) [-]: the smallest inputs among equally good ones
+  double max_force_step = 0.01;     ///< bound on the step's tip-force change [N] (max_force_rate · dt)
+  double max_force = 0.30;          ///< bound on the commanded tip force [N]
+  double length = 0.09;             ///< L [m]: moments count as forces at this arm in the damping
+};
+
+struct InputStep {
+  JetVector q;  ///< the new inputs [N], within [lower, upper]
+  /// Tip force [N] that the input bounds cost: ‖W_f (q − q_free)‖ with q_free the step without
+  /// bounds (0 when the step lies within reach; compared with unreachable_tolerance).
+  double bound_cost = 0.0;
+  bool ok = false;
+  std::string message;  ///< why not ok (the inputs are then the base, clamped into the bounds)
+};
+
+/// eq. (19) on the actuation Jacobian (issue 14), Algorithm 1 lines 7 to 12 in input space: the tip
+/// direction d turns by δd = ω × d = −d̂ R J_q,ω δq per input change δq, so with M = −d̂ R(L) J_q,ω
+/// (3×N, rank ≤ 2: only the task, the tip direction, is resolved) the new inputs are
+///   q = argmin_{lower ≤ q ≤ upper} ‖M (q − base) − x_cntr × d‖² + μ² ‖W̃ (q − base)‖² + λ ‖q‖²,
+/// W̃ = the equivalent tip wrenches per input (lin.wrenches) with moments divided by L: the damped
+/// pseudo-inverse (R^h J_q)^† restricted to the task and bounded in one exact box QP (bounded_allocation.h).
+/// Then the step's tip-force change ‖W_f (q − base)‖ and the tip force ‖W_f q‖ are scaled into their
+/// limits (the box contains base and 0, so q stays within it). For the HydroJet (J_q = C^b W, W the
+/// jets' 6×3 wrench matrix, W q = (f_x, f_y, 0, ...)) the tip force W q takes exactly eq. (19)'s step,
+/// δf = (MᵀM + μ²)⁻¹Mᵀ(x_cntr × d) on the force block of C^b, and q is eq. (20)'s allocation of it, as
+/// long as no bound is active. base: the previous command (or w_a's inputs) [N], clamped into the box.
+InputStep input_step(const Mat3& tip_rotation, const ActuatedModel::Linearisation& lin, const Vec3& x_cntr,
+                     const JetVector& base, const JetVector& lower, const JetVector& upper,
+                     const InputStepOptions& options);
 
 }  // namespace control
 }  // namespace hydrojet
