@@ -8,6 +8,7 @@ Usage: plot_experiment.py CSV_DIR OUT_DIR [SEED]
 """
 import csv
 import glob
+import re
 import math
 import os
 import sys
@@ -71,9 +72,19 @@ def path_figure(csv_dir, out_dir, tilt, seed):
     return out
 
 
+def tilts_of(csv_dir):
+    """The base tilts [deg] the runs were made at (0 and 30, or the one scene's)."""
+    found = set()
+    for p in glob.glob(os.path.join(csv_dir, "run_*_*deg_seed*.csv")):
+        m = re.search(r"_(-?\d+)deg_seed", os.path.basename(p))
+        if m:
+            found.add(int(m.group(1)))
+    return sorted(found)
+
+
 def box_figure(csv_dir, out_dir):
     data, labels = [], []
-    for tilt in (0, 30):
+    for tilt in tilts_of(csv_dir):
         for mode in ("open", "closed"):
             errs = []
             for p in sorted(glob.glob(os.path.join(csv_dir, "run_%s_%ddeg_seed*.csv" % (mode, tilt)))):
@@ -98,7 +109,7 @@ def main():
     csv_dir, out_dir = sys.argv[1], sys.argv[2]
     seed = int(sys.argv[3]) if len(sys.argv) > 3 else 1
     os.makedirs(out_dir, exist_ok=True)
-    for tilt in (0, 30):
+    for tilt in tilts_of(csv_dir):
         print("wrote", path_figure(csv_dir, out_dir, tilt, seed))
     print("wrote", box_figure(csv_dir, out_dir))
 

@@ -252,6 +252,9 @@ void write_bag(const std::string& path, const config::Scene& truth, int holds, c
       if (with_jets) {
         hydrojet_control::JetState js;
         js.header.stamp = stamp;
+        js.flow.resize(3);
+        js.force.resize(3);
+        js.flow_valid.resize(3);
         for (int i = 0; i < 3; ++i) {
           js.flow[i] = actuation::flow_from_force(q[i], truth.nozzle) + 5e-8 * n01(rng);
           js.force[i] = actuation::force_from_flow(js.flow[i], truth.nozzle);

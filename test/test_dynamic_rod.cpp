@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "hydrojet_control/plant/dynamic_rod.h"
+#include "hydrojet_control/rod/general_rod_solver.h"
 #include "hydrojet_control/rod/shooting_solver.h"
 #include "hydrojet_control/rod/so3.h"
 
@@ -179,6 +180,94 @@ TEST(DynamicRodStatic, SettlesToKirchhoffSolutionUnderConstantForce) {
   EXPECT_LT((rod.tip_position() - ref2.tip_position).norm(), position_tolerance(p, rod.base_force().norm()));
   EXPECT_LT(rotation_error(rod.tip_rotation(), ref2.tip_rotation), kRotationTolerance);
   EXPECT_GT((ref2.tip_position - ref.tip_position).norm(), 1e-3);  // the tilt did matter
+}
+
+// A general rod (issue 14): two segments (the distal one softer and precurved), a point mass and a
+// pair of actuators mid-body, actuators at the tip, one with a moment arm. At rest under the inputs
+// (reset_to_static) and after settling from a step of them (the jump conditions with their inertia),
+// the dynamic rod sits where the static general solver puts it (a second, independent method: its
+// stations, pieces and Kirchhoff kinematics), up to shear/extension and the grid.
+rod::GeneralRodModel two_segment_body() {
+  rod::GeneralRodModel b;
+  b.segments.resize(2);
+  b.segments[0].length = 0.05;
+  b.segments[0].stiffness = Vec3(1.5e-3, 1.5e-3, 5.6e-4);
+  b.segments[0].linear_density = 0.02;
+  b.segments[1].length = 0.04;
+  b.segments[1].stiffness = Vec3(4e-4, 4e-4, 1.5e-4);
+  b.segments[1].precurvature = Vec3(0.0, 2.0, 0.0);
+  b.segments[1].linear_density = 0.015;
+  rod::PointLoad mid;
+  mid.at = 0.05;
+  mid.mass = 0.001;
+  mid.force = Vec3(0.0, 0.01, 0.0);
+  mid.frame = rod::LoadFrame::kBase;
+  b.loads = {mid};
+  auto actuator = [](double at, const Vec3& p, const Vec3& d) {
+    rod::Actuator a;
+    a.at = at;
+    a.position = p;
+    a.direction = d;
+    a.max_force = 0.15;
+    return a;
+  };
+  b.actuators = {actuator(0.09, Vec3::Zero(), Vec3::UnitX()), actuator(0.09, Vec3(0.004, 0.0, 0.0), -Vec3::UnitY()),
+                 actuator(0.05, Vec3(0.0, 0.005, 0.0), Vec3::UnitX()),
+                 actuator(0.05, Vec3(0.005, 0.0, 0.0), Vec3::UnitY())};
+  return b;
+}
+
+TEST(DynamicRodGeneral, RestsAndSettlesWhereTheStaticGeneralSolverPutsIt) {
+  DynamicRodModel p;
+  p.body = two_segment_body();
+  p.model.tip_mass = 0.003;
+  p.model.gravity = Vec3(0.0, 0.0, 9.81);
+  p.kelvin_voigt_time = 0.02;
+  p.tip_drag = 0.05;
+  p.nodes = 31;
+  DynamicRod rod(p);
+  rod::GeneralRodModel ref_model = p.body;
+  ref_model.tip_mass = p.model.tip_mass;
+  ref_model.gravity = p.model.gravity;
+  rod::ShootingOptions st;
+  st.integrator.type = rod::IntegratorType::kRk8;
+  st.integrator.steps = 16;
+  st.residual_tolerance = 1e-13;
+  rod::GeneralRodSolver ref(ref_model, st);
+  rod::ActuatorInputs q(4);
+  q << 0.04, 0.03, 0.05, 0.02;
+  ASSERT_TRUE(rod.set_inputs(q));
+  ASSERT_TRUE(rod.reset_to_static(rod::TipWrench())) << rod.last_error();
+  const rod::RodSolution a = ref.solve(q);
+  ASSERT_TRUE(a.converged) << a.message;
+  const double tol = position_tolerance(p, rod.base_force().norm());
+  std::printf("[ general ] at rest: |dp| = %.2e m, |dR| = %.2e rad (tolerance %.1e m); tip moved %.1f mm by q\n",
+              (rod.tip_position() - a.tip_position).norm(), rotation_error(rod.tip_rotation(), a.tip_rotation), tol,
+              1e3 * (a.tip_position - ref.solve(rod::ActuatorInputs::Zero(4)).tip_position).norm());
+  EXPECT_LT((rod.tip_position() - a.tip_position).norm(), tol);
+  EXPECT_LT(rotation_error(rod.tip_rotation(), a.tip_rotation), kRotationTolerance);
+  // A step of the inputs: the rod moves (inertia of the masses at the nodes) and settles there.
+  q << 0.0, 0.06, 0.0, 0.08;
+  ASSERT_TRUE(rod.set_inputs(q));
+  const double dt = 0.005;
+  double peak_speed = 0.0;
+  while (rod.time() < 4.0) {
+    ASSERT_TRUE(rod.step(rod::TipWrench(), dt)) << rod.last_error();
+    peak_speed = std::max(peak_speed, rod.tip_velocity().norm());
+  }
+  const rod::RodSolution b = ref.solve(q);
+  ASSERT_TRUE(b.converged) << b.message;
+  std::printf("[ general ] settled: |dp| = %.2e m, |dR| = %.2e rad; peak tip speed %.3f m/s\n",
+              (rod.tip_position() - b.tip_position).norm(), rotation_error(rod.tip_rotation(), b.tip_rotation),
+              peak_speed);
+  EXPECT_GT(peak_speed, 0.01);
+  EXPECT_LT(rod.tip_velocity().norm(), 1e-6);
+  EXPECT_LT((rod.tip_position() - b.tip_position).norm(), tol);
+  EXPECT_LT(rotation_error(rod.tip_rotation(), b.tip_rotation), kRotationTolerance);
+  EXPECT_GT((b.tip_position - a.tip_position).norm(), 5e-3) << "the inputs did move the tip";
+  // A wrong input count is refused, naming both counts.
+  EXPECT_FALSE(rod.set_inputs(rod::ActuatorInputs::Zero(3)));
+  EXPECT_NE(rod.last_error().find("3 inputs for 4 actuators"), std::string::npos) << rod.last_error();
 }
 
 // Small free vibration of a straight cantilever with a tip mass (no gravity, no damping).

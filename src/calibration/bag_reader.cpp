@@ -58,7 +58,7 @@ BagRecords read_bag(const std::string& path, const BagTopics& topics) {
         (is_tip ? have_tip : have_base) = true;
       } else if (matches(topic, topics.jets)) {
         const auto j = m.instantiate<hydrojet_control::JetState>();
-        if (!j) continue;
+        if (!j || j->flow.size() != 3 || j->flow_valid.size() != 3) continue;  // the HydroJet's three jets
         JetRecord r;
         r.t = stamp_or(j->header.stamp, m.getTime());
         r.flow = Eigen::Vector3d(j->flow[0], j->flow[1], j->flow[2]);

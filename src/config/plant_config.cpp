@@ -2,6 +2,8 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <Eigen/Geometry>
+
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -108,9 +110,11 @@ void parse_plant_section(const YAML::Node& root, plant::ModelMismatch* m, plant:
 /// The plant as the nominal scene describes it: its rod, jets and nozzles, and the base tilt read
 /// off its gravity vector (which must lie in the base y–z plane).
 plant::PlantModel nominal_plant(const Scene& nominal) {
-  if (!nominal.has_jets) throw SceneError("jets", "missing (the plant needs the jet geometry)");
+  if (nominal.body.actuators.empty())
+    throw SceneError("jets", "missing (the plant needs the jets, or an actuators section)");
   plant::PlantModel p;
   p.rod.model = nominal.model;
+  if (!nominal.has_jets || !nominal.uniform()) p.rod.body = nominal.body;  // a general robot (issue 14)
   p.jets = nominal.jets;
   p.nozzle = nominal.nozzle;
   const Eigen::Vector3d g = nominal.model.gravity;
@@ -129,6 +133,17 @@ void apply_mismatch(const plant::ModelMismatch& m, plant::PlantModel* p) {
   p->rod.model.rod.stiffness[2] *= m.torsional_stiffness_scale;
   p->rod.model.tip_mass *= m.tip_mass_scale;
   p->jets.misalignment += m.misalignment_offset;
+  // A general robot: the same on every segment; actuator i turned about its body z-axis by
+  // misalignment_offset[i mod 3].
+  for (rod::RodSegment& sg : p->rod.body.segments) {
+    sg.precurvature += m.precurvature_offset;
+    sg.stiffness.head<2>() *= m.bending_stiffness_scale;
+    sg.stiffness[2] *= m.torsional_stiffness_scale;
+  }
+  for (size_t i = 0; i < p->rod.body.actuators.size(); ++i) {
+    rod::Actuator& a = p->rod.body.actuators[i];
+    a.direction = Eigen::AngleAxisd(m.misalignment_offset[i % 3], Eigen::Vector3d::UnitZ()) * a.direction;
+  }
 }
 
 }  // namespace
@@ -146,7 +161,6 @@ plant::PlantModel make_plant(const Scene& nominal, const std::string& text) {
 }
 
 plant::PlantModel load_plant(const Scene& nominal, const std::string& path) {
-  require_uniform(nominal, "the simulated plant");
   if (path.empty()) return make_plant(nominal, "");
   std::ifstream f(path);
   if (!f) throw SceneError("plant", "cannot read file '" + path + "'");

@@ -131,7 +131,7 @@ ActuatedModel::Linearisation ActuatedModel::linearise() {
 
 rod::StabilityReport ActuatedModel::stability(const Linearisation& lin) const {
   if (model_.body.segments.empty()) return rod::stability(lin.body_compliance, model_.actuated);
-  return rod::stability(lin.body_compliance, lin.wrenches);
+  return rod::stability(lin.body_compliance, lin.wrenches, body_.length());
 }
 
 std::vector<Vec3> ActuatedModel::shape(int segments) const {

@@ -66,27 +66,24 @@ std::string DynamicRodModel::validate() const {
   if (max_iterations < 1) return bad("max_iterations", "must be at least 1", max_iterations);
   if (max_substep_halvings < 0 || max_substep_halvings > 10)
     return bad("max_substep_halvings", "must be in [0, 10]", max_substep_halvings);
+  if (!body.segments.empty()) {
+    if (std::string why = body.validate(); !why.empty()) return "body." + why;
+  } else if (!body.loads.empty() || !body.actuators.empty()) {
+    return "body.segments: loads and actuators need the body's segments";
+  }
   return std::string();
 }
 
 DynamicRod::DynamicRod(const DynamicRodModel& model) : model_(model) {
   const std::string err = model_.validate();
   if (!err.empty()) throw std::invalid_argument("DynamicRodModel: " + err);
-  const rod::ElasticRod& r = model_.model.rod;
-  length_ = r.length;
-  steps_ = model_.nodes - 1;
-  h_ = length_ / steps_;
-  slots_ = 4 * steps_ + 1;  // four RK4 stages per step, plus the tip
-  // Uniform rod: K(s) and ũ(s) are taken at s = 0 (ElasticRod's seams are uniform today).
   k_se_ = Vec3(model_.shear_stiffness, model_.shear_stiffness, model_.axial_stiffness);
-  k_bt_ = r.stiffness_at(0.0);
   kse_vstar_ = Vec3(0.0, 0.0, model_.axial_stiffness);  // K_se v*, v* = e_z
-  kbt_ustar_ = k_bt_.cwiseProduct(r.precurvature_at(0.0));
   b_se_ = model_.kelvin_voigt_time * k_se_;
-  b_bt_ = model_.kelvin_voigt_time * k_bt_;
-  rho_a_ = r.linear_density;
   rho_j_ = model_.rotational_inertia_per_length * Vec3(1.0, 1.0, 2.0);
-  force_scale_ = k_bt_.maxCoeff() / (length_ * length_);
+  inputs_ = rod::ActuatorInputs::Zero(static_cast<int>(model_.body.actuators.size()));
+  build_grid();
+  slots_ = 4 * steps_ + 1;  // four RK4 stages per step, plus the tip
 
   z1_.setZero(12, slots_);
   z2_.setZero(12, slots_);
@@ -94,13 +91,13 @@ DynamicRod::DynamicRod(const DynamicRodModel& model) : model_(model) {
   zh_.setZero(12, slots_);
   rec_.setZero(12, slots_);
   rec_trial_.setZero(12, slots_);
-  nodes_.assign(model_.nodes, Vec24::Zero());
-  nodes_solve_.assign(model_.nodes, Vec24::Zero());
-  nodes_trial_.assign(model_.nodes, Vec24::Zero());
+  nodes_.assign(steps_ + 1, Vec24::Zero());
+  nodes_solve_.assign(steps_ + 1, Vec24::Zero());
+  nodes_trial_.assign(steps_ + 1, Vec24::Zero());
   snap_z1_.setZero(12, slots_);
   snap_z2_.setZero(12, slots_);
   snap_zt1_.setZero(12, slots_);
-  snap_nodes_.assign(model_.nodes, Vec24::Zero());
+  snap_nodes_.assign(steps_ + 1, Vec24::Zero());
 
   reset_to_static(rod::TipWrench());
 }
@@ -109,7 +106,92 @@ void DynamicRod::set_coefficients(const Coefficients& c) {
   coef_ = c;
   // Till's semi-discretised constitutive law: (K + c0 B) is diagonal.
   inv_se_ = (k_se_ + c.c0 * b_se_).cwiseInverse();
-  inv_bt_ = (k_bt_ + c.c0 * b_bt_).cwiseInverse();
+  for (Piece& p : pieces_) p.inv_bt = (p.k_bt + c.c0 * p.b_bt).cwiseInverse();
+}
+
+void DynamicRod::build_grid() {
+  const bool general = !model_.body.segments.empty();
+  const rod::GeneralRodModel body = general ? model_.body : rod::general_model(model_.model);
+  length_ = body.length();
+  // Breakpoints: base, segment ends, loads, actuators, tip.
+  std::vector<double> cuts = {0.0, length_};
+  double end = 0.0;
+  for (const rod::RodSegment& sg : body.segments) cuts.push_back(end += sg.length);
+  for (const rod::PointLoad& ld : body.loads) cuts.push_back(ld.at);
+  for (const rod::Actuator& a : body.actuators) cuts.push_back(a.at);
+  std::sort(cuts.begin(), cuts.end());
+  std::vector<double> knots;
+  for (double c : cuts)
+    if (knots.empty() || c > knots.back() + 1e-9 * length_) knots.push_back(std::min(c, length_));
+  knots.back() = length_;
+  // Pieces between knots, each with the material of the segment it lies in and steps in proportion.
+  pieces_.clear();
+  step_piece_.clear();
+  step_h_.clear();
+  node_s_.assign(1, 0.0);
+  force_scale_ = 0.0;
+  for (size_t k = 0; k + 1 < knots.size(); ++k) {
+    const double a = knots[k], b = knots[k + 1], mid = 0.5 * (a + b);
+    size_t seg = 0;
+    for (double s0 = 0.0; seg + 1 < body.segments.size() && s0 + body.segments[seg].length < mid; ++seg)
+      s0 += body.segments[seg].length;
+    const rod::RodSegment& sg = body.segments[seg];
+    Piece p;
+    p.k_bt = sg.stiffness;
+    p.kbt_ustar = sg.stiffness.cwiseProduct(sg.precurvature);
+    p.b_bt = model_.kelvin_voigt_time * sg.stiffness;
+    p.rho_a = sg.linear_density;
+    force_scale_ = std::max(force_scale_, sg.stiffness.maxCoeff() / (length_ * length_));
+    const int n = std::max(1, static_cast<int>(std::lround((model_.nodes - 1) * (b - a) / length_)));
+    for (int i = 0; i < n; ++i) {
+      step_piece_.push_back(static_cast<int>(pieces_.size()));
+      step_h_.push_back((b - a) / n);
+      node_s_.push_back(i + 1 == n ? b : a + (b - a) * (i + 1) / n);
+    }
+    pieces_.push_back(p);
+  }
+  steps_ = static_cast<int>(step_h_.size());
+  // Loads and actuators at their nodes.
+  node_load_.assign(steps_ + 1, -1);
+  node_loads_.clear();
+  auto load_at = [&](double s) -> NodeLoad& {
+    int k = 0;
+    for (int j = 1; j <= steps_; ++j)
+      if (std::abs(node_s_[j] - s) < std::abs(node_s_[k] - s)) k = j;
+    if (node_load_[k] < 0) {
+      node_load_[k] = static_cast<int>(node_loads_.size());
+      node_loads_.emplace_back();
+    }
+    return node_loads_[node_load_[k]];
+  };
+  for (const rod::PointLoad& ld : body.loads) {
+    NodeLoad& nl = load_at(ld.at);
+    nl.mass += ld.mass;
+    (ld.frame == rod::LoadFrame::kBody ? nl.f_body : nl.f_base) += ld.force;
+    (ld.frame == rod::LoadFrame::kBody ? nl.l_body : nl.l_base) += ld.moment;
+  }
+  for (size_t i = 0; i < body.actuators.size(); ++i)
+    load_at(body.actuators[i].at).actuators.push_back(static_cast<int>(i));
+}
+
+void DynamicRod::node_wrench(const NodeLoad& load, const Vec24& y, int slot, Vec3* F, Vec3* M) const {
+  const Eigen::Map<const Mat3> R(y.data() + 3);
+  Vec3 fb = load.f_body, lb = load.l_body;
+  for (int i : load.actuators) {
+    const Vec6 unit = model_.body.actuators[i].unit_wrench();
+    fb += inputs_[i] * unit.head<3>();
+    lb += inputs_[i] * unit.tail<3>();
+  }
+  *F = R * fb + load.f_base + load.mass * model_.model.gravity;
+  *M = R * lb + load.l_base;
+  if (load.mass > 0.0) {  // the point mass's inertia: −m R(ω̂q + q_t)
+    const Vec3 q = y.segment<3>(18), w = y.segment<3>(21);
+    *F -= load.mass * (R * (w.cross(q) + coef_.c0 * q + zh_.col(slot).segment<3>(6)));
+  }
+}
+
+void DynamicRod::update_distributed_weight() {
+  for (Piece& p : pieces_) p.dist_weight = p.rho_a * model_.model.gravity;
 }
 
 // Right-hand side of the semi-discretised rod ODE at one evaluation slot (Till eqs. for p_s, R_s,
@@ -124,9 +206,10 @@ void DynamicRod::rhs(const Vec24& y, int slot, Vec24& dy, Mat12X* rec) const {
   const Vec12 zh = zh_.col(slot);
   const Vec3 vh = zh.segment<3>(0), uh = zh.segment<3>(3), qh = zh.segment<3>(6), wh = zh.segment<3>(9);
   const double c0 = coef_.c0;
+  const Piece& pc = pieces_[step_piece_[std::min(slot / 4, steps_ - 1)]];
   // Constitutive law with Kelvin–Voigt damping, solved for the strains (diagonal).
   const Vec3 v = inv_se_.cwiseProduct(R.transpose() * n + kse_vstar_ - b_se_.cwiseProduct(vh));
-  const Vec3 u = inv_bt_.cwiseProduct(R.transpose() * m + kbt_ustar_ - b_bt_.cwiseProduct(uh));
+  const Vec3 u = pc.inv_bt.cwiseProduct(R.transpose() * m + pc.kbt_ustar - pc.b_bt.cwiseProduct(uh));
   // BDF-α time derivatives.
   const Vec3 vt = c0 * v + vh;
   const Vec3 ut = c0 * u + uh;
@@ -140,9 +223,9 @@ void DynamicRod::rhs(const Vec24& y, int slot, Vec24& dy, Mat12X* rec) const {
   dR.col(1) = R.col(2) * u.x() - R.col(0) * u.z();
   dR.col(2) = R.col(0) * u.y() - R.col(1) * u.x();
   // n_s = ρA R(ω̂q + q_t) − ρA g + R c_d(q) q   (drag is the body-frame force −c_d q per length)
-  Vec3 fb = rho_a_ * (w.cross(q) + qt);
+  Vec3 fb = pc.rho_a * (w.cross(q) + qt);
   if (drag_active_) fb += (model_.linear_drag + model_.quadratic_drag * q.norm()) * q;
-  dy.segment<3>(12) = R * fb - dist_weight_;
+  dy.segment<3>(12) = R * fb - pc.dist_weight;
   // m_s = R(ω̂ ρJ ω + ρJ ω_t) − p_s × n
   dy.segment<3>(15) = R * (w.cross(rho_j_.cwiseProduct(w)) + rho_j_.cwiseProduct(wt)) - ps.cross(n);
   // Kinematic compatibility: q_s = v_t − û q + ω̂ v,  ω_s = u_t − û ω
@@ -166,7 +249,7 @@ Vec6 DynamicRod::pass(const Vec6& x, const rod::TipWrench& wr, Mat12X* rec, std:
   y.segment<3>(15) = length_ * x.tail<3>();
   if (nodes) (*nodes)[0] = y;
   Vec24 k1, k2, k3, k4, t;
-  const double h = h_;
+  double h = 0.0;
   // The four RK4 stages at slots sl..sl+3; `record` (std::true_type / std::false_type) picks at
   // compile time whether the right-hand side records z into `rec`.
   auto stages = [&](auto record, int sl) {
@@ -180,11 +263,18 @@ Vec6 DynamicRod::pass(const Vec6& x, const rod::TipWrench& wr, Mat12X* rec, std:
     rhs<kRecord>(t, sl + 3, k4, rec);
   };
   for (int j = 0; j < steps_; ++j) {
+    h = step_h_[j];
     if (rec)
       stages(std::true_type{}, 4 * j);
     else
       stages(std::false_type{}, 4 * j);
     y += (h / 6.0) * (k1 + 2.0 * (k2 + k3) + k4);
+    if (j + 1 < steps_ && node_load_[j + 1] >= 0) {  // a load inside: n and m drop by its wrench
+      Vec3 F, M;
+      node_wrench(node_loads_[node_load_[j + 1]], y, 4 * (j + 1), &F, &M);
+      y.segment<3>(12) -= F;
+      y.segment<3>(15) -= M;
+    }
     if (nodes) (*nodes)[j + 1] = y;
   }
 
@@ -205,16 +295,20 @@ Vec6 DynamicRod::pass(const Vec6& x, const rod::TipWrench& wr, Mat12X* rec, std:
   const Vec3 f_body = wr.force - mt * (w.cross(q) + qt) - (model_.tip_drag + model_.tip_quadratic_drag * q.norm()) * q;
   // m(L) = R l_b − R(ω̂ J_t ω + J_t ω_t) − R c_ω ω
   const Vec3 l_body = wr.moment - w.cross(Jt.cwiseProduct(w)) - Jt.cwiseProduct(wt) - model_.tip_angular_drag * w;
+  Vec3 F = Vec3::Zero(), M = Vec3::Zero();  // loads and actuators at s = L
+  if (node_load_[steps_] >= 0) node_wrench(node_loads_[node_load_[steps_]], y, tip, &F, &M);
   Vec6 r;
-  r.head<3>() = n - R * f_body - mt * model_.model.gravity;
-  r.tail<3>() = (m - R * l_body) / length_;
+  r.head<3>() = n - R * f_body - mt * model_.model.gravity - F;
+  r.tail<3>() = (m - R * l_body - M) / length_;
   // Size of the largest terms that cancel in r (sets the round-off floor of the residual).
-  residual_scale_ = n.norm() + mt * (qt.norm() + w.norm() * q.norm()) + wr.force.norm() +
-                    (m.norm() + Jt.norm() * (wt.norm() + w.squaredNorm()) + wr.moment.norm()) / length_;
+  residual_scale_ = n.norm() + mt * (qt.norm() + w.norm() * q.norm()) + wr.force.norm() + F.norm() +
+                    (m.norm() + Jt.norm() * (wt.norm() + w.squaredNorm()) + wr.moment.norm() + M.norm()) / length_;
   if (rec) {
     auto col = rec->col(tip);
     col.segment<3>(0) = inv_se_.cwiseProduct(R.transpose() * n + kse_vstar_ - b_se_.cwiseProduct(zh.segment<3>(0)));
-    col.segment<3>(3) = inv_bt_.cwiseProduct(R.transpose() * m + kbt_ustar_ - b_bt_.cwiseProduct(zh.segment<3>(3)));
+    const Piece& pc = pieces_[step_piece_[steps_ - 1]];
+    col.segment<3>(3) =
+        pc.inv_bt.cwiseProduct(R.transpose() * m + pc.kbt_ustar - pc.b_bt.cwiseProduct(zh.segment<3>(3)));
     col.segment<3>(6) = q;
     col.segment<3>(9) = w;
   }
@@ -370,19 +464,63 @@ Vec6 DynamicRod::kirchhoff_guess(const rod::TipWrench& w, bool* ok) {
   Vec6 x;
   const Vec3 g = model_.model.gravity;
   const Vec3 nL = (sol.converged ? sol.tip_rotation * w.force : w.force) + model_.model.tip_mass * g;
-  x.head<3>() = nL + rho_a_ * length_ * g;
+  const double rho_a = model_.model.rod.linear_density;
+  x.head<3>() = nL + rho_a * length_ * g;
   x.tail<3>().setZero();
   *ok = sol.converged;
   if (!sol.converged) return x;
   Vec3 m0 = sol.tip_rotation * w.moment + sol.tip_position.cross(nL);
-  if (rho_a_ > 0.0) {
+  if (rho_a > 0.0) {
     const int K = 64;
     const std::vector<Vec3> pts = solver.shape(K);
     Vec3 integral = Vec3::Zero();
     for (int k = 0; k < K; ++k) integral += 0.5 * (pts[k] + pts[k + 1]) * (length_ / K);
-    m0 += integral.cross(rho_a_ * g);
+    m0 += integral.cross(rho_a * g);
   }
   x.tail<3>() = m0 / length_;
+  return x;
+}
+
+// The general rod's static Kirchhoff solution (rod::GeneralRodSolver), then n(0), m(0) from the
+// force and moment balance of everything the rod carries: tip wrench and mass, the loads and
+// actuators at their nodes, the distributed weight.
+Vec6 DynamicRod::general_guess(const rod::TipWrench& w, bool* ok) {
+  rod::GeneralRodModel g = model_.body;
+  g.kind = rod::RodKind::kKirchhoff;
+  g.tip_mass = model_.model.tip_mass;
+  g.gravity = model_.model.gravity;
+  rod::ShootingOptions st;
+  st.integrator.type = rod::IntegratorType::kRk8;
+  st.residual_tolerance = 1e-12;
+  rod::GeneralRodSolver solver(g, st);
+  *ok = solver.solve(inputs_, w).converged;
+  auto frame = [&](double s, Mat3* R, Vec3* p) {
+    if (!*ok || !solver.frame_at(s, R, p)) *R = Mat3::Identity(), *p = s * Vec3::UnitZ();
+  };
+  Vec3 n0 = Vec3::Zero(), m0 = Vec3::Zero();
+  auto add = [&](const Vec3& F, const Vec3& M, const Vec3& p) {
+    n0 += F;
+    m0 += M + p.cross(F);
+  };
+  Mat3 R;
+  Vec3 p;
+  frame(length_, &R, &p);
+  add(R * w.force + g.tip_mass * g.gravity, R * w.moment, p);
+  for (int k = 1; k <= steps_; ++k) {
+    if (node_load_[k] < 0) continue;
+    frame(node_s_[k], &R, &p);
+    Vec24 y = Vec24::Zero();
+    Eigen::Map<Mat3>(y.data() + 3) = R;
+    Vec3 F, M;
+    node_wrench(node_loads_[node_load_[k]], y, 4 * k, &F, &M);
+    add(F, M, p);
+  }
+  for (int j = 0; j < steps_; ++j) {
+    frame(0.5 * (node_s_[j] + node_s_[j + 1]), &R, &p);
+    add(pieces_[step_piece_[j]].rho_a * step_h_[j] * g.gravity, Vec3::Zero(), p);
+  }
+  Vec6 x;
+  x << n0, m0 / length_;
   return x;
 }
 
@@ -399,11 +537,11 @@ bool DynamicRod::reset_to_static(const rod::TipWrench& w) {
   }
   last_error_.clear();
   bool kirchhoff_ok = false;
-  Vec6 x = kirchhoff_guess(w, &kirchhoff_ok);
   // Static problem: all time derivatives zero (c0 = 0, y_h = 0) -> q ≡ ω ≡ 0.
   set_coefficients(Coefficients());
   zh_.setZero();
-  dist_weight_ = rho_a_ * model_.model.gravity;
+  Vec6 x = model_.body.segments.empty() ? kirchhoff_guess(w, &kirchhoff_ok) : general_guess(w, &kirchhoff_ok);
+  update_distributed_weight();
   drag_active_ = model_.linear_drag > 0.0 || model_.quadratic_drag > 0.0;
   const bool ok = newton(&x, w, true);
   jac_valid_ = false;  // the static Jacobian (c0 = 0) is not the dynamic one
@@ -512,7 +650,7 @@ bool DynamicRod::advance(const rod::TipWrench& w, double dt) {
   zh_.noalias() = c.c1 * z1_;
   zh_.noalias() += c.c2 * z2_;
   zh_.noalias() += c.d1 * zt1_;
-  dist_weight_ = rho_a_ * model_.model.gravity;
+  update_distributed_weight();
   drag_active_ = model_.linear_drag > 0.0 || model_.quadratic_drag > 0.0;
 
   // Warm start: extrapolate the base unknowns from the last steps (quadratic when the last two
@@ -550,6 +688,17 @@ bool DynamicRod::advance(const rod::TipWrench& w, double dt) {
   dt_prev2_ = dt_prev_;
   dt_prev_ = dt;
   time_ += dt;
+  return true;
+}
+
+bool DynamicRod::set_inputs(const rod::ActuatorInputs& q) {
+  if (q.size() != inputs_.size()) {
+    std::ostringstream os;
+    os << "set_inputs: " << q.size() << " inputs for " << inputs_.size() << " actuators";
+    return fail(os.str());
+  }
+  if (!q.allFinite()) return fail("set_inputs: non-finite input");
+  inputs_ = q;
   return true;
 }
 

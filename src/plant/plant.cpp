@@ -1,9 +1,22 @@
 #include "hydrojet_control/plant/plant.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace hydrojet {
 namespace plant {
+
+namespace {
+
+/// The jets of the plant: the HydroJet's three, or rod.body's actuators of type jet.
+int jet_count(const PlantModel& p) {
+  if (p.rod.body.segments.empty()) return 3;
+  int n = 0;
+  for (const rod::Actuator& a : p.rod.body.actuators) n += a.type == rod::ActuatorType::kJet;
+  return n;
+}
+
+}  // namespace
 
 std::string PlantModel::validate() const {
   const std::string r = rod.validate();
@@ -21,6 +34,9 @@ std::string PlantModel::validate() const {
   if (!std::isfinite(base_tilt) || std::abs(base_tilt) > M_PI / 2) return "base_tilt: must lie in [-pi/2, pi/2] rad";
   if (!(internal_dt > 0.0 && internal_dt <= 0.01)) return "internal_dt: must lie in (0, 0.01] s";
   if (!(command_timeout > 0.0)) return "command_timeout: must be positive";
+  if (!(std::isfinite(thruster_time_constant) && thruster_time_constant >= 0.0))
+    return "thruster_time_constant: must be finite and >= 0";
+  if (!rod.body.segments.empty() && rod.body.actuators.empty()) return "dynamics.body.actuators: the robot has none";
   return "";
 }
 
@@ -31,7 +47,7 @@ Eigen::Matrix3d base_orientation(double tilt) {
 Plant::Plant(const PlantModel& p, unsigned seed)
     : model_(p),
       jets_(p.jets),
-      hydraulics_(p.valves),
+      hydraulics_(p.valves, jet_count(p)),
       tracker_(
           p.sensor_noise ? p.tracker : TrackerNoise{0, 0, 0, 0, p.tracker.dropout_rate, p.tracker.dropout_duration},
           seed),
@@ -41,6 +57,15 @@ Plant::Plant(const PlantModel& p, unsigned seed)
   if (!err.empty()) throw std::invalid_argument("plant: " + err);
   // Gravity in the base frame from the base orientation (tracker z is up).
   model_.rod.model.gravity = R_tracker_base_.transpose() * Eigen::Vector3d(0, 0, -model_.gravity);
+  general_ = !model_.rod.body.segments.empty();
+  const int n = general_ ? static_cast<int>(model_.rod.body.actuators.size()) : 3;
+  drive_scale_ = thrust_ = duty_ = Vector::Zero(n);
+  for (int i = 0, valve = 0; i < n; ++i) {
+    const rod::Actuator* a = general_ ? &model_.rod.body.actuators[i] : nullptr;
+    jet_.push_back(!a || a->type == rod::ActuatorType::kJet);
+    valve_of_.push_back(jet_[i] ? valve++ : -1);
+    if (a) drive_scale_[i] = std::max(std::abs(a->min_force), std::abs(a->max_force));
+  }
   rod_.reset(new DynamicRod(model_.rod));
   reset();
 }
@@ -49,7 +74,9 @@ bool Plant::reset() {
   t_ = 0.0;
   t_command_ = -1e300;
   duty_.setZero();
+  thrust_.setZero();
   hydraulics_.reset();
+  if (general_) rod_->set_inputs(Vector::Zero(actuator_count()));
   error_.clear();
   if (!rod_->reset_to_static(rod::TipWrench{})) {
     error_ = "rod: " + rod_->last_error();
@@ -58,15 +85,40 @@ bool Plant::reset() {
   return true;
 }
 
-void Plant::command(const Eigen::Vector3d& duty, double t) {
-  duty_ = duty;
+void Plant::command(const Vector& duty, double t) {
+  const bool ok = duty.size() == actuator_count() && duty.allFinite();
+  duty_ = ok ? duty : Vector(Vector::Zero(actuator_count()));  // a broken command closes the valves
   t_command_ = t;
 }
 
-Eigen::Vector3d Plant::jet_forces() const {
-  const Eigen::Vector3d q = hydraulics_.flows();
-  return {actuation::force_from_flow(q[0], model_.nozzle), actuation::force_from_flow(q[1], model_.nozzle),
-          actuation::force_from_flow(q[2], model_.nozzle)};
+Plant::Vector Plant::flows() const {
+  const Hydraulics::Vector valves = hydraulics_.flows();
+  Vector q = Vector::Zero(actuator_count());
+  for (int i = 0; i < actuator_count(); ++i)
+    if (jet_[i]) q[i] = valves[valve_of_[i]];
+  return q;
+}
+
+Plant::Vector Plant::jet_forces() const {
+  const Vector q = flows();
+  Vector f(actuator_count());
+  for (int i = 0; i < actuator_count(); ++i)
+    f[i] = jet_[i] ? actuation::force_from_flow(q[i], model_.nozzle) : thrust_[i];
+  return f;
+}
+
+void Plant::step_actuators(const Vector& duty, double dt) {
+  Hydraulics::Vector valve_duty(hydraulics_.size());
+  for (int i = 0; i < actuator_count(); ++i) {
+    if (jet_[i]) {
+      valve_duty[valve_of_[i]] = duty[i];
+      continue;
+    }
+    const double target = std::clamp(duty[i], -1.0, 1.0) * drive_scale_[i];
+    const double tau = model_.thruster_time_constant;
+    thrust_[i] = tau > 0.0 ? thrust_[i] + (target - thrust_[i]) * (1.0 - std::exp(-dt / tau)) : target;
+  }
+  hydraulics_.step(valve_duty, dt);
 }
 
 bool Plant::advance_to(double t) {
@@ -80,12 +132,15 @@ bool Plant::advance_to(double t) {
   for (int i = 1; i <= n; ++i) {
     // Command timeout: the valves close when the controller goes silent.
     timed_out_ = t_ - t_command_ > model_.command_timeout;
-    const Eigen::Vector3d duty = timed_out_ ? Eigen::Vector3d::Zero() : duty_;
-    hydraulics_.step(duty, dt);
-    const actuation::Vec6 w = jets_.wrench(jet_forces());
+    step_actuators(timed_out_ ? Vector(Vector::Zero(actuator_count())) : duty_, dt);
     rod::TipWrench tw;
-    tw.force = w.head<3>();
-    tw.moment = w.tail<3>();
+    if (general_) {
+      rod_->set_inputs(jet_forces());  // every actuator acts at its own node
+    } else {
+      const actuation::Vec6 w = jets_.wrench(Eigen::Vector3d(jet_forces()));
+      tw.force = w.head<3>();
+      tw.moment = w.tail<3>();
+    }
     if (!rod_->step(tw, dt)) {
       error_ = "rod: " + rod_->last_error();
       return false;
@@ -104,7 +159,14 @@ TrackerSample Plant::tracker_sample() {
   return tracker_.sample(t_, tip, base);
 }
 
-Eigen::Vector3d Plant::flow_sample() { return flow_sensors_.sample(hydraulics_.flows()); }
+Plant::Vector Plant::flow_sample() {
+  Vector q = flow_sensors_.sample(flows());
+  for (int i = 0; i < actuator_count(); ++i)
+    if (!jet_[i]) q[i] = 0.0;
+  return q;
+}
+
+Plant::Vector Plant::force_sample() { return jet_forces(); }
 
 }  // namespace plant
 }  // namespace hydrojet

@@ -60,10 +60,11 @@ TrackerSample TrackerModel::sample(double t, const SensorPose& tip, const Sensor
   return s;
 }
 
-Eigen::Vector3d FlowSensorModel::sample(const Eigen::Vector3d& q) {
+Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, 8, 1> FlowSensorModel::sample(
+    const Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, 8, 1>& q) {
   std::normal_distribution<double> n01(0.0, 1.0);
-  Eigen::Vector3d out;
-  for (int i = 0; i < 3; ++i) out[i] = std::max(0.0, quantise(q[i] + noise_.sigma * n01(rng_), noise_.quantum));
+  Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, 8, 1> out(q.size());
+  for (int i = 0; i < q.size(); ++i) out[i] = std::max(0.0, quantise(q[i] + noise_.sigma * n01(rng_), noise_.quantum));
   return out;
 }
 

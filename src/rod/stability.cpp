@@ -47,16 +47,22 @@ StabilityReport stability(const Mat6& C, const ActuatedSet& actuated) {
   return block_report(Cb);
 }
 
-StabilityReport stability(const Mat6& C, const Eigen::Ref<const Eigen::Matrix<double, 6, Eigen::Dynamic>>& wrenches) {
-  if (wrenches.cols() == 0 || !C.allFinite() || !wrenches.allFinite()) return StabilityReport();
+StabilityReport stability(const Mat6& C, const Eigen::Ref<const Eigen::Matrix<double, 6, Eigen::Dynamic>>& wrenches,
+                          double arm) {
+  if (wrenches.cols() == 0 || !C.allFinite() || !wrenches.allFinite() || !(arm > 0.0)) return StabilityReport();
+  // Moments as forces at the arm: wrench (f, m/arm), twist (v, ω·arm), so C̃ = D C D, D = diag(1, arm).
+  Vec6 D;
+  D << 1.0, 1.0, 1.0, arm, arm, arm;
+  const Mat6 Cs = D.asDiagonal() * C * D.asDiagonal();
+  const Eigen::Matrix<double, 6, Eigen::Dynamic> Ws = D.cwiseInverse().asDiagonal() * wrenches;
   // U: an orthonormal basis of the span of the actuators' tip wrenches (rank by the SVD).
-  Eigen::JacobiSVD<Eigen::Matrix<double, 6, Eigen::Dynamic>> svd(wrenches, Eigen::ComputeThinU);
+  Eigen::JacobiSVD<Eigen::Matrix<double, 6, Eigen::Dynamic>> svd(Ws, Eigen::ComputeThinU);
   const auto& sv = svd.singularValues();
   if (!(sv(0) > 0.0)) return StabilityReport();
   int r = 0;
   while (r < sv.size() && sv(r) > 1e-9 * sv(0)) ++r;
   const Eigen::Matrix<double, 6, Eigen::Dynamic> U = svd.matrixU().leftCols(r);
-  return block_report(Block(U.transpose() * C * U));
+  return block_report(Block(U.transpose() * Cs * U));
 }
 
 Vec6 softest_wrench_direction(const Mat6& C, const ActuatedSet& a) {

@@ -60,10 +60,9 @@ bool finite_pose(const geometry_msgs::Pose& p) {
   return n2 > 0.5 && n2 < 1.5;
 }
 
-/// Copies the jets that fit into a message's fixed-size per-jet array (float64[3]); the rest stay 0.
-template <class Array>
-void copy_jets(const control::JetVector& from, Array& to) {
-  for (int i = 0; i < from.size() && i < static_cast<int>(to.size()); ++i) to[i] = from[i];
+/// One message entry per actuator.
+std::vector<double> copy_jets(const control::JetVector& from) {
+  return std::vector<double>(from.data(), from.data() + from.size());
 }
 
 Eigen::Vector3d from_msg(const geometry_msgs::Vector3& v) { return Eigen::Vector3d(v.x, v.y, v.z); }
@@ -464,25 +463,31 @@ class ControllerNode {
     }
   }
 
-  // The measured flows of the jets the message carries (float64[3]), valid when all of them are.
+  // The measured flows and forces the message carries (one per actuator), valid when all of them
+  // are. Extra entries are ignored; missing ones leave the vectors short (the core then aborts,
+  // naming the counts).
   void read_flows(control::ControllerInputs& in) const {
     if (!have_jets_) return;
-    const int n = std::min(controller_->jet_count(), static_cast<int>(jets_.flow.size()));
+    const int n =
+        std::min({static_cast<int>(control::kMaxJets), controller_->jet_count(), static_cast<int>(jets_.flow.size())});
     in.flow_valid = true;
     in.flows.resize(n);
     for (int i = 0; i < n; ++i) {
-      in.flow_valid = in.flow_valid && jets_.flow_valid[i];
+      in.flow_valid = in.flow_valid && (i >= static_cast<int>(jets_.flow_valid.size()) || jets_.flow_valid[i]);
       in.flows[i] = jets_.flow[i];
     }
+    const int m = std::min(n, static_cast<int>(jets_.force.size()));
+    in.forces.resize(m);
+    for (int i = 0; i < m; ++i) in.forces[i] = jets_.force[i];
     in.flow_stamp = jets_.header.stamp.toSec();
   }
 
   void publish_command(const ros::Time& now, const control::ControllerOutput& out) {
     hydrojet_control::JetCommand cmd;
     cmd.header.stamp = now;
-    copy_jets(out.valve_command, cmd.valve_command);
-    copy_jets(out.jet_force_command, cmd.jet_force);
-    copy_jets(out.flow_command, cmd.flow);
+    cmd.valve_command = copy_jets(out.valve_command);
+    cmd.jet_force = copy_jets(out.jet_force_command);
+    cmd.flow = copy_jets(out.flow_command);
     cmd_pub_.publish(cmd);
   }
 
@@ -499,8 +504,8 @@ class ControllerNode {
     st.model_direction = to_msg(out.model_tip_rotation.col(2));
     st.error_geodesic = out.error_geodesic;
     st.error_pitch_yaw = out.error_pitch_yaw;
-    copy_jets(out.jet_force_command, st.jet_force_command);
-    copy_jets(out.jet_force_observed, st.jet_force_observed);
+    st.jet_force_command = copy_jets(out.jet_force_command);
+    st.jet_force_observed = copy_jets(out.jet_force_observed);
     st.force_reachable = out.force_reachable;
     st.solver_converged = out.solver_converged;
     st.message = message_;

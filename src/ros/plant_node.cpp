@@ -137,9 +137,11 @@ class PlantNode {
   }
 
   void command(const hydrojet_control::JetCommand::ConstPtr& m) {
-    Eigen::Vector3d duty(m->valve_command[0], m->valve_command[1], m->valve_command[2]);
+    // One duty per actuator; a wrong count or a non-finite entry closes the valves (Plant::command).
+    plant::Plant::Vector duty(std::min<int>(m->valve_command.size(), rod::kMaxActuators));
+    for (int i = 0; i < duty.size(); ++i) duty[i] = m->valve_command[i];
+    if (static_cast<int>(m->valve_command.size()) != plant_->actuator_count()) duty.setZero(0);
     const double t = o_.lockstep ? m->header.stamp.toSec() : plant_->time();
-    if (!duty.allFinite()) duty.setZero();  // a broken command closes the valves
     plant_->command(duty, plant_->time());
     last_command_stamp_ = std::max(last_command_stamp_, t);
   }
@@ -147,7 +149,8 @@ class PlantNode {
   void publish_sensors(double t) {
     const ros::Time stamp(now(t));
     if (o_.stuck_open_at >= 0 && t >= o_.stuck_open_at)
-      plant_->hydraulics()[o_.stuck_open_jet - 1].set_stuck(o_.stuck_duty);
+      if (o_.stuck_open_jet <= plant_->hydraulics().size())
+        plant_->hydraulics()[o_.stuck_open_jet - 1].set_stuck(o_.stuck_duty);
     const plant::TrackerSample ts = plant_->tracker_sample();
     if (ts.valid) {  // a missing sensor publishes nothing: stale data is never republished
       geometry_msgs::PoseStamped tip, base;
@@ -160,18 +163,26 @@ class PlantNode {
       broadcast(tip, "tip_sensor");
       broadcast(base, "base_sensor");
     }
-    Eigen::Vector3d q = plant_->flow_sample();
+    plant::Plant::Vector q = plant_->flow_sample();
+    const plant::Plant::Vector f = plant_->force_sample();
     if (o_.flow_fault_at >= 0 && t >= o_.flow_fault_at) {
       q[0] = std::nan("");
-      q[1] = -1e-6;
+      if (q.size() > 1) q[1] = -1e-6;
     }
     hydrojet_control::JetState js;
     js.header.stamp = stamp;
-    const Eigen::Vector3d duty = plant_->valves_closed_by_timeout() ? Eigen::Vector3d::Zero() : plant_->valve_command();
-    for (int i = 0; i < 3; ++i) {
+    const int n = plant_->actuator_count();
+    const plant::Plant::Vector duty = plant_->valves_closed_by_timeout()
+                                          ? plant::Plant::Vector(plant::Plant::Vector::Zero(n))
+                                          : plant_->valve_command();
+    js.flow.resize(n);
+    js.flow_valid.resize(n);
+    js.force.resize(n);
+    js.valve_command.resize(n);
+    for (int i = 0; i < n; ++i) {
       js.flow[i] = q[i];
       js.flow_valid[i] = true;  // the plant reports what its sensors read; checks are the reader's job
-      js.force[i] = actuation::force_from_flow(q[i], model_.nozzle);
+      js.force[i] = plant_->is_jet(i) ? actuation::force_from_flow(q[i], model_.nozzle) : f[i];
       js.valve_command[i] = duty[i];
     }
     jet_pub_.publish(js);

@@ -205,7 +205,14 @@ class RigNode {
 
   // -- ROS callbacks ----------------------------------------------------------------------------
 
+  // The rig's three valves; a command for another number of actuators closes them.
   void on_command(const hydrojet_control::JetCommand::ConstPtr& m) {
+    if (m->valve_command.size() != 3) {
+      ROS_WARN_THROTTLE(1.0, "rig: jets/command with %zu entries for the rig's 3 valves: valves closed",
+                        m->valve_command.size());
+      valves_->command({0.0, 0.0, 0.0});
+      return;
+    }
     valves_->command({m->valve_command[0], m->valve_command[1], m->valve_command[2]});
   }
 
@@ -215,6 +222,10 @@ class RigNode {
     const devices::ValveStatus v = valves_->status();
     hydrojet_control::JetState js;
     js.header.stamp = to_ros(s.stamp);
+    js.flow.resize(3);
+    js.flow_valid.resize(3);
+    js.force.resize(3);
+    js.valve_command.resize(3);
     for (int i = 0; i < 3; ++i) {
       js.flow[i] = s.flow[i];
       js.flow_valid[i] = s.valid[i];

@@ -105,8 +105,12 @@ class ViewNode {
     std::string scene_path;
     if (!pnh.getParam("scene", scene_path)) throw config::KeyError("~scene", "missing (path of the scene YAML)");
     const config::Scene scene = config::load_scene(scene_path);
-    if (!scene.has_jets) throw config::SceneError("jets", "the scene has no jets section");
-    jets_ = actuation::JetMap(scene.jets).planar();
+    // Arrows for the actuators at the tip (the HydroJet's three jets): their directions, tip frame.
+    const double L = scene.body.length();
+    for (size_t i = 0; i < scene.body.actuators.size(); ++i)
+      if (scene.body.actuators[i].at >= L)
+        tip_actuators_.push_back({static_cast<int>(i), scene.body.actuators[i].direction});
+    if (scene.body.actuators.empty()) throw config::SceneError("jets", "the scene has no jets or actuators section");
     pnh.param("rod_diameter", rod_diameter_, 0.008);           // [m] (paper §6.2: 8 mm outer)
     pnh.param("capsule_length", capsule_length_, 0.028);       // [m] (§6.1: 28 mm)
     pnh.param("capsule_diameter", capsule_diameter_, 0.0098);  // [m] (§6.1: 9.8 mm)
@@ -190,9 +194,7 @@ class ViewNode {
     if (reset) delete_all();
   }
 
-  void on_jet_state(const hydrojet_control::JetState::ConstPtr& m) {
-    jet_force_ = Eigen::Vector3d(m->force[0], m->force[1], m->force[2]);
-  }
+  void on_jet_state(const hydrojet_control::JetState::ConstPtr& m) { jet_force_ = m->force; }
 
   /// Frame and stamp of every marker of one rod message.
   struct MarkerStamp {
@@ -282,19 +284,21 @@ class ViewNode {
     arr->markers.push_back(k);
   }
 
-  /// Arrows from the capsule centre along each jet's force direction (eq. 24), length
-  /// proportional to the measured jet force.
+  /// Arrows from the capsule centre along each tip actuator's force direction (eq. 24 for the
+  /// jets), length proportional to its measured force (actuators along the body are not drawn).
   void add_jet_forces(const MarkerStamp& s, const Tip& tip, visualization_msgs::MarkerArray* arr) const {
     const Eigen::Vector3d centre = tip.p + 0.5 * capsule_length_ * tip.R.col(2);
-    for (int i = 0; i < 3; ++i) {
-      visualization_msgs::Marker k = s.make("jets", i);
+    for (size_t i = 0; i < tip_actuators_.size(); ++i) {
+      visualization_msgs::Marker k = s.make("jets", static_cast<int>(i));
       k.type = visualization_msgs::Marker::ARROW;
-      const Eigen::Vector3d dir = tip.R * Eigen::Vector3d(jets_(0, i), jets_(1, i), 0.0);
-      const double f = std::isfinite(jet_force_[i]) ? std::max(0.0, jet_force_[i]) : 0.0;
+      const Eigen::Vector3d dir = tip.R * tip_actuators_[i].direction;
+      const size_t input = static_cast<size_t>(tip_actuators_[i].index);
+      const double raw = input < jet_force_.size() ? jet_force_[input] : 0.0;
+      const double f = std::isfinite(raw) ? std::abs(raw) : 0.0;
       k.points.push_back(point(centre));
       k.points.push_back(point(centre + (0.002 + force_scale_ * f) * dir));
       k.scale.x = 0.0015, k.scale.y = 0.003, k.scale.z = 0.004;
-      k.color = i == 0 ? color(0.9, 0.3, 0.3) : (i == 1 ? color(0.3, 0.9, 0.3) : color(0.3, 0.4, 0.95));
+      k.color = i % 3 == 0 ? color(0.9, 0.3, 0.3) : (i % 3 == 1 ? color(0.3, 0.9, 0.3) : color(0.3, 0.4, 0.95));
       arr->markers.push_back(k);
     }
   }
@@ -392,11 +396,15 @@ class ViewNode {
     return k;
   }
 
-  Eigen::Matrix<double, 2, 3> jets_;
+  struct TipActuator {
+    int index;                  ///< its entry in jets/state
+    Eigen::Vector3d direction;  ///< tip frame
+  };
+  std::vector<TipActuator> tip_actuators_;
   double rod_diameter_, capsule_length_, capsule_diameter_, force_scale_, reachable_radius_;
   std::string world_frame_, tracker_frame_, base_frame_, last_state_;
   hydrojet_control::ControllerStatus status_;
-  Eigen::Vector3d jet_force_ = Eigen::Vector3d::Zero();
+  std::vector<double> jet_force_;  ///< measured force per actuator [N] (jets/state)
   ros::Publisher markers_pub_;
   int welcomed_ = 0;  ///< subscribers of markers_pub_ that have had their welcome DELETEALL
   std::vector<visualization_msgs::Marker> reachable_markers_;  ///< the last set's markers (empty: none)

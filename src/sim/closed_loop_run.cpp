@@ -27,6 +27,7 @@ void read_sensors(plant::Plant& plant, double t, control::ControllerInputs& in) 
     in.tip_rotation = (ts.base.orientation.toRotationMatrix().transpose() * ts.tip.orientation.toRotationMatrix());
   }
   in.flows = plant.flow_sample();
+  in.forces = plant.force_sample();
   in.flow_valid = true;
   in.flow_stamp = t;
   in.t = t;

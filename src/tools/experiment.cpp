@@ -29,38 +29,50 @@ struct Job {
   control::LoopMode mode;
   int tilt_deg;
   unsigned seed;
+  int config = 0;  ///< index into Setup's configurations
   sim::RunResult result;
 };
 
 void usage() {
-  std::cerr << "usage: experiment --scene0 FILE --scene30 FILE --plant FILE --controller FILE [--out DIR]\n"
-               "                  [--quick] [--seeds N] [--duration S] [--threads N]\n";
+  std::cerr << "usage: experiment (--scene0 FILE --scene30 FILE | --scene FILE) --plant FILE --controller FILE\n"
+               "                  [--out DIR] [--quick] [--seeds N] [--duration S] [--threads N]\n"
+               "  --scene FILE: one scene (any robot) at the base tilt of its gravity, instead of the two\n";
 }
 
 void write_run_csv(const std::string& path, const sim::RunResult& r) {
   std::ofstream f(path);
-  f << "t,des_x,des_y,des_z,meas_x,meas_y,meas_z,tip_x,tip_y,tip_z,err_geodesic,err_pitch_yaw,q1,q2,q3\n";
+  const int n = r.samples.empty() ? 3 : static_cast<int>(r.samples.front().jet_force.size());
+  f << "t,des_x,des_y,des_z,meas_x,meas_y,meas_z,tip_x,tip_y,tip_z,err_geodesic,err_pitch_yaw";
+  for (int i = 0; i < n; ++i) f << ",q" << i + 1;  // actuator forces [N]
+  f << "\n";
   char buf[512];
   for (const auto& s : r.samples) {
-    std::snprintf(buf, sizeof(buf), "%.3f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6e,%.6e,%.6e,%.6e,%.6e,%.5f,%.5f,%.5f\n", s.t,
-                  s.desired.x(), s.desired.y(), s.desired.z(), s.measured.x(), s.measured.y(), s.measured.z(),
-                  s.tip_position.x(), s.tip_position.y(), s.tip_position.z(), s.error_geodesic, s.error_pitch_yaw,
-                  s.jet_force.x(), s.jet_force.y(), s.jet_force.z());
+    std::snprintf(buf, sizeof(buf), "%.3f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6e,%.6e,%.6e,%.6e,%.6e", s.t, s.desired.x(),
+                  s.desired.y(), s.desired.z(), s.measured.x(), s.measured.y(), s.measured.z(), s.tip_position.x(),
+                  s.tip_position.y(), s.tip_position.z(), s.error_geodesic, s.error_pitch_yaw);
     f << buf;
+    for (int i = 0; i < s.jet_force.size(); ++i) {
+      std::snprintf(buf, sizeof(buf), ",%.5f", s.jet_force[i]);
+      f << buf;
+    }
+    f << "\n";
   }
 }
 
 /// The command line.
 struct Args {
-  std::string scene0, scene30, plant_file, controller_file, out = ".build/experiment";
+  std::string scene0, scene30, scene, plant_file, controller_file, out = ".build/experiment";
   bool quick = false;
   int seeds = 5, threads = 2;
   double duration = 0.0;  ///< path duration [s]; 0 = the controller file's
 };
 
-/// The two configurations (0° and 30° base tilt): controller options, model and plant of each.
+/// The configurations (0° and 30° base tilt, or the one --scene): controller options, model and
+/// plant of each.
 struct Setup {
   config::ControllerNodeOptions copt;
+  int count = 2;
+  int tilt_deg[2] = {0, 30};
   control::RobotModel model[2];
   plant::PlantModel plant[2];
 };
@@ -78,6 +90,8 @@ bool parse_args(int argc, char** argv, Args* a) {
     };
     if (arg == "--scene0")
       a->scene0 = next();
+    else if (arg == "--scene")
+      a->scene = next();
     else if (arg == "--scene30")
       a->scene30 = next();
     else if (arg == "--plant")
@@ -105,7 +119,8 @@ bool parse_args(int argc, char** argv, Args* a) {
 
 /// Checks the arguments and applies --quick; returns false (after printing why) when unusable.
 bool check_args(Args* a) {
-  if (a->scene0.empty() || a->scene30.empty() || a->controller_file.empty()) {
+  const bool two = !a->scene0.empty() && !a->scene30.empty();
+  if (two == !a->scene.empty() || a->controller_file.empty()) {
     usage();
     return false;
   }
@@ -126,11 +141,14 @@ bool load_setup(const Args& a, Setup* s) {
   try {
     s->copt = config::load_controller_options(a.controller_file);
     if (a.duration > 0.0) s->copt.controller.path.duration = a.duration;
-    const std::string scenes[2] = {a.scene0, a.scene30};
-    for (int k = 0; k < 2; ++k) {
+    const std::string scenes[2] = {a.scene.empty() ? a.scene0 : a.scene, a.scene30};
+    s->count = a.scene.empty() ? 2 : 1;
+    for (int k = 0; k < s->count; ++k) {
       const config::Scene sc = config::load_scene(scenes[k]);
       s->model[k] = config::make_controller_model(sc, s->copt.flow_regulator);
       s->plant[k] = config::load_plant(sc, a.plant_file);
+      const Eigen::Vector3d g = sc.model.gravity;
+      if (s->count == 1) s->tilt_deg[k] = static_cast<int>(std::lround(std::atan2(g.y(), g.z()) * 180.0 / M_PI));
     }
   } catch (const std::exception& e) {
     std::cerr << "experiment: " << e.what() << "\n";
@@ -139,12 +157,12 @@ bool load_setup(const Args& a, Setup* s) {
   return true;
 }
 
-/// Open and closed loop at 0° and 30°, seeds 1..seeds each.
-std::vector<Job> make_jobs(int seeds) {
+/// Open and closed loop in every configuration, seeds 1..seeds each.
+std::vector<Job> make_jobs(const Setup& setup, int seeds) {
   std::vector<Job> jobs;
-  for (int tilt = 0; tilt < 2; ++tilt)
+  for (int k = 0; k < setup.count; ++k)
     for (control::LoopMode m : {control::LoopMode::kOpen, control::LoopMode::kClosed})
-      for (int s = 0; s < seeds; ++s) jobs.push_back({m, tilt ? 30 : 0, static_cast<unsigned>(s + 1), {}});
+      for (int s = 0; s < seeds; ++s) jobs.push_back({m, setup.tilt_deg[k], static_cast<unsigned>(s + 1), {}, k});
   return jobs;
 }
 
@@ -163,8 +181,7 @@ void run_jobs(std::vector<Job>& jobs, const Setup& setup, int threads) {
       Job& job = jobs[j];
       control::ControllerOptions p = setup.copt.controller;
       p.mode = job.mode;
-      const int k = job.tilt_deg == 30 ? 1 : 0;
-      job.result = sim::run_path(setup.model[k], p, setup.plant[k], job.seed, 1.0 / setup.copt.rate);
+      job.result = sim::run_path(setup.model[job.config], p, setup.plant[job.config], job.seed, 1.0 / setup.copt.rate);
       std::lock_guard<std::mutex> lock(mu);
       std::fprintf(stderr, "  %-6s %2d deg seed %u: rms %.4f rad, %s (%.1f s simulated in %.1f s)\n",
                    control::to_string(job.mode), job.tilt_deg, job.seed, job.result.rms,
@@ -235,7 +252,7 @@ int main(int argc, char** argv) {
   if (!parse_args(argc, argv, &args) || !check_args(&args)) return 2;
   Setup setup;
   if (!load_setup(args, &setup)) return 2;
-  std::vector<Job> jobs = make_jobs(args.seeds);
+  std::vector<Job> jobs = make_jobs(setup, args.seeds);
   run_jobs(jobs, setup, args.threads);
   double realtime_factor = 0.0;
   const std::string runs = write_results(jobs, args.out, &realtime_factor);

@@ -285,7 +285,8 @@ void add_general_compliance(hydrojet::rod::GeneralRodSolver& solver, const hydro
   const hydrojet::rod::GeneralCompliance c = solver.compliance();
   const auto tc1 = std::chrono::steady_clock::now();
   const auto st = actuated
-                      ? hydrojet::rod::stability(c.body, hydrojet::rod::equivalent_tip_wrenches(c.body, c.actuation))
+                      ? hydrojet::rod::stability(c.body, hydrojet::rod::equivalent_tip_wrenches(c.body, c.actuation),
+                                                 scene.body.length())
                       : hydrojet::rod::stability(c.body, scene.actuated);
   j->add("compliance", c.body)
       .add("stability_margin", st.margin)

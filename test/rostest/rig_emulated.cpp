@@ -108,7 +108,7 @@ TEST(RigEmulated, PoseToControllerCommandToBoardTrackerLossClosesValves) {
       names::kJetState, 100, [&](const hydrojet_control::JetState::ConstPtr& m) {
         jets = *m;
         ++jet_msgs;
-        jets_all_valid += m->flow_valid[0] && m->flow_valid[1] && m->flow_valid[2];
+        jets_all_valid += m->flow_valid.size() == 3 && m->flow_valid[0] && m->flow_valid[1] && m->flow_valid[2];
       });
   ros::Subscriber s5 = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
       names::kDiagnostics, 100, [&](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {

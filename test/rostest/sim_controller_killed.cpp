@@ -37,6 +37,8 @@ TEST(SimControllerKilled, PlantClosesValvesOnCommandTimeout) {
   ASSERT_GT(now, stop_at + 0.5) << "simulated time did not advance";
   double flow_at_stop = 0.0, first_closed = -1.0, flow_late = 1.0;
   for (const auto& s : states) {
+    ASSERT_EQ(s.flow.size(), 3u);
+    ASSERT_EQ(s.valve_command.size(), 3u);
     const double t = s.header.stamp.toSec();
     if (t <= stop_at) {
       EXPECT_GT(s.valve_command[0] + (t < 0.1 ? 1.0 : 0.0), 0.0) << "valves should be open at " << t;

@@ -28,7 +28,8 @@ struct Log {
 };
 
 bool zero(const hydrojet_control::JetCommand& c) {
-  return c.valve_command[0] == 0.0 && c.valve_command[1] == 0.0 && c.valve_command[2] == 0.0;
+  return c.valve_command.size() == 3 && c.valve_command[0] == 0.0 && c.valve_command[1] == 0.0 &&
+         c.valve_command[2] == 0.0;
 }
 
 /// Spins until the controller reports finished/aborted (or the wall-clock limit).

@@ -42,6 +42,15 @@
 // that start is poor). If a step still fails, the interval is retried as 2, 4, ..., 16 substeps.
 // No heap allocation per step: all arrays are sized in the constructor.
 //
+// Any follower-actuated rod (issue 14): DynamicRodModel::body gives segments (each with its own
+// stiffness, precurvature and ρA), point loads and actuators. The grid then has a node on every
+// segment end, load and actuator (the pieces between them get steps in proportion to their length,
+// about `nodes` − 1 in all), and at such a node s_k the internal force and moment drop by the
+// wrench applied there (as the static solver's jump conditions, with the point mass's inertia):
+//   n(s_k⁺) = n(s_k⁻) − F_k,  m(s_k⁺) = m(s_k⁻) − M_k,
+//   F_k = R (f_body + Σ q_i d_i) + f_base + m_k (g − R(ω̂q + q_t)),  M_k = R (l_body + Σ q_i p_i × d_i) + l_base;
+// at the tip F_L, M_L join the capsule's boundary condition. Actuator inputs q: set_inputs().
+//
 // Static limit: with all time derivatives zero this is the static Cosserat rod; as EA, GA → ∞ it is
 // the Kirchhoff rod of rod_model.h (ShootingSolver). The tip-position difference is about
 // L·|n|/min(GA, EA) (shear + extension), ≈ 1.5e-7 m for the HydroJet at 0.16 N with the defaults.
@@ -61,6 +70,8 @@
 #include <vector>
 
 #include "hydrojet_control/rod/rod_model.h"
+#include "hydrojet_control/rod/general_rod.h"
+#include "hydrojet_control/rod/general_rod_solver.h"
 
 namespace hydrojet {
 namespace plant {
@@ -79,7 +90,11 @@ using rod::Vec6;
 /// slaved to the capsule, whose mass and tip_inertia carry the dynamics. A small positive ρA (e.g.
 /// 1e-3 kg/m) adds the body's own (higher) modes; either way the per-step problem is well posed.
 struct DynamicRodModel {
-  rod::RodModel model;           ///< statics: geometry, stiffness, ũ, ρA, m_t, gravity
+  rod::RodModel model;  ///< statics: geometry, stiffness, ũ, ρA, m_t, gravity
+  /// A general rod (issue 14): its segments, point loads and actuators replace model.rod's uniform
+  /// material and length (model.tip_mass and model.gravity still apply; body.tip_mass and
+  /// body.gravity are not used). Empty segments (the default): the uniform model.rod.
+  rod::GeneralRodModel body;
   double shear_stiffness = 1e5;  ///< GA [N]; stiff by default (≈1e6·EI/L² for HydroJet)
   double axial_stiffness = 1e5;  ///< EA [N]; stiff by default (nearly inextensible)
   /// τ_kv [s]: B_se = τ_kv K_se, B_bt = τ_kv K_bt. Mode damping ratio ζ ≈ τ_kv ω/2: with 0.01 s
@@ -134,9 +149,13 @@ class DynamicRod {
   Vec3 tip_position() const;           ///< p(L) [m], base frame
   Vec3 tip_velocity() const;           ///< R(L) q(L) [m/s], base frame
   Vec3 tip_angular_velocity() const;   ///< R(L) ω(L) [rad/s], base frame
-  std::vector<Vec3> backbone() const;  ///< the N node positions [m], base to tip, base frame
+  std::vector<Vec3> backbone() const;  ///< the node positions [m], base to tip, base frame
   Vec3 base_force() const;             ///< n(0) [N], base frame: force the rod exerts on the mount
   Vec3 base_moment() const;            ///< m(0) [N m], base frame: moment on the mount
+
+  /// Actuator inputs q [N], one per body.actuators in order, held from the next step (or reset) on.
+  /// False (inputs unchanged, last_error() says why) for a wrong count or a non-finite entry.
+  bool set_inputs(const rod::ActuatorInputs& q);
 
   /// Sets g [m/s²] in the base frame (a tilted base); takes effect from the next step. A
   /// non-finite vector is ignored and reported through last_error().
@@ -194,15 +213,41 @@ class DynamicRod {
   bool advance(const rod::TipWrench& w, double dt);
   void set_coefficients(const Coefficients& c);
   Vec6 kirchhoff_guess(const rod::TipWrench& w, bool* ok);
+  Vec6 general_guess(const rod::TipWrench& w, bool* ok);
+  /// The grid: pieces between segment ends, loads and actuators; the loads at the nodes.
+  void build_grid();
+  /// ρA g [N/m] of every piece for the current gravity.
+  void update_distributed_weight();
+
+  /// Uniform material of the steps between two load nodes.
+  struct Piece {
+    Vec3 k_bt, kbt_ustar, b_bt, inv_bt;
+    double rho_a = 0.0;
+    Vec3 dist_weight = Vec3::Zero();  ///< ρA g [N/m], base frame, for the current solve
+  };
+  /// What acts at one node besides the rod: point loads and actuators.
+  struct NodeLoad {
+    double mass = 0.0;
+    Vec3 f_body = Vec3::Zero(), l_body = Vec3::Zero(), f_base = Vec3::Zero(), l_base = Vec3::Zero();
+    std::vector<int> actuators;  ///< indices into body.actuators
+  };
+  /// The wrench (F, M) [N, N m], base frame, that `load` applies at a node in state y (slot: its
+  /// history for the point mass's acceleration).
+  void node_wrench(const NodeLoad& load, const Vec24& y, int slot, Vec3* F, Vec3* M) const;
 
   DynamicRodModel model_;
   // Derived constants.
-  double length_ = 0.0, h_ = 0.0, force_scale_ = 1.0;
+  double length_ = 0.0, force_scale_ = 1.0;
   int steps_ = 0, slots_ = 0;
-  Vec3 k_se_, k_bt_, kse_vstar_, kbt_ustar_, b_se_, b_bt_, inv_se_, inv_bt_, rho_j_;
-  double rho_a_ = 0.0;
-  Vec3 dist_weight_ = Vec3::Zero();  // ρA g [N/m], base frame, for the current solve
-  double residual_scale_ = 0.0;      // magnitude of the terms in the last residual [N]
+  Vec3 k_se_, kse_vstar_, b_se_, inv_se_, rho_j_;
+  std::vector<Piece> pieces_;
+  std::vector<int> step_piece_;  ///< piece of each step
+  std::vector<double> step_h_;   ///< length of each step [m]
+  std::vector<double> node_s_;   ///< arc length of each node [m]
+  std::vector<int> node_load_;   ///< per node: index into node_loads_, or −1
+  std::vector<NodeLoad> node_loads_;
+  rod::ActuatorInputs inputs_;
+  double residual_scale_ = 0.0;  // magnitude of the terms in the last residual [N]
   bool drag_active_ = false;
   Coefficients coef_;
 

@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <vector>
 #include <string>
 
 namespace hydrojet {
@@ -46,23 +47,33 @@ class Valve {
   double stuck_duty_ = -1.0;
 };
 
-/// The three jets' hydraulics.
+/// The jets' hydraulics: one valve per jet (three for the HydroJet; a robot with more jets uses the
+/// three valve models in turn).
 class Hydraulics {
  public:
-  explicit Hydraulics(const std::array<ValveModel, 3>& p) : valves_{Valve(p[0]), Valve(p[1]), Valve(p[2])} {}
-  Eigen::Vector3d step(const Eigen::Vector3d& duty, double dt) {
-    Eigen::Vector3d q;
-    for (int i = 0; i < 3; ++i) q[i] = valves_[i].step(duty[i], dt);
+  using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, 8, 1>;  ///< one entry per jet
+  explicit Hydraulics(const std::array<ValveModel, 3>& p, int jets = 3) {
+    for (int i = 0; i < jets; ++i) valves_.emplace_back(p[i % 3]);
+  }
+  /// Advances every valve by dt [s] under its duty; returns the flows [m^3/s].
+  Vector step(const Vector& duty, double dt) {
+    Vector q(size());
+    for (int i = 0; i < size(); ++i) q[i] = valves_[i].step(duty[i], dt);
     return q;
   }
-  Eigen::Vector3d flows() const { return {valves_[0].flow(), valves_[1].flow(), valves_[2].flow()}; }
+  Vector flows() const {
+    Vector q(size());
+    for (int i = 0; i < size(); ++i) q[i] = valves_[i].flow();
+    return q;
+  }
+  int size() const { return static_cast<int>(valves_.size()); }
   Valve& operator[](int i) { return valves_[i]; }
   void reset() {
     for (auto& v : valves_) v.reset();
   }
 
  private:
-  std::array<Valve, 3> valves_;
+  std::vector<Valve> valves_;
 };
 
 }  // namespace plant

@@ -31,17 +31,22 @@ struct ModelMismatch {
   double base_tilt_offset = 0.2;  ///< added to the scene's base tilt [rad] (the holder sits 11° further round)
 };
 
-/// The simulated HydroJet as it truly is.
+/// The simulated HydroJet (or any robot a scene describes) as it truly is.
 struct PlantModel {
-  DynamicRodModel rod;          ///< the true rod (its model.gravity is set from base_tilt)
+  /// The true rod (its model.gravity is set from base_tilt). A general robot (issue 14) in rod.body:
+  /// its segments, point loads and actuators; its jets then each have a valve (valves in turn), its
+  /// force actuators a drive. Empty rod.body: the HydroJet's uniform rod with the three jets below.
+  DynamicRodModel rod;
   actuation::JetGeometry jets;  ///< the true jet misalignments
   actuation::Nozzle nozzle;
   std::array<ValveModel, 3> valves = hydrojet_valves();
   TrackerNoise tracker;
   FlowNoise flow;
   bool sensor_noise = true;  ///< false: exact sensors (no noise, quantisation, latency)
-  double base_tilt = 0.0;    ///< base turned about its own x-axis [rad] (§7: 0 or 30°)
-  double gravity = 9.81;     ///< [m/s^2]
+  /// Force actuators (type force): first-order lag of the force behind its drive [s].
+  double thruster_time_constant = 0.02;
+  double base_tilt = 0.0;  ///< base turned about its own x-axis [rad] (§7: 0 or 30°)
+  double gravity = 9.81;   ///< [m/s^2]
   Eigen::Vector3d base_position = Eigen::Vector3d(0.0, 0.0, 0.25);  ///< base origin in the tracker frame [m]
   double internal_dt = 0.002;                                       ///< rod time step [s]
   double command_timeout = 0.05;  ///< valves close when no command arrives for this long [s]
@@ -58,24 +63,35 @@ class Plant {
 
   /// At rest, jets off, time 0. False (with error()) if the rod could not be initialised.
   bool reset();
-  /// The latest valve command (duty per jet [0, 1]) received at time t [s].
-  void command(const Eigen::Vector3d& duty, double t);
+  /// One entry per actuator (the HydroJet's three jets, or rod.body's actuators).
+  using Vector = rod::ActuatorInputs;
+
+  /// The latest command received at time t [s]: per actuator the valve duty [0, 1] (jets) or the
+  /// drive [−1, 1] (force actuators: force = drive · max(|min_force|, |max_force|)). A wrong count or
+  /// a non-finite entry closes the valves.
+  void command(const Vector& duty, double t);
   /// Integrates up to time t [s] (internal steps of internal_dt). False with error() if the rod
   /// solver failed; the plant then holds its last state.
   bool advance_to(double t);
 
   /// What the tracker reports now (tip and base sensors in the tracker frame).
   TrackerSample tracker_sample();
-  /// What the flow sensors report now [m^3/s].
-  Eigen::Vector3d flow_sample();
+  /// What the flow sensors report now [m^3/s] (0 for force actuators).
+  Vector flow_sample();
+  /// The actuators' forces as an exact force sensor reports them [N] (the controller reads it for
+  /// force actuators; a jet's force it computes from the flow).
+  Vector force_sample();
+  int actuator_count() const { return static_cast<int>(duty_.size()); }
+  /// Actuator i is a water jet (valve and flow); else a force actuator.
+  bool is_jet(int i) const { return jet_[i]; }
 
   double time() const { return t_; }
   Eigen::Matrix3d tip_rotation() const { return rod_->tip_rotation(); }  ///< truth, base frame
   Eigen::Vector3d tip_position() const { return rod_->tip_position(); }  ///< truth, base frame [m]
   std::vector<Eigen::Vector3d> backbone() const { return rod_->backbone(); }
-  Eigen::Vector3d flows() const { return hydraulics_.flows(); }  ///< truth [m^3/s]
-  Eigen::Vector3d jet_forces() const;                            ///< truth [N]
-  Eigen::Vector3d valve_command() const { return duty_; }
+  Vector flows() const;       ///< truth [m^3/s] (0 for force actuators)
+  Vector jet_forces() const;  ///< truth [N], per actuator
+  Vector valve_command() const { return duty_; }
   bool valves_closed_by_timeout() const { return timed_out_; }
   const std::string& error() const { return error_; }
   Hydraulics& hydraulics() { return hydraulics_; }
@@ -83,14 +99,22 @@ class Plant {
   const PlantModel& model() const { return model_; }
 
  private:
+  /// Advances the actuators by dt under the current command (or closed valves).
+  void step_actuators(const Vector& duty, double dt);
+
   PlantModel model_;
   std::unique_ptr<DynamicRod> rod_;
   actuation::JetMap jets_;
+  bool general_ = false;       ///< rod.body describes the robot
+  std::vector<bool> jet_;      ///< per actuator: a jet (else a force actuator)
+  std::vector<int> valve_of_;  ///< per actuator: its valve in hydraulics_ (jets), or −1
+  Vector drive_scale_;         ///< force actuators: force per unit drive [N]
+  Vector thrust_;              ///< force actuators: their force now [N]
   Hydraulics hydraulics_;
   TrackerModel tracker_;
   FlowSensorModel flow_sensors_;
   Eigen::Matrix3d R_tracker_base_;
-  Eigen::Vector3d duty_ = Eigen::Vector3d::Zero();
+  Vector duty_;
   double t_ = 0.0, t_command_ = -1e300;
   bool timed_out_ = true;
   std::string error_;

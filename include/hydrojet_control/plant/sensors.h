@@ -64,7 +64,9 @@ class TrackerModel {
 class FlowSensorModel {
  public:
   FlowSensorModel(const FlowNoise& noise, unsigned seed) : noise_(noise), rng_(seed) {}
-  Eigen::Vector3d sample(const Eigen::Vector3d& true_flow);
+  /// One reading per channel [m^3/s] (noise, quantisation, never negative).
+  Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, 8, 1> sample(
+      const Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, 8, 1>& true_flow);
 
  private:
   FlowNoise noise_;

@@ -31,8 +31,12 @@ StabilityReport stability(const Mat6& compliance_body, const ActuatedSet& actuat
 /// tip body wrenches (columns of `wrenches`), Uᵀ C^b U with U an orthonormal basis of that span. For
 /// actuators at the tip pass their unit wrenches (d, p × d); the HydroJet's three jets span {f_x, f_y},
 /// so this equals stability(C, lateral_force_actuation()) up to rounding (U rotates within the block).
+/// `arm` [m] makes the units one when the span has moments: moments count as forces at that arm
+/// (wrench (f, m/arm), twist (v, ω·arm)), so σ_c is in N/m for every direction (torsion and bending
+/// about the tip as the stiffness against a lateral force at the arm). The controller passes L;
+/// it does not matter for force-only spans (the HydroJet's).
 StabilityReport stability(const Mat6& compliance_body,
-                          const Eigen::Ref<const Eigen::Matrix<double, 6, Eigen::Dynamic>>& wrenches);
+                          const Eigen::Ref<const Eigen::Matrix<double, 6, Eigen::Dynamic>>& wrenches, double arm = 1.0);
 
 /// The unit body wrench along the softest direction of the `actuated` components at C^b: the
 /// eigenvector of the symmetric part of the stiffness S = (C^b block)^† with the smallest (most

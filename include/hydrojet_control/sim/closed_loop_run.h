@@ -21,7 +21,7 @@ struct RunSample {
   Eigen::Vector3d tip_position;  ///< true tip position [m], base frame
   double error_geodesic = 0.0;   ///< [rad]
   double error_pitch_yaw = 0.0;  ///< [rad]
-  Eigen::Vector3d jet_force;     ///< true jet forces [N]
+  plant::Plant::Vector jet_force;  ///< true actuator forces [N], one per actuator
 };
 
 struct RunResult {
