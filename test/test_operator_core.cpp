@@ -15,6 +15,7 @@
 #include "hydrojet_control/control/look_at.h"
 #include "hydrojet_control/control/path.h"
 #include "hydrojet_control/control/reachable_set.h"
+#include "hydrojet_control/rod/general_rod_solver.h"
 #include "test_helpers.h"
 
 using namespace hydrojet;
@@ -518,4 +519,61 @@ TEST(LookAtOptions, AreValidated) {
   o.min_distance = -1.0;
   EXPECT_EQ(o.validate().rfind("min_distance:", 0), 0u);
   EXPECT_EQ(error_of([&] { control::LookAtSolver(model("hydrojet_0deg"), o); }).rfind("min_distance:", 0), 0u);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Any robot (issue 14): the second robot's reachable set and look-at, checked with an independent
+// solve of its model (GeneralRodSolver at the returned inputs).
+
+namespace {
+
+rod::RodSolution general_fk(const config::Scene& sc, const control::JetVector& q) {
+  rod::GeneralRodSolver s(sc.body, sc.solver);
+  const rod::RodSolution sol = s.solve(q);
+  EXPECT_TRUE(sol.converged) << sol.message;
+  return sol;
+}
+
+}  // namespace
+
+TEST(GeneralRobot, ReachableSetAroundItsRestDirection) {
+  const config::Scene sc = test::scene("two_segment_thrusters");
+  const control::ReachableSet set = control::ReachableSet::compute(model("two_segment_thrusters"), {});
+  ASSERT_FALSE(set.empty());
+  const rod::RodSolution rest = general_fk(sc, control::JetVector::Zero(6));
+  EXPECT_NEAR(angle(set.center(), rest.tip_rotation.col(2)), 0.0, 1e-9);
+  EXPECT_GT(set.samples().size(), 1000u);
+  double lo = 10.0;
+  for (const Vec3& b : set.boundary()) lo = std::min(lo, angle(set.center(), b));
+  std::printf("two_segment_thrusters: %zu samples in %.3f s, boundary at least %.3f rad from the centre\n",
+              set.samples().size(), set.compute_time(), lo);
+  EXPECT_GT(lo, 0.1) << "the thrusters bend it some way in every direction";
+}
+
+TEST(GeneralRobot, LookAtAimsThroughThePointWithInputsInTheirBounds) {
+  const config::Scene sc = test::scene("two_segment_thrusters");
+  const rod::RodSolution rest = general_fk(sc, control::JetVector::Zero(6));
+  const Vec3 tip = rest.tip_position, d0 = rest.tip_rotation.col(2);
+  const Vec3 side = d0.cross(Vec3::UnitX()).normalized(), up = d0.cross(side);
+  control::LookAtSolver solver(model("two_segment_thrusters"));
+  for (int i = 0; i < 6; ++i) {
+    const Vec3 P = tip + 0.06 * d0 + 0.02 * std::cos(1.1 * i) * side + 0.015 * std::sin(1.1 * i) * up;
+    const control::LookAtResult r = solver.solve(P);
+    ASSERT_TRUE(r.ok) << r.message;
+    ASSERT_EQ(r.inputs.size(), 6);
+    for (int k = 0; k < 6; ++k) {
+      EXPECT_GE(r.inputs[k], sc.body.actuators[k].min_force - 1e-12);
+      EXPECT_LE(r.inputs[k], sc.body.actuators[k].max_force + 1e-12);
+    }
+    const rod::RodSolution fk = general_fk(sc, r.inputs);
+    bool in_front = false;
+    EXPECT_LE(line_distance(fk, P, &in_front), 1e-6) << "the line through the tip passes through P";
+    EXPECT_TRUE(in_front);
+    EXPECT_NEAR(angle(fk.tip_rotation.col(2), r.direction), 0.0, 1e-8);
+  }
+  // Far beyond the thrusters' reach: the closest aim, flagged.
+  const Vec3 P = tip + 1.0 * (std::cos(1.75) * d0 + std::sin(1.75) * side);
+  const control::LookAtResult far = solver.solve(P);
+  EXPECT_FALSE(far.ok);
+  EXPECT_TRUE(far.out_of_reach) << far.message;
 }

@@ -79,13 +79,14 @@ void parse_dynamics_and_sensors(Tree& t, plant::PlantModel* p) {
       {"plant.flow_sensors.sigma", &p->flow.sigma},
       {"plant.flow_sensors.quantum", &p->flow.quantum},
       {"plant.command_timeout", &p->command_timeout},
+      {"plant.thruster_time_constant", &p->thruster_time_constant},
   };
   for (const auto& n : numbers) *n.second = t.number(n.first, *n.second);
   p->rod.tip_inertia = t.vec3(D + "tip_inertia", p->rod.tip_inertia);
   p->rod.nodes = t.integer(D + "nodes", p->rod.nodes);
 }
 
-/// plant.valves: a list of three valve mappings.
+/// plant.valves: a list of three valve mappings (a robot with more jets uses them in turn).
 void parse_valves(Tree& t, plant::PlantModel* p) {
   if (!t.has("plant.valves")) return;
   t.allow("plant.valves");
@@ -99,6 +100,7 @@ void parse_plant_section(const YAML::Node& root, plant::ModelMismatch* m, plant:
   Tree t(root, '.');
   t.section("plant");
   t.keys("plant", {"mismatch", "dynamics", "valves", "tracker", "flow_sensors", "sensor_noise", "command_timeout",
+                   "thruster_time_constant",
                    "base_position"});
   parse_mismatch(t, m);
   parse_dynamics_and_sensors(t, p);
