@@ -406,3 +406,72 @@ TEST(GeneralRodStability, ColdSolvePastBucklingReachesTheBuckledBranchAsTheUnifo
   EXPECT_LT(std::hypot(s.tip_position.x(), s.tip_position.y()), 1e-9);
   EXPECT_LE(rod::stability(straight.compliance().body, rod::lateral_force_actuation()).eig_min, 0.0);
 }
+
+// Multiple shooting (beyond single shooting's reach, λL > 12): a long soft rod as two identical
+// segments under a large tip follower force from actuators is the uniform rod under that force, which
+// ShootingSolver's own multiple shooting solves (a second implementation, its node unknowns R and u
+// with n in closed form; here R, n and u). Then forced multiple shooting on the busy model equals
+// single shooting there, and a load with mid-body actuators at λL ≈ 20 converges with 8 and 16
+// segments to the same equilibrium.
+TEST(GeneralRodMultipleShooting, BeyondSingleShootingAsTheUniformRodsMultipleShooting) {
+  rod::RodModel u;
+  u.rod.length = 0.3;
+  u.rod.stiffness = Vec3(2e-4, 2.4e-4, 1.5e-4);
+  u.rod.precurvature = Vec3(0.2, 1.0, 0.0);
+  u.gravity = Vec3(0.0, 2.0, 9.6);
+  u.tip_mass = 0.002;
+  rod::GeneralRodModel g = rod::general_model(u);
+  rod::RodSegment half = g.segments[0];
+  half.length = 0.15;
+  g.segments = {half, half};
+  g.actuators = {actuator(0.3, Vec3(1, 0, 0)), actuator(0.3, Vec3(0, 1, 0), Vec3(0.003, 0, 0))};
+  const rod::ActuatorInputs q = inputs({0.4, 0.25});
+  rod::GeneralRodSolver gen(g, test::rk8(64));
+  ASSERT_GT(gen.growth_estimate(q, rod::TipWrench()), 12.0) << "the case must be beyond single shooting";
+  const rod::RodSolution b = gen.solve(q);
+  ASSERT_TRUE(b.converged) << b.message;
+  EXPECT_GE(b.segments, 4);
+  rod::ShootingSolver ref(u, test::rk8(64));
+  rod::TipWrench tw;
+  tw.force = Vec3(0.4, 0.25, 0.0);
+  tw.moment = Vec3(0.003, 0.0, 0.0).cross(Vec3(0, 1, 0)) * 0.25;
+  const rod::RodSolution a = ref.solve(tw);
+  ASSERT_TRUE(a.converged) << a.message;
+  std::printf("λL = %.1f: general %d segments, uniform %d; |dp| = %.2e m, |dR| = %.2e rad\n",
+              gen.growth_estimate(q, rod::TipWrench()), b.segments, a.segments,
+              (a.tip_position - b.tip_position).norm(), so3::log(a.tip_rotation.transpose() * b.tip_rotation).norm());
+  EXPECT_LT((a.tip_position - b.tip_position).norm(), 1e-8);
+  EXPECT_LT(so3::log(a.tip_rotation.transpose() * b.tip_rotation).norm(), 1e-7);
+  // C^b and J_q at the multiple-shooting solution: as the uniform rod's (J_q = C^b B).
+  const rod::Compliance ca = ref.compliance();
+  const rod::GeneralCompliance cb = gen.compliance();
+  ASSERT_TRUE(ca.ok && cb.ok);
+  EXPECT_LT((ca.body - cb.body).norm(), 1e-5 * ca.body.norm());
+}
+
+TEST(GeneralRodMultipleShooting, ForcedEqualsSingleShootingAndSegmentCountsAgree) {
+  const rod::GeneralRodModel m = busy_model(rod::RodKind::kKirchhoff);
+  const rod::ActuatorInputs q = inputs({0.05, 0.03, 0.04, 0.02});
+  rod::GeneralRodSolver single(m, test::rk8(8));
+  rod::ShootingOptions forced = test::rk8(8);
+  forced.shooting_segments = 6;
+  rod::GeneralRodSolver ms(m, forced);
+  const rod::RodSolution a = single.solve(q), b = ms.solve(q);
+  ASSERT_TRUE(a.converged && b.converged) << a.message << " / " << b.message;
+  EXPECT_EQ(b.segments, 6);
+  EXPECT_LT((a.tip_position - b.tip_position).norm(), 1e-10);
+  EXPECT_LT(so3::log(a.tip_rotation.transpose() * b.tip_rotation).norm(), 1e-9);
+  // The busy model softened ten times and loaded: λL ≈ 20; 8 and 16 segments, one equilibrium.
+  rod::GeneralRodModel soft = m;
+  for (auto& s : soft.segments) s.stiffness /= 10.0;
+  const rod::ActuatorInputs big = inputs({0.3, 0.2, 0.3, 0.2});
+  rod::ShootingOptions o8 = test::rk8(16), o16 = test::rk8(16);
+  o8.shooting_segments = 8;
+  o16.shooting_segments = 16;
+  rod::GeneralRodSolver s8(soft, o8), s16(soft, o16);
+  const rod::RodSolution c = s8.solve(big), d = s16.solve(big);
+  std::printf("soft busy model: λL = %.1f\n", s8.growth_estimate(big, rod::TipWrench()));
+  ASSERT_TRUE(c.converged && d.converged) << c.message << " / " << d.message;
+  EXPECT_LT((c.tip_position - d.tip_position).norm(), 1e-8);
+  EXPECT_GT((c.tip_position - a.tip_position).norm(), 1e-2) << "a large deflection";
+}

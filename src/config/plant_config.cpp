@@ -100,8 +100,7 @@ void parse_plant_section(const YAML::Node& root, plant::ModelMismatch* m, plant:
   Tree t(root, '.');
   t.section("plant");
   t.keys("plant", {"mismatch", "dynamics", "valves", "tracker", "flow_sensors", "sensor_noise", "command_timeout",
-                   "thruster_time_constant",
-                   "base_position"});
+                   "thruster_time_constant", "base_position"});
   parse_mismatch(t, m);
   parse_dynamics_and_sensors(t, p);
   parse_valves(t, p);

@@ -33,7 +33,9 @@ namespace {
 
 /// One sensitivity direction of a sweep: where it starts at the tip and what it changes directly.
 struct Direction {
-  Vec3 eta_tip = Vec3::Zero();     ///< η(L): a change of the unknown R(L) (Newton directions)
+  Vec3 eta_tip = Vec3::Zero();     ///< η at the start: a change of the start frame (Newton directions)
+  Vec3 du0 = Vec3::Zero();         ///< δu at the start (multiple shooting's node directions)
+  Vec3 dn0 = Vec3::Zero();         ///< δn at the start [N] (multiple shooting's node directions)
   Vec6 tip_wrench = Vec6::Zero();  ///< a change of the tip follower wrench (f_b, l_b)
   int actuator = -1;               ///< a unit change of this actuator's input
 };
@@ -43,6 +45,22 @@ struct Recorder {
   std::vector<double> at;  ///< descending, each in [0, L]
   std::vector<Mat3> R;
   std::vector<Vec3> p;
+  std::vector<Vec3> u, n;  ///< u (body frame) and n (base frame) there, just above any station
+};
+
+/// A sweep's start inside the rod (multiple shooting): the state just above any station at s.
+struct SweepStart {
+  double s = 0.0;
+  Mat3 R = Mat3::Identity();
+  Vec3 u = Vec3::Zero();  ///< body frame [1/m]
+  Vec3 n = Vec3::Zero();  ///< internal force, base (integration) frame [N]
+};
+
+/// What a sweep that ends inside the rod hands on besides y: n and its directions' δn there.
+template <int D>
+struct SweepEnd {
+  Vec3 n = Vec3::Zero();
+  Eigen::Matrix<double, 3, (D > 0 ? D : 1)> dn;
 };
 
 Load no_load(int n) {
@@ -113,22 +131,40 @@ struct GeneralRodSolver::Sweep {
     }
   }
 
-  /// Integrates y (set up at the tip with R(L) = R_tip) to the base. False when an integration failed.
+  /// Integrates y from the tip (R(L) = R_tip; `from` null) or from the state `from` at an interior
+  /// arc length (just above any station there) down to s_end (just above any station there; 0: the
+  /// base), through the stations in between. `to`, when given, receives n and its directions' δn at
+  /// s_end (u, R and their directions are in y). False when an integration failed.
   template <int D, class T>
-  bool run(const Mat3& R_tip, const Direction* dirs, typename Ode<D, T>::State* y, Recorder* rec = nullptr) {
+  bool run(const Mat3& R_tip, const Direction* dirs, typename Ode<D, T>::State* y, Recorder* rec = nullptr,
+           const SweepStart* from = nullptr, double s_end = 0.0, SweepEnd<D>* to = nullptr) {
     using O = Ode<D, T>;
     using Block = Eigen::Matrix<double, 3, (D > 0 ? D : 1)>;
     const GeneralRodModel& m = solver.model_;
     const auto& sts = solver.stations_;
+    const double tol = 1e-12 * m.length();
     // One input per actuator (a load built without them would read past q: refuse instead).
     if (load.q.size() != static_cast<Eigen::Index>(m.actuators.size())) return false;
     y->setZero();
-    Eigen::Map<Mat3>(y->data() + 3) = R_tip;
-    for (int d = 0; d < D; ++d) y->template segment<3>(O::kBase + O::kPerDir * d) = dirs[d].eta_tip;
+    Eigen::Map<Mat3>(y->data() + 3) = from ? from->R : R_tip;
     Vec3 n = Vec3::Zero(), M = Vec3::Zero();
     Block dn = Block::Zero(), dM = Block::Zero();
-    size_t r = 0;
-    for (size_t i = 0; i < sts.size(); ++i) {
+    for (int d = 0; d < D; ++d) {
+      y->template segment<3>(O::kBase + O::kPerDir * d) = dirs[d].eta_tip;
+      y->template segment<3>(O::kBase + O::kPerDir * d + 3) = dirs[d].du0;
+      dn.col(d) = dirs[d].dn0;
+    }
+    size_t i = 0, r = 0;
+    if (from) {  // the stations at or below the start; the piece down to the first of them
+      y->template segment<3>(12) = from->u;
+      n = from->n;
+      while (i < sts.size() && sts[i].s > from->s + tol) ++i;
+      if (i == 0) return false;  // not below the tip
+      const double s_lo = std::max(i < sts.size() ? sts[i].s : 0.0, s_end);
+      if (!piece<D, T>(m.segments[sts[i - 1].segment_below], from->s, s_lo, &n, dn, y, rec, &r)) return false;
+      if (s_lo <= s_end + tol) return finish_at(n, dn, to);
+    }
+    for (; i < sts.size(); ++i) {
       const RodSegment& below = m.segments[sts[i].segment_below];
       if (i > 0) {  // the moment arriving from above, M_b = K (u − ũ) of the segment above
         const RodSegment& above = m.segments[sts[i - 1].segment_below];
@@ -140,39 +176,59 @@ struct GeneralRodSolver::Sweep {
       const Vec3 k_inv = below.stiffness.cwiseInverse();
       y->template segment<3>(12) = below.precurvature + k_inv.cwiseProduct(M);
       for (int d = 0; d < D; ++d) y->template segment<3>(O::kBase + O::kPerDir * d + 3) = k_inv.cwiseProduct(dM.col(d));
-      // The piece from this station down to the next (or the base).
-      O ode;
-      ode.k_diag = below.stiffness;
-      ode.k_inv = k_inv;
-      ode.u_tilde = below.precurvature;
-      ode.kse_inv = m.kind == RodKind::kCosserat
-                        ? Vec3(1.0 / below.shear_stiffness, 1.0 / below.shear_stiffness, 1.0 / below.axial_stiffness)
-                        : Vec3::Zero();
-      ode.w_dist = load.gravity_scale * below.linear_density * m.gravity;
-      ode.dn = dn;
-      const double s_hi = sts[i].s, s_lo = i + 1 < sts.size() ? sts[i + 1].s : 0.0;
-      double s = s_hi;
-      // Record points inside the piece (and at its lower end) cut it further.
-      while (true) {
-        double next = s_lo;
-        const bool record = rec && r < rec->at.size() && rec->at[r] >= s_lo - 1e-15 && rec->at[r] <= s + 1e-15;
-        if (record) next = std::max(s_lo, std::min(s, rec->at[r]));
-        if (next < s) {
-          ode.length = s;  // n(σ) = n(s) + w_dist (s − σ) on [next, s]
-          ode.n_tip = n;
-          IntegratorOptions is = integrator;
-          is.steps = piece_steps(s - next);
-          const IntegrationStats st = internal::integrate_rod(is, cvode, ode, s, next, y);
-          rhs += st.rhs_evaluations;
-          if (!st.ok || !y->allFinite()) return false;
-          n += ode.w_dist * (s - next);
-          s = next;
-        }
-        if (!record) break;
-        rec->R.push_back(Eigen::Map<const Mat3>(y->data() + 3));
-        rec->p.push_back(y->template segment<3>(0));
-        ++r;
+      // The piece from this station down to the next (or the base, or s_end).
+      const double s_lo = std::max(i + 1 < sts.size() ? sts[i + 1].s : 0.0, s_end);
+      if (!piece<D, T>(below, sts[i].s, s_lo, &n, dn, y, rec, &r)) return false;
+      if (s_lo <= s_end + tol) break;
+    }
+    return finish_at(n, dn, to);
+  }
+
+  /// The piece [s_lo, s_hi] of one segment: y integrated down, n by its closed form (n(σ) = n(s) +
+  /// w_dist (s − σ)); the recorder's points inside cut it further.
+  template <int D, class T>
+  bool piece(const RodSegment& sg, double s_hi, double s_lo, Vec3* n,
+             const Eigen::Matrix<double, 3, (D > 0 ? D : 1)>& dn, typename Ode<D, T>::State* y, Recorder* rec,
+             size_t* r) {
+    Ode<D, T> ode;
+    ode.k_diag = sg.stiffness;
+    ode.k_inv = sg.stiffness.cwiseInverse();
+    ode.u_tilde = sg.precurvature;
+    ode.kse_inv = solver.model_.kind == RodKind::kCosserat
+                      ? Vec3(1.0 / sg.shear_stiffness, 1.0 / sg.shear_stiffness, 1.0 / sg.axial_stiffness)
+                      : Vec3::Zero();
+    ode.w_dist = load.gravity_scale * sg.linear_density * solver.model_.gravity;
+    ode.dn = dn;
+    double s = s_hi;
+    while (true) {
+      double next = s_lo;
+      const bool record = rec && *r < rec->at.size() && rec->at[*r] >= s_lo - 1e-15 && rec->at[*r] <= s + 1e-15;
+      if (record) next = std::max(s_lo, std::min(s, rec->at[*r]));
+      if (next < s) {
+        ode.length = s;  // n(σ) = n(s) + w_dist (s − σ) on [next, s]
+        ode.n_tip = *n;
+        IntegratorOptions is = integrator;
+        is.steps = piece_steps(s - next);
+        const IntegrationStats st = internal::integrate_rod(is, cvode, ode, s, next, y);
+        rhs += st.rhs_evaluations;
+        if (!st.ok || !y->allFinite()) return false;
+        *n += ode.w_dist * (s - next);
+        s = next;
       }
+      if (!record) return true;
+      rec->R.push_back(Eigen::Map<const Mat3>(y->data() + 3));
+      rec->p.push_back(y->template segment<3>(0));
+      rec->u.push_back(y->template segment<3>(12));
+      rec->n.push_back(*n);
+      ++*r;
+    }
+  }
+
+  template <int D>
+  static bool finish_at(const Vec3& n, const Eigen::Matrix<double, 3, (D > 0 ? D : 1)>& dn, SweepEnd<D>* to) {
+    if (to) {
+      to->n = n;
+      to->dn = dn;
     }
     return true;
   }
@@ -180,9 +236,9 @@ struct GeneralRodSolver::Sweep {
   /// run() with the model's right-hand side (Kirchhoff or Cosserat; the state is the same).
   template <int D>
   bool sweep(const Mat3& R_tip, const Direction* dirs, typename Ode<D, CosseratGeneral>::State* y,
-             Recorder* rec = nullptr) {
-    if (solver.model_.kind == RodKind::kCosserat) return run<D, CosseratGeneral>(R_tip, dirs, y, rec);
-    return run<D, KirchhoffGeneral>(R_tip, dirs, y, rec);
+             Recorder* rec = nullptr, const SweepStart* from = nullptr, double s_end = 0.0, SweepEnd<D>* to = nullptr) {
+    if (solver.model_.kind == RodKind::kCosserat) return run<D, CosseratGeneral>(R_tip, dirs, y, rec, from, s_end, to);
+    return run<D, KirchhoffGeneral>(R_tip, dirs, y, rec, from, s_end, to);
   }
 };
 
@@ -385,17 +441,33 @@ RodSolution GeneralRodSolver::solve(const ActuatorInputs& q, const TipWrench& ti
   // → from the unloaded shape (load_path.h) → accuracy check → fold report → for a cold solve, the
   // stability check (load from rest with a push when the equilibrium reached is unstable).
   const bool cold = !have_solution_;
+  // Multiple shooting first when forced (shooting_segments ≥ 2) or past single shooting's reach.
+  const int seg = settings_.shooting_segments;
+  const bool ms_first = seg >= 2 || (seg == 0 && growth_estimate(q, tip) > ShootingSolver::kSingleShootingGrowthLimit);
+  if (ms_first) {
+    RodSolution ms;
+    FoldTracker ms_folds;
+    if (multiple_shooting(target, &ms, &ms_folds, seg) || seg >= 2) return remember(ms);
+    sol.message = ms.message + "; ";
+  }
   FoldTracker folds;
   Shooting p{*this, target, &sol};
   const Shooting::Point unloaded{unloaded_tip_, no_load(actuator_count()), unloaded_pos_, unloaded_det_};
   const Shooting::Point start = have_solution_ ? Shooting::Point{R_tip_, load_, tip_pos_, det_} : unloaded;
   const bool ok = internal::reach_equilibrium(p, start, have_solution_, unloaded, &folds);
   if (!finish(&p, ok, &folds)) {
-    if (growth_estimate(q, tip) > ShootingSolver::kSingleShootingGrowthLimit)
-      sol.message +=
-          " (the load is beyond what single shooting handles, λL > 12; multiple shooting is not "
-          "available for general rods yet)";
-    return remember(sol);
+    // Multiple shooting when single shooting failed (automatic mode).
+    if (seg == 1 || ms_first) return remember(sol);
+    RodSolution ms;
+    ms.iterations = sol.iterations;
+    ms.continuation_steps = sol.continuation_steps;
+    ms.rhs_evaluations = sol.rhs_evaluations;
+    FoldTracker ms_folds;
+    if (!multiple_shooting(target, &ms, &ms_folds, 0)) {
+      sol.message += "; multiple shooting: " + ms.message;
+      return remember(sol);
+    }
+    sol = ms;
   }
   if (cold) load_from_rest_if_unstable(target, &sol);
   return remember(sol);
@@ -403,7 +475,7 @@ RodSolution GeneralRodSolver::solve(const ActuatorInputs& q, const TipWrench& ti
 
 // The end of a load path at p->x: tip pose, accuracy check (fixed-step methods), convergence; a
 // converged equilibrium is committed (the next warm start) with its fold report.
-bool GeneralRodSolver::finish(Shooting* p, bool ok, FoldTracker* folds) {
+bool GeneralRodSolver::finish(Shooting* p, bool ok, FoldTracker* folds, bool check_accuracy) {
   RodSolution& sol = *p->sol;
   if (p->e.ok) {
     sol.tip_rotation = so3::orthonormalize(p->e.R0.transpose() * p->x);
@@ -411,7 +483,7 @@ bool GeneralRodSolver::finish(Shooting* p, bool ok, FoldTracker* folds) {
     sol.jacobian_det = p->e.J.determinant();
   }
   bool accurate = true;
-  if (ok && settings_.accuracy_tolerance > 0.0 && !is_adaptive(settings_.integrator.type)) {
+  if (ok && check_accuracy && settings_.accuracy_tolerance > 0.0 && !is_adaptive(settings_.integrator.type)) {
     sol.error_estimate = error_estimate(p->x, p->target, p->e);
     accurate = accurate_enough(&sol);
   }
@@ -535,6 +607,208 @@ GeneralCompliance GeneralRodSolver::compliance() {
   out.actuation = columns.rightCols(N);
   out.ok = columns.allFinite();
   return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Multiple shooting: where single shooting cannot go (λL > 12)
+//
+// Nodes s_k = k L / M (k = 0..M). Unknowns: the tip frame R_M (ξ, 3) and at every interior node the
+// state just above any station there: R_k (η_k), n_k (δn_k, integration frame) and u_k (δu_k).
+// Sweep k runs from node k+1 (from the tip for k = M−1) down to s_k; the residuals are
+//   c_k = [log(R_kᵀ R⁻(s_k)); (n⁻(s_k) − n_k) / F; h (u⁻(s_k) − u_k)],  k = 1..M−1,
+//   r_0 = log R⁻(0)   (h = L / M, F = max EI / L², all in rad),
+// with the Jacobian from each sweep's sensitivities (3 directions at the tip, 9 at a node) and the node
+// columns in closed form (−J_l⁻¹, −I/F, −h I). Damped Newton on the dense system along a load path from
+// the unloaded shape (the fraction's step doubled on success, halved on failure). The converged tip
+// frame then goes through the single-shooting machinery (one sweep: pose, C^b, J_q, shape, warm start);
+// at these λL that sweep loses at most ~e^{λL}·1e-16 of accuracy.
+
+struct GeneralRodSolver::MsNodes {
+  std::vector<double> s;   ///< s_0 = 0 .. s_M = L
+  std::vector<Mat3> R;     ///< frames at the nodes (R[M]: the tip), integration frame
+  std::vector<Vec3> n, u;  ///< internal force and curvature at the nodes (interior ones used)
+  int segments() const { return static_cast<int>(s.size()) - 1; }
+};
+
+// The nodes of a single sweep from R_tip under `load` (exact for the unloaded shape).
+bool GeneralRodSolver::ms_nodes(const Mat3& R_tip, const Load& load, int M, MsNodes* x) {
+  const double L = model_.length();
+  x->s.resize(M + 1);
+  for (int k = 0; k <= M; ++k) x->s[k] = L * k / M;
+  Recorder rec;
+  for (int k = M - 1; k >= 1; --k) rec.at.push_back(x->s[k]);
+  Sweep sw{*this, load, settings_.integrator, cvode()};
+  RodOde<0, CosseratGeneral>::State y;
+  if (!sw.sweep<0>(R_tip, nullptr, &y, &rec) || static_cast<int>(rec.R.size()) != M - 1) return false;
+  x->R.assign(M + 1, Mat3::Identity());
+  x->n.assign(M + 1, Vec3::Zero());
+  x->u.assign(M + 1, Vec3::Zero());
+  x->R[M] = R_tip;
+  for (int j = 0; j < M - 1; ++j) {
+    const int k = M - 1 - j;
+    x->R[k] = rec.R[j];
+    x->n[k] = rec.n[j];
+    x->u[k] = rec.u[j];
+  }
+  return true;
+}
+
+// F and J of the node values x (the unknowns' perturbations at zero); Σ Δp and R⁻(0) for the pose.
+bool GeneralRodSolver::ms_evaluate(const MsNodes& x, const Load& load, Eigen::VectorXd* F, Eigen::MatrixXd* J,
+                                   Vec3* sum_dp, Mat3* R0, int* rhs) {
+  using O9 = RodOde<9, CosseratGeneral>;
+  const int M = x.segments(), N = 3 + 9 * (M - 1);
+  const double L = model_.length(), h = L / M;
+  double ei = 0.0;
+  for (const RodSegment& sg : model_.segments) ei = std::max(ei, sg.stiffness.maxCoeff());
+  const double Fs = ei / (L * L);
+  F->setZero(N);
+  J->setZero(N, N);
+  sum_dp->setZero();
+  auto col = [M](int k) { return 3 + 9 * (M - 1 - k); };  // node k's unknowns (k = 1..M−1)
+  for (int k = M - 1; k >= 0; --k) {
+    const int D = k == M - 1 ? 3 : 9;
+    Direction dirs[9];
+    for (int i = 0; i < 3; ++i) {
+      dirs[i].eta_tip = Vec3::Unit(i);
+      dirs[3 + i].dn0 = Vec3::Unit(i);
+      dirs[6 + i].du0 = Vec3::Unit(i);
+    }
+    Sweep sw{*this, load, settings_.integrator, cvode()};
+    O9::State y;
+    SweepEnd<9> end;
+    bool ok;
+    if (D == 3) {
+      RodOde<3, CosseratGeneral>::State y3;
+      SweepEnd<3> end3;
+      ok = sw.sweep<3>(x.R[M], dirs, &y3, nullptr, nullptr, x.s[k], &end3);
+      y.setZero();
+      y.head<RodOde<3, CosseratGeneral>::kSize>() = y3;
+      end.n = end3.n;
+      end.dn.leftCols<3>() = end3.dn;
+    } else {
+      const SweepStart from{x.s[k + 1], x.R[k + 1], x.u[k + 1], x.n[k + 1]};
+      ok = sw.sweep<9>(Mat3::Identity(), dirs, &y, nullptr, &from, x.s[k], &end);
+    }
+    *rhs += sw.rhs;
+    if (!ok || !y.allFinite()) return false;
+    *sum_dp += y.segment<3>(0);
+    const Mat3 Rm = Eigen::Map<const Mat3>(y.data() + 3);
+    const int c0 = k == M - 1 ? 0 : col(k + 1);
+    if (k == 0) {
+      const int row = 9 * (M - 1);
+      const Vec3 r = so3::log(so3::orthonormalize(Rm));
+      F->segment<3>(row) = r;
+      const Mat3 Jri = so3::right_jacobian_inverse(r);
+      for (int d = 0; d < D; ++d) J->block<3, 1>(row, c0 + d) = Jri * y.segment<3>(O9::kBase + O9::kPerDir * d);
+      *R0 = Rm;
+      continue;
+    }
+    const int row = 9 * (M - 1 - k);
+    const Vec3 r = so3::log(so3::orthonormalize(x.R[k].transpose() * Rm));
+    F->segment<3>(row) = r;
+    F->segment<3>(row + 3) = (end.n - x.n[k]) / Fs;
+    F->segment<3>(row + 6) = h * (y.segment<3>(12) - x.u[k]);
+    const Mat3 Jri = so3::right_jacobian_inverse(r);
+    for (int d = 0; d < D; ++d) {
+      J->block<3, 1>(row, c0 + d) = Jri * y.segment<3>(O9::kBase + O9::kPerDir * d);
+      J->block<3, 1>(row + 3, c0 + d) = end.dn.col(d) / Fs;
+      J->block<3, 1>(row + 6, c0 + d) = h * y.segment<3>(O9::kBase + O9::kPerDir * d + 3);
+    }
+    J->block<3, 3>(row, col(k)) = -so3::right_jacobian_inverse(-r);
+    J->block<3, 3>(row + 3, col(k) + 3) = -Mat3::Identity() / Fs;
+    J->block<3, 3>(row + 6, col(k) + 6) = -h * Mat3::Identity();
+  }
+  return F->allFinite() && J->allFinite();
+}
+
+// Damped Newton on the node values at `load`; *residual: ‖F‖ at the end.
+bool GeneralRodSolver::ms_newton(MsNodes* x, const Load& load, double* residual, RodSolution* sol) {
+  Eigen::VectorXd F, Ft;
+  Eigen::MatrixXd J, Jt;
+  Vec3 dp, dpt;
+  Mat3 R0, R0t;
+  if (!ms_evaluate(*x, load, &F, &J, &dp, &R0, &sol->rhs_evaluations)) return false;
+  for (int it = 0; it < settings_.max_iterations; ++it) {
+    *residual = F.norm();
+    if (*residual <= settings_.residual_tolerance) return true;
+    Eigen::VectorXd dX = -J.partialPivLu().solve(F);
+    if (!dX.allFinite()) return false;
+    const double big = dX.cwiseAbs().maxCoeff();
+    if (big > settings_.max_step) dX *= settings_.max_step / big;
+    ++sol->iterations;
+    bool accepted = false;
+    for (double a = 1.0; a > 1e-4 && !accepted; a *= 0.5) {
+      const MsNodes xt = ms_moved(*x, a * dX);
+      if (!ms_evaluate(xt, load, &Ft, &Jt, &dpt, &R0t, &sol->rhs_evaluations) ||
+          Ft.norm() >= (1.0 - 1e-4 * a) * F.norm())
+        continue;
+      *x = xt;
+      F.swap(Ft);
+      J.swap(Jt);
+      accepted = true;
+    }
+    if (!accepted) return false;
+  }
+  *residual = F.norm();
+  return *residual <= settings_.residual_tolerance;
+}
+
+// The node values moved by the unknowns' step dX.
+GeneralRodSolver::MsNodes GeneralRodSolver::ms_moved(const MsNodes& x, const Eigen::VectorXd& dX) {
+  MsNodes y = x;
+  const int M = x.segments();
+  y.R[M] = x.R[M] * so3::exp(dX.head<3>());
+  for (int k = 1; k < M; ++k) {
+    const int c = 3 + 9 * (M - 1 - k);
+    y.R[k] = x.R[k] * so3::exp(dX.segment<3>(c));
+    y.n[k] = x.n[k] + dX.segment<3>(c + 3);
+    y.u[k] = x.u[k] + dX.segment<3>(c + 6);
+  }
+  return y;
+}
+
+// Multiple shooting to `target` with M segments (0: automatic, pieces of growth ≈ e² each, 4..64):
+// Newton from the warm solution's nodes, else along the load path from the unloaded shape. On
+// success the tip frame goes through finish() as a single-shooting solution would.
+bool GeneralRodSolver::multiple_shooting(const Load& target, RodSolution* sol, FoldTracker* folds, int M) {
+  if (M < 2) M = std::clamp(static_cast<int>(std::ceil(growth_estimate(target.q, target.wrench) / 2.0)), 4, 64);
+  sol->segments = M;
+  double residual = 0.0;
+  MsNodes x;
+  bool done = have_solution_ && ms_nodes(R_tip_, load_, M, &x) && ms_newton(&x, target, &residual, sol);
+  const Load rest = no_load(actuator_count());
+  if (!done && !ms_nodes(unloaded_tip_, rest, M, &x)) {
+    sol->message = "multiple shooting: the unloaded shape failed to integrate";
+    return false;
+  }
+  double t = done ? 1.0 : 0.0, dt = 0.25;
+  int steps = 0;
+  while (t < 1.0 && steps < settings_.max_continuation_steps) {
+    const double t_next = std::min(1.0, t + dt);
+    MsNodes trial = x;
+    ++steps;
+    if (ms_newton(&trial, load_between(rest, target, t_next), &residual, sol)) {
+      x = trial;
+      t = t_next;
+      dt = std::min(0.5, 2.0 * dt);
+    } else if ((dt *= 0.5) < 1e-4) {
+      break;
+    }
+  }
+  sol->continuation_steps += steps;
+  if (t < 1.0) {
+    sol->message = "multiple shooting (" + std::to_string(M) + " segments) stopped at load fraction " +
+                   std::to_string(t) + " (|F| = " + std::to_string(residual) + ")";
+    return false;
+  }
+  // The tip frame through the single-shooting machinery (pose, C^b, J_q, shape, warm start); the
+  // residual is multiple shooting's, and no Richardson check (as ShootingSolver's multiple shooting).
+  Shooting p{*this, target, sol};
+  p.x = x.R[M];
+  p.e = evaluate(p.x, target, &sol->rhs_evaluations);
+  sol->residual = residual;
+  return finish(&p, p.e.ok, folds, false);
 }
 
 // ---------------------------------------------------------------------------------------------

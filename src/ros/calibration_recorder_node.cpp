@@ -152,6 +152,10 @@ class Recorder {
 
   void jets(const hydrojet_control::JetState::ConstPtr& m) {
     if (!recording_) return;
+    if (m->flow.size() != 3) {  // the HydroJet's three jets (the calibration is eq. 24's)
+      ROS_WARN_THROTTLE(1.0, "calibration recorder: jets/state with %zu flows for 3 jets: ignored", m->flow.size());
+      return;
+    }
     bag_.write(names::kJetState, bag_time(m->header.stamp), *m);
     flow_ = Eigen::Vector3d(m->flow[0], m->flow[1], m->flow[2]);
     have_jets_ = true;
@@ -203,7 +207,9 @@ class Recorder {
                const Eigen::Vector3d& flow) {
     hydrojet_control::JetCommand c;
     c.header.stamp = now;
-    for (int i = 0; i < 3; ++i) c.valve_command[i] = duty[i], c.jet_force[i] = force[i], c.flow[i] = flow[i];
+    c.valve_command.assign(duty.data(), duty.data() + 3);
+    c.jet_force.assign(force.data(), force.data() + 3);
+    c.flow.assign(flow.data(), flow.data() + 3);
     cmd_pub_.publish(c);
     if (recording_) bag_.write(names::kJetCommand, bag_time(now), c);
   }

@@ -21,8 +21,10 @@
 // accuracy check (fixed-step integrators: Richardson estimate against accuracy_tolerance·L) →
 // fold/branch report → for a cold solve, ShootingSolver's stability check (an equilibrium with
 // indicator ≤ 0 on settings.cold_stability_check is loaded again from rest with a push, else warned).
-// Multiple shooting is not offered for general rods yet (a solve the single shooting cannot do says
-// so in `message`); the KINSOL backend option is ignored (Eigen Newton).
+// Multiple shooting (settings.shooting_segments as ShootingSolver's: 0 automatic, first when λL > 12
+// and as the fallback when single shooting fails; 1 never; M ≥ 2 always, M segments): the node
+// unknowns are the frame, internal force and curvature (general_rod_solver.cpp, "Multiple shooting").
+// The KINSOL backend option is ignored (Eigen Newton).
 #pragma once
 
 #include <Eigen/Core>
@@ -116,7 +118,15 @@ class GeneralRodSolver {
   Eval evaluate(const Mat3& R_tip, const Load& load, int* rhs);
   double error_estimate(const Mat3& R_tip, const Load& load, const Eval& e);
   bool accurate_enough(RodSolution* sol) const;
-  bool finish(Shooting* p, bool ok, internal::FoldTracker* folds);
+  bool finish(Shooting* p, bool ok, internal::FoldTracker* folds, bool check_accuracy = true);
+  // Multiple shooting (general_rod_solver.cpp, "Multiple shooting").
+  struct MsNodes;
+  bool ms_nodes(const Mat3& R_tip, const Load& load, int M, MsNodes* x);
+  bool ms_evaluate(const MsNodes& x, const Load& load, Eigen::VectorXd* F, Eigen::MatrixXd* J, Vec3* sum_dp, Mat3* R0,
+                   int* rhs);
+  bool ms_newton(MsNodes* x, const Load& load, double* residual, RodSolution* sol);
+  static MsNodes ms_moved(const MsNodes& x, const Eigen::VectorXd& dX);
+  bool multiple_shooting(const Load& target, RodSolution* sol, internal::FoldTracker* folds, int segments);
   double stability_indicator();
   void load_from_rest_if_unstable(const Load& target, RodSolution* sol);
   double load_bound(const ActuatorInputs& q, const TipWrench& tip) const;
