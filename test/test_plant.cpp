@@ -174,14 +174,23 @@ TEST(PlantConfig, DefaultsMatchYaml) {
   EXPECT_EQ(a.valves[1].dead_zone, b.valves[1].dead_zone);
 }
 
+namespace {
+
+/// The plant of scene `sc` exactly as the scene says: no mismatch, no sensor noise.
+plant::PlantModel exact_plant(const config::Scene& sc) {
+  return config::make_plant(
+      sc,
+      "plant: {sensor_noise: false, dynamics: {kelvin_voigt_time: 0.03}, mismatch: {precurvature_offset: [0, 0, 0], "
+      "bending_stiffness_scale: 1, misalignment_offset: [0, 0, 0], tip_mass_scale: 1, base_tilt_offset: 0}}");
+}
+
+}  // namespace
+
 // With constant valve duties the plant settles to the quasi-static model at its true parameters.
 TEST(Plant, SettlesToTheQuasiStaticModel) {
   const config::Scene sc = test::scene("hydrojet_30deg");
   // No mismatch: the plant is the nominal scene.
-  plant::PlantModel p = config::make_plant(
-      sc,
-      "plant: {sensor_noise: false, dynamics: {kelvin_voigt_time: 0.03}, mismatch: {precurvature_offset: [0, 0, 0], "
-      "bending_stiffness_scale: 1, misalignment_offset: [0, 0, 0], tip_mass_scale: 1, base_tilt_offset: 0}}");
+  const plant::PlantModel p = exact_plant(sc);
   plant::Plant pl(p, 1);
   const Eigen::Vector3d duty(0.4, 0.2, 0.3);
   for (int k = 1; k <= 600; ++k) {
@@ -198,13 +207,31 @@ TEST(Plant, SettlesToTheQuasiStaticModel) {
   EXPECT_LT(so3::log(pl.tip_rotation().transpose() * s.tip_rotation).norm(), 2e-5);
 }
 
-TEST(ClosedLoopRun, DeterministicForASeed) {
-  const config::Scene sc = test::scene("hydrojet_0deg");
+namespace {
+
+/// The controller model, the plant and the controller options of a shipped scene with the shipped
+/// config/controller.yaml and config/plant.yaml (what scripts/experiment runs).
+struct ShippedSetup {
+  control::RobotModel model;
+  plant::PlantModel plant;
+  control::ControllerOptions controller;
+};
+
+ShippedSetup shipped(const std::string& scene) {
+  const config::Scene sc = test::scene(scene);
   const config::ControllerNodeOptions o =
       config::load_controller_options(std::string(HYDROJET_SOURCE_DIR) + "/config/controller.yaml");
-  const control::RobotModel m = config::make_controller_model(sc, o.flow_regulator);
-  const plant::PlantModel p = config::load_plant(sc, std::string(HYDROJET_SOURCE_DIR) + "/config/plant.yaml");
-  control::ControllerOptions c = o.controller;
+  return {config::make_controller_model(sc, o.flow_regulator),
+          config::load_plant(sc, std::string(HYDROJET_SOURCE_DIR) + "/config/plant.yaml"), o.controller};
+}
+
+}  // namespace
+
+TEST(ClosedLoopRun, DeterministicForASeed) {
+  const ShippedSetup setup = shipped("hydrojet_0deg");
+  const control::RobotModel& m = setup.model;
+  const plant::PlantModel& p = setup.plant;
+  control::ControllerOptions c = setup.controller;
   c.path.duration = 5.0;
   const sim::RunResult a = sim::run_path(m, c, p, 7), b = sim::run_path(m, c, p, 7), d = sim::run_path(m, c, p, 8);
   ASSERT_TRUE(a.completed) << a.reason;
@@ -218,10 +245,7 @@ TEST(ClosedLoopRun, DeterministicForASeed) {
 // lag), mid-body thrusters, point mass and segments included.
 TEST(PlantGeneral, SettlesToTheGeneralStaticModel) {
   const config::Scene sc = test::scene("two_segment_thrusters");
-  plant::PlantModel p = config::make_plant(
-      sc,
-      "plant: {sensor_noise: false, dynamics: {kelvin_voigt_time: 0.03}, mismatch: {precurvature_offset: [0, 0, 0], "
-      "bending_stiffness_scale: 1, misalignment_offset: [0, 0, 0], tip_mass_scale: 1, base_tilt_offset: 0}}");
+  const plant::PlantModel p = exact_plant(sc);
   plant::Plant pl(p, 1);
   ASSERT_EQ(pl.actuator_count(), 6);
   plant::Plant::Vector duty(6);
@@ -249,12 +273,10 @@ TEST(PlantGeneral, SettlesToTheGeneralStaticModel) {
 // The controller steers the second robot on its plant (model mismatch, sensor noise): closed loop
 // follows a spiral with less than half the open-loop error (the experiment's comparison).
 TEST(ClosedLoopRun, TheSecondRobotClosedLoopBeatsOpenLoop) {
-  const config::Scene sc = test::scene("two_segment_thrusters");
-  const config::ControllerNodeOptions o =
-      config::load_controller_options(std::string(HYDROJET_SOURCE_DIR) + "/config/controller.yaml");
-  const control::RobotModel m = config::make_controller_model(sc, o.flow_regulator);
-  const plant::PlantModel p = config::load_plant(sc, std::string(HYDROJET_SOURCE_DIR) + "/config/plant.yaml");
-  control::ControllerOptions c = o.controller;
+  const ShippedSetup setup = shipped("two_segment_thrusters");
+  const control::RobotModel& m = setup.model;
+  const plant::PlantModel& p = setup.plant;
+  control::ControllerOptions c = setup.controller;
   c.path.duration = 60.0;
   c.path.theta_end = 0.5;
   c.path.phi_end = 4.0;
