@@ -5,6 +5,7 @@
 #include <geometry_msgs/PoseStamped.h>
 #include <gtest/gtest.h>
 #include <rosbag/bag.h>
+#include <topic_tools/shape_shifter.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -18,6 +19,7 @@
 
 #include "hydrojet_control/JetState.h"
 #include "hydrojet_control/actuation/thrust.h"
+#include "hydrojet_control/calibration/bag_reader.h"
 #include "hydrojet_control/calibration/calibrator.h"
 #include "hydrojet_control/config/scene.h"
 #include "hydrojet_control/rod/so3.h"
@@ -301,3 +303,56 @@ TEST(CalibrateCli, FitsARosbagOfTheDriversTopics) {
 }
 
 }  // namespace
+
+// Bags recorded before the per-actuator arrays (JetState with float64[3] flow, force, valve_command
+// and bool[3] flow_valid: another md5, so instantiate() refuses it) are still read, from their bytes;
+// a current JetState of three jets as well, and one with another jet count is skipped.
+TEST(BagReader, ReadsJetStatesRecordedWithTheThreeJetArrays) {
+  namespace ser = ros::serialization;
+  const std::string path = tmp("old_layout.bag");
+  {
+    rosbag::Bag bag(path, rosbag::bagmode::Write);
+    for (int k = 1; k <= 3; ++k) {
+      const ros::Time stamp(100.0 + k);
+      std::vector<uint8_t> buf(4 + 8 + 4 + 9 * 8 + 3);
+      ser::OStream o(buf.data(), static_cast<uint32_t>(buf.size()));
+      std_msgs::Header h;
+      h.stamp = stamp;
+      ser::serialize(o, h);
+      for (int i = 0; i < 9; ++i) ser::serialize(o, (i < 3 ? 1e-6 * k * (i + 1) : 0.5));
+      for (int i = 0; i < 3; ++i) ser::serialize(o, static_cast<uint8_t>(k != 2 || i != 1));
+      topic_tools::ShapeShifter ss;
+      ss.morph("0123456789abcdef0123456789abcdef", "hydrojet_control/JetState",
+               "Header header\nfloat64[3] flow\nfloat64[3] force\nfloat64[3] valve_command\nbool[3] flow_valid\n", "");
+      ser::IStream in(buf.data(), static_cast<uint32_t>(buf.size()));
+      ss.read(in);
+      bag.write("jets/state", stamp, ss);
+    }
+    hydrojet_control::JetState now, four;
+    now.header.stamp = ros::Time(110.0);
+    now.flow = {2e-6, 3e-6, 4e-6};
+    now.force = now.valve_command = {0.0, 0.0, 0.0};
+    now.flow_valid = {true, true, true};
+    // Another topic (matched by suffix): rosbag keeps one connection, so one md5, per topic.
+    bag.write("/rig/jets/state", now.header.stamp, now);
+    four = now;
+    four.header.stamp = ros::Time(111.0);
+    four.flow.push_back(1e-6);
+    four.flow_valid.push_back(true);
+    bag.write("/rig/jets/state", four.header.stamp, four);
+    geometry_msgs::PoseStamped p;
+    p.header.stamp = ros::Time(100.0);
+    p.pose.orientation.w = 1.0;
+    bag.write("tracker/tip_pose", p.header.stamp, p);
+    bag.write("tracker/base_pose", p.header.stamp, p);
+  }
+  const calibration::BagRecords r = calibration::read_bag(path, calibration::BagTopics());
+  ASSERT_EQ(r.jets.size(), 4u);
+  for (int k = 1; k <= 3; ++k) {
+    EXPECT_DOUBLE_EQ(r.jets[k - 1].t, 100.0 + k);
+    EXPECT_EQ(r.jets[k - 1].flow, Eigen::Vector3d(1e-6 * k, 2e-6 * k, 3e-6 * k));
+    EXPECT_EQ(r.jets[k - 1].valid, k != 2);
+  }
+  EXPECT_EQ(r.jets[3].flow, Eigen::Vector3d(2e-6, 3e-6, 4e-6));
+  EXPECT_TRUE(r.jets[3].valid);
+}

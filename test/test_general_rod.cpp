@@ -472,6 +472,7 @@ TEST(GeneralRodMultipleShooting, ForcedEqualsSingleShootingAndSegmentCountsAgree
   const rod::RodSolution c = s8.solve(big), d = s16.solve(big);
   std::printf("soft busy model: λL = %.1f\n", s8.growth_estimate(big, rod::TipWrench()));
   ASSERT_TRUE(c.converged && d.converged) << c.message << " / " << d.message;
-  EXPECT_LT((c.tip_position - d.tip_position).norm(), 1e-8);
+  // Steps in proportion to each piece's length, at least one: 8 and 16 pieces integrate differently.
+  EXPECT_LT((c.tip_position - d.tip_position).norm(), 1e-7);
   EXPECT_GT((c.tip_position - a.tip_position).norm(), 1e-2) << "a large deflection";
 }

@@ -281,6 +281,8 @@ TEST(SceneGeneral, ErrorsNameTheKey) {
       {replace(g, "frame: base}", "frame: world}"), "loads[1].frame"},
       {replace(g, "direction: [0.0, 1.0, 0.0]", "direction: [0.0, 1.01, 0.0]"), "actuators[0].direction"},
       {replace(g, "max_force: 0.2, min_force: -0.2", "max_force: 0.2, min_force: 0.3"), "actuators[1].max_force"},
+      {replace(g, "max_force: 0.2, min_force: -0.2", "max_force: 0.2, min_force: -0.2, type: jet"),
+       "actuators[1].min_force"},  // a jet only pushes
       {replace(g, "{name: thruster1,", "{name: thruster1, type: jet,"), "actuators[0].type"},
       {replace(g, "{name: thruster1,", "{name: thruster1, type: hydraulic,"), "actuators[0].type"},
       {replace(g, "{name: thruster1,", "{nme: thruster1,"), "actuators[0].nme"},

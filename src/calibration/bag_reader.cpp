@@ -22,6 +22,40 @@ bool matches(const std::string& topic, const std::string& name) {
 
 double stamp_or(const ros::Time& stamp, const ros::Time& recv) { return stamp.isZero() ? recv.toSec() : stamp.toSec(); }
 
+/// The HydroJet's jets from a JetState: the current one (one entry per actuator; three jets), or one
+/// recorded before that (float64[3] flow, force, valve_command, bool[3] flow_valid after the header,
+/// whose md5 differs, so instantiate() refuses it): read from its bytes. False when neither.
+bool read_jets(const rosbag::MessageInstance& m, JetRecord* r) {
+  if (const auto j = m.instantiate<hydrojet_control::JetState>()) {
+    if (j->flow.size() != 3 || j->flow_valid.size() != 3) return false;
+    r->t = stamp_or(j->header.stamp, m.getTime());
+    r->flow = Eigen::Vector3d(j->flow[0], j->flow[1], j->flow[2]);
+    r->valid = j->flow_valid[0] && j->flow_valid[1] && j->flow_valid[2];
+    return true;
+  }
+  if (m.getDataType() != "hydrojet_control/JetState") return false;
+  namespace ser = ros::serialization;
+  std::vector<uint8_t> bytes(m.size());
+  try {
+    ser::OStream out(bytes.data(), static_cast<uint32_t>(bytes.size()));
+    m.write(out);
+    ser::IStream in(bytes.data(), static_cast<uint32_t>(bytes.size()));
+    std_msgs::Header header;
+    ser::deserialize(in, header);
+    double values[9];
+    for (double& v : values) ser::deserialize(in, v);
+    uint8_t valid[3];
+    for (uint8_t& v : valid) ser::deserialize(in, v);
+    if (in.getLength() != 0) return false;  // not that layout either
+    r->t = stamp_or(header.stamp, m.getTime());
+    r->flow = Eigen::Vector3d(values[0], values[1], values[2]);
+    r->valid = valid[0] && valid[1] && valid[2];
+    return true;
+  } catch (const ros::Exception&) {
+    return false;
+  }
+}
+
 }  // namespace
 
 bool is_rosbag(const std::string& path) {
@@ -57,12 +91,8 @@ BagRecords read_bag(const std::string& path, const BagTopics& topics) {
         (is_tip ? out.tip : out.base).push_back(r);
         (is_tip ? have_tip : have_base) = true;
       } else if (matches(topic, topics.jets)) {
-        const auto j = m.instantiate<hydrojet_control::JetState>();
-        if (!j || j->flow.size() != 3 || j->flow_valid.size() != 3) continue;  // the HydroJet's three jets
         JetRecord r;
-        r.t = stamp_or(j->header.stamp, m.getTime());
-        r.flow = Eigen::Vector3d(j->flow[0], j->flow[1], j->flow[2]);
-        r.valid = j->flow_valid[0] && j->flow_valid[1] && j->flow_valid[2];
+        if (!read_jets(m, &r)) continue;
         out.jets.push_back(r);
         have_jets = true;
       }

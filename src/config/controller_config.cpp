@@ -37,7 +37,11 @@ void read_controller_options(Tree& p, control::ControllerOptions& c) {
   } numbers[] = {
       {"gains/kp", "kp", &c.kp},
       {"gains/kd", "kd", &c.kd},
+      {"gains/ki", "ki", &c.ki},
+      {"gains/max_integral", "max_integral", &c.max_integral},
       {"gains/feedforward", "feedforward", &c.feedforward},
+      {"gains/lead_time", "lead_time", &c.lead_time},
+      {"observer/time_constant", "observer_time_constant", &c.observer_time_constant},
       {"gains/damping", "damping", &c.damping},
       {"limits/max_force", "max_force", &c.max_force},
       {"limits/max_force_rate", "max_force_rate", &c.max_force_rate},
@@ -60,6 +64,8 @@ void read_controller_options(Tree& p, control::ControllerOptions& c) {
   c.stale_periods = p.integer("safety/stale_periods", c.stale_periods);
   c.max_solver_failures = p.integer("safety/max_solver_failures", c.max_solver_failures);
   c.integrate_from_measured = p.boolean("integrate_from_measured", c.integrate_from_measured);
+  c.observer = p.boolean("observer/enabled", c.observer);
+  c.observer_prediction = p.boolean("observer/prediction", c.observer_prediction);
   const std::string type = p.text("path/type", control::to_string(c.path_type));
   if (type == "spiral")
     c.path_type = control::PathType::kSpiral;

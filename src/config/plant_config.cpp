@@ -100,12 +100,14 @@ void parse_plant_section(const YAML::Node& root, plant::ModelMismatch* m, plant:
   Tree t(root, '.');
   t.section("plant");
   t.keys("plant", {"mismatch", "dynamics", "valves", "tracker", "flow_sensors", "sensor_noise", "command_timeout",
-                   "thruster_time_constant", "base_position"});
+                   "thruster_time_constant", "external_tip_force", "external_tip_moment", "base_position"});
   parse_mismatch(t, m);
   parse_dynamics_and_sensors(t, p);
   parse_valves(t, p);
   p->sensor_noise = t.boolean("plant.sensor_noise", p->sensor_noise);
   p->base_position = t.vec3("plant.base_position", p->base_position);
+  p->external_tip_force = t.vec3("plant.external_tip_force", p->external_tip_force);
+  p->external_tip_moment = t.vec3("plant.external_tip_moment", p->external_tip_moment);
 }
 
 /// The plant as the nominal scene describes it: its rod, jets and nozzles, and the base tilt read

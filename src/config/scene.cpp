@@ -237,6 +237,8 @@ rod::Actuator parse_actuator(Tree& item, size_t i, double L) {
   const std::string type = item.text("type", "force");
   if (type != "force" && type != "jet") item.fail("type", "must be force or jet, got '" + type + "'");
   a.type = type == "force" ? rod::ActuatorType::kForce : rod::ActuatorType::kJet;
+  if (a.type == rod::ActuatorType::kJet && a.min_force < 0.0)
+    item.fail("min_force", "a jet only pushes (eq. 26): must be >= 0, got " + Tree::format(a.min_force));
   return a;
 }
 

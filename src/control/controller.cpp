@@ -51,6 +51,7 @@ void Controller::start(double t) {
   t_last_ = t;
   first_cycle_ = true;
   previous_command_ = jets_.zeros();
+  observer_.reset();
   monitor_.reset();
   pd_.reset();
   jets_.reset();
@@ -130,13 +131,21 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   if (std::string why = monitor_.check_solver(sol); !why.empty()) return abort(out, why);
   if (!sol.converged) return hold(out, in.flows, dt);
   out.model_tip_rotation = sol.tip_rotation;
-  const ActuatedModel::Linearisation lin = model_.linearise();  // C^b (eq. 14) and J_q of line 6
+  ActuatedModel::Linearisation lin = model_.linearise();  // C^b (eq. 14) and J_q of line 6
   if (std::string why = check_stability(lin, out); !why.empty()) return abort(out, why);
+  observe_model_error(in, sol, lin, dt);
 
-  track_reference(in, sol, dt, out);
+  // With the observer's prediction the loop closes on the corrected model at the commanded inputs.
+  rod::RodSolution control = sol;
+  if (predicting()) {
+    const rod::RodSolution predicted = solve_model(previous_command_);
+    const ActuatedModel::Linearisation at = predicted.converged ? model_.linearise() : lin;
+    if (predicted.converged && at.ok) control = predicted, lin = at;
+  }
+  track_reference(in, control, dt, out);
   if (std::string why = monitor_.check_oscillation(out.error_geodesic); !why.empty()) return abort(out, why);
 
-  if (std::string why = command_inputs(sol, lin, dt, out); !why.empty()) return abort(out, why);
+  if (std::string why = command_inputs(control, lin, dt, out); !why.empty()) return abort(out, why);
   if (std::string why = actuate(in.flows, dt, out); !why.empty()) return abort(out, why);
   return finish_cycle(out);
 }
@@ -169,7 +178,27 @@ std::string Controller::observe_jets(const ControllerInputs& in, ControllerOutpu
 
 // Line 6: forward kinematics at the inputs q (eqs. 6, 9, 12, 14); C^b and J_q follow from
 // model_.linearise().
-rod::RodSolution Controller::solve_model(const JetVector& q) { return model_.solve(q); }
+rod::RodSolution Controller::solve_model(const JetVector& q) {
+  return params_.observer ? model_.solve(q, observer_.wrench()) : model_.solve(q);
+}
+
+// Closed loop with the observer, after the first cycle (the base of the prediction is then a command).
+bool Controller::predicting() const {
+  return params_.observer && params_.observer_prediction && params_.mode == LoopMode::kClosed && !first_cycle_;
+}
+
+// Issue 16: the observer compares the model at the measured inputs (with its estimate) with the
+// tracker, in closed loop.
+void Controller::observe_model_error(const ControllerInputs& in, const rod::RodSolution& sol,
+                                     const ActuatedModel::Linearisation& lin, double dt) {
+  if (!params_.observer || params_.mode != LoopMode::kClosed) return;
+  DisturbanceObserverOptions o;
+  o.time_constant = params_.observer_time_constant;
+  o.max_force = params_.max_force;
+  o.damping = params_.damping;
+  observer_.set_options(o);
+  observer_.update(sol.tip_rotation.col(2), in.tip_rotation.col(2), sol.tip_rotation, lin.body_compliance, dt);
+}
 
 // The solver did not converge (fewer times in a row than max_solver_failures): no new force this
 // cycle; the flow regulators keep the jets at the flows of the observed jet forces.
@@ -200,7 +229,7 @@ void Controller::track_reference(const ControllerInputs& in, const rod::RodSolut
   const bool closed = params_.mode == LoopMode::kClosed;
   const Mat3 tip_frame = closed ? in.tip_rotation : sol.tip_rotation;  // the camera's axes for rate sources
   out.measured_direction = in.tip_rotation.col(2).normalized();
-  out.observed_direction = closed ? out.measured_direction : Vec3(sol.tip_rotation.col(2));
+  out.observed_direction = closed && !predicting() ? out.measured_direction : Vec3(sol.tip_rotation.col(2));
   if (first_cycle_) reference_.start(out.observed_direction, t_start_);
   out.desired_direction = reference_.advance(in.t, dt, tip_frame);
   out.source = reference_.source();
@@ -216,7 +245,8 @@ void Controller::track_reference(const ControllerInputs& in, const rod::RodSolut
 // integrator (docs/controller.md).
 std::string Controller::command_inputs(const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin, double dt,
                                        ControllerOutput& out) {
-  const Vec3 x_cntr = pd_.correction(out.observed_direction, out.desired_direction, dt, params_);
+  const Vec3 ahead = reference_.preview(t_last_, params_.lead_time);
+  const Vec3 x_cntr = pd_.correction(out.observed_direction, out.desired_direction, ahead, dt, params_);
   if (first_cycle_) previous_command_ = out.jet_force_observed;
   InputStepOptions o;
   o.damping = params_.damping;

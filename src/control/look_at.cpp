@@ -169,6 +169,7 @@ struct LookAtSolver::Impl {
 
   LookAtResult solve(const Vec3& P) {
     State s;
+    s.q = JetVector::Zero(model.input_count());
     if (!P.allFinite()) return result(s, P, 0, "the point is not finite");
     if (!start(&s)) return result(s, P, 0, "the model solve failed with the jets off");
     if ((P - s.tip).norm() < options.min_distance)

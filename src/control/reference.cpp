@@ -28,6 +28,7 @@ void Reference::follow(std::shared_ptr<const Path> path, double t, bool starts_a
   path_ = std::move(path);
   path_start_ = t;
   jump_to_path_ = starts_at_path;
+  on_path_ = false;
 }
 
 void Reference::aim(const Vec3& target, Source source) {
@@ -59,7 +60,8 @@ void Reference::start(const Vec3& direction, double t) {
 const Vec3& Reference::advance(double t, double dt, const Mat3& tip_frame) {
   if (source_ == Source::kPath) {
     set_target(path_->direction_at(t - path_start_), path_set_.get());
-    if (jump_to_path_) reference_ = target_;
+    // On the path (jumped there at start, or reached it): follow it as written, whatever its speed.
+    if (jump_to_path_ || on_path_) reference_ = target_;
     jump_to_path_ = false;
   } else if (source_ == Source::kJoy || source_ == Source::kKeyboard) {
     if (t > rate_until_) {
@@ -71,7 +73,14 @@ const Vec3& Reference::advance(double t, double dt, const Mat3& tip_frame) {
     }
   }
   move_toward_target(dt);
+  if (source_ == Source::kPath && reference_ == target_) on_path_ = true;
   return reference_;
+}
+
+Vec3 Reference::preview(double t, double lead) const {
+  if (source_ != Source::kPath || !on_path_ || !(lead > 0.0)) return reference_;
+  const Vec3 ahead = path_->direction_at(t - path_start_ + lead);
+  return path_set_ ? path_set_->clip(ahead) : ahead.normalized();
 }
 
 // The commanded direction (unit) clipped to `set` (none: not clipped).

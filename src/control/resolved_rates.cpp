@@ -10,17 +10,22 @@
 namespace hydrojet {
 namespace control {
 
-Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, double dt, const ControllerOptions& gains) {
+Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, const Vec3& ahead, double dt,
+                             const ControllerOptions& gains) {
   const Vec3 err = rotation_between(observed, desired);  // x_err of eq. (17)
   if (!primed_) {
     prev_error_ = err;
-    prev_desired_ = desired;
+    prev_ahead_ = desired;
+    integral_.setZero();
     primed_ = true;
   }
-  const Vec3 x_cntr = gains.kp * dt * err + gains.kd * (err - prev_error_) +
-                      gains.feedforward * rotation_between(prev_desired_, desired);
+  // The integral of the error (issue 16: a ramp, a fast path, leaves no steady error), bounded.
+  integral_ += dt * err;
+  if (gains.ki > 0.0 && integral_.norm() > gains.max_integral) integral_ *= gains.max_integral / integral_.norm();
+  const Vec3 x_cntr = gains.kp * dt * err + gains.ki * dt * integral_ + gains.kd * (err - prev_error_) +
+                      gains.feedforward * rotation_between(prev_ahead_, ahead);
   prev_error_ = err;
-  prev_desired_ = desired;
+  prev_ahead_ = ahead;
   return x_cntr;
 }
 
@@ -56,13 +61,14 @@ InputStep input_step(const Mat3& tip_rotation, const ActuatedModel::Linearisatio
                      const JetVector& base_in, const JetVector& lower, const JetVector& upper,
                      const InputStepOptions& o) {
   InputStep out;
-  const JetVector base = base_in.cwiseMax(lower).cwiseMin(upper);
-  out.q = base;
-  const int n = static_cast<int>(base.size());
+  const int n = static_cast<int>(base_in.size());
+  out.q = base_in;
   if (!lin.ok || lin.actuation.cols() != n || lin.wrenches.cols() != n || lower.size() != n || upper.size() != n) {
     out.message = "control: actuation Jacobian missing or of the wrong size";
     return out;
   }
+  const JetVector base = base_in.cwiseMax(lower).cwiseMin(upper);
+  out.q = base;
   const Vec3 d = tip_rotation.col(2);  // the model's tip direction
   const Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxJets> M =
       -so3::hat(d) * tip_rotation * lin.actuation.bottomRows<3>();

@@ -1,5 +1,7 @@
 #include "hydrojet_control/control/robot_model.h"
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -86,7 +88,7 @@ void ActuatedModel::build() {
   const double L = body_.length();
   for (int i = 0; i < n; ++i) {
     const rod::Actuator& a = body_.actuators[i];
-    lower_[i] = a.min_force;
+    lower_[i] = a.min_force;  // ≥ 0 for a jet (GeneralRodModel::validate)
     upper_[i] = a.max_force;
     if (a.at >= L) tip_wrenches_.col(i) = a.unit_wrench();
   }
@@ -99,15 +101,21 @@ void ActuatedModel::build() {
   }
 }
 
-rod::RodSolution ActuatedModel::solve(const JetVector& q) {
+rod::RodSolution ActuatedModel::solve(const JetVector& q, const rod::TipWrench& extra) {
+  if (q.size() != input_count()) {
+    rod::RodSolution bad;
+    bad.residual = std::nan("");
+    bad.message = "expected " + std::to_string(input_count()) + " actuator input(s), got " + std::to_string(q.size());
+    return bad;
+  }
   if (fast_) {
     const rod::Vec6 w = tip_wrench(q);
     rod::TipWrench tip;
-    tip.force = w.head<3>();
-    tip.moment = w.tail<3>();
+    tip.force = w.head<3>() + extra.force;
+    tip.moment = w.tail<3>() + extra.moment;
     return fast_->solve(tip);
   }
-  return general_->solve(q);
+  return general_->solve(q, extra);
 }
 
 ActuatedModel::Linearisation ActuatedModel::linearise() {

@@ -36,6 +36,8 @@ std::string PlantModel::validate() const {
   if (!(command_timeout > 0.0)) return "command_timeout: must be positive";
   if (!(std::isfinite(thruster_time_constant) && thruster_time_constant >= 0.0))
     return "thruster_time_constant: must be finite and >= 0";
+  if (!external_tip_force.allFinite()) return "external_tip_force: must be finite";
+  if (!external_tip_moment.allFinite()) return "external_tip_moment: must be finite";
   if (!rod.body.segments.empty() && rod.body.actuators.empty()) return "dynamics.body.actuators: the robot has none";
   return "";
 }
@@ -134,12 +136,14 @@ bool Plant::advance_to(double t) {
     timed_out_ = t_ - t_command_ > model_.command_timeout;
     step_actuators(timed_out_ ? Vector(Vector::Zero(actuator_count())) : duty_, dt);
     rod::TipWrench tw;
+    tw.force = model_.external_tip_force;
+    tw.moment = model_.external_tip_moment;
     if (general_) {
       rod_->set_inputs(jet_forces());  // every actuator acts at its own node
     } else {
       const actuation::Vec6 w = jets_.wrench(Eigen::Vector3d(jet_forces()));
-      tw.force = w.head<3>();
-      tw.moment = w.tail<3>();
+      tw.force += w.head<3>();
+      tw.moment += w.tail<3>();
     }
     if (!rod_->step(tw, dt)) {
       error_ = "rod: " + rod_->last_error();

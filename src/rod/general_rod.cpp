@@ -47,6 +47,8 @@ std::string GeneralRodModel::validate() const {
       return item("actuators", i, "direction") + "must be a unit vector (within 1e-6)";
     if (!std::isfinite(a.min_force) || !std::isfinite(a.max_force) || !(a.min_force <= a.max_force))
       return item("actuators", i, "max_force") + "bounds must be finite and ordered (min_force <= max_force)";
+    if (a.type == ActuatorType::kJet && a.min_force < 0.0)
+      return item("actuators", i, "min_force") + "a jet only pushes (eq. 26): must be >= 0";
   }
   if (!(tip_mass >= 0.0) || !std::isfinite(tip_mass)) return "tip_mass: must be >= 0";
   if (!finite(gravity)) return "gravity: must be finite";

@@ -722,19 +722,33 @@ bool GeneralRodSolver::ms_evaluate(const MsNodes& x, const Load& load, Eigen::Ve
   return F->allFinite() && J->allFinite();
 }
 
-// Damped Newton on the node values at `load`; *residual: ‖F‖ at the end.
-bool GeneralRodSolver::ms_newton(MsNodes* x, const Load& load, double* residual, RodSolution* sol) {
+// Damped Newton on the node values at `load`; *residual: ‖F‖ at the end, *pose: the tip frame and
+// position it gives (R⁻(0)ᵀ R_M, −R⁻(0)ᵀ Σ Δp), when non-null.
+bool GeneralRodSolver::ms_newton(MsNodes* x, const Load& load, double* residual, RodSolution* sol,
+                                 std::pair<Mat3, Vec3>* pose) {
   Eigen::VectorXd F, Ft;
   Eigen::MatrixXd J, Jt;
   Vec3 dp, dpt;
   Mat3 R0, R0t;
   if (!ms_evaluate(*x, load, &F, &J, &dp, &R0, &sol->rhs_evaluations)) return false;
-  for (int it = 0; it < settings_.max_iterations; ++it) {
+  // The step's size in rad: η, δn / F, h δu (as the residuals are scaled).
+  const int M = x->segments();
+  double ei = 0.0;
+  for (const RodSegment& sg : model_.segments) ei = std::max(ei, sg.stiffness.maxCoeff());
+  Eigen::VectorXd scale = Eigen::VectorXd::Ones(F.size());
+  for (int k = 1; k < M; ++k) {
+    const int c = 3 + 9 * (M - 1 - k);
+    scale.segment<3>(c + 3).setConstant(model_.length() * model_.length() / ei);
+    scale.segment<3>(c + 6).setConstant(model_.length() / M);
+  }
+  for (int it = 0;; ++it) {
     *residual = F.norm();
+    if (pose) *pose = {so3::orthonormalize(R0.transpose() * x->R[M]), Vec3(-R0.transpose() * dp)};
     if (*residual <= settings_.residual_tolerance) return true;
+    if (it == settings_.max_iterations) return false;
     Eigen::VectorXd dX = -J.partialPivLu().solve(F);
     if (!dX.allFinite()) return false;
-    const double big = dX.cwiseAbs().maxCoeff();
+    const double big = dX.cwiseProduct(scale).cwiseAbs().maxCoeff();
     if (big > settings_.max_step) dX *= settings_.max_step / big;
     ++sol->iterations;
     bool accepted = false;
@@ -746,12 +760,12 @@ bool GeneralRodSolver::ms_newton(MsNodes* x, const Load& load, double* residual,
       *x = xt;
       F.swap(Ft);
       J.swap(Jt);
+      dp = dpt;
+      R0 = R0t;
       accepted = true;
     }
     if (!accepted) return false;
   }
-  *residual = F.norm();
-  return *residual <= settings_.residual_tolerance;
 }
 
 // The node values moved by the unknowns' step dX.
@@ -775,8 +789,9 @@ bool GeneralRodSolver::multiple_shooting(const Load& target, RodSolution* sol, F
   if (M < 2) M = std::clamp(static_cast<int>(std::ceil(growth_estimate(target.q, target.wrench) / 2.0)), 4, 64);
   sol->segments = M;
   double residual = 0.0;
+  std::pair<Mat3, Vec3> pose;
   MsNodes x;
-  bool done = have_solution_ && ms_nodes(R_tip_, load_, M, &x) && ms_newton(&x, target, &residual, sol);
+  bool done = have_solution_ && ms_nodes(R_tip_, load_, M, &x) && ms_newton(&x, target, &residual, sol, &pose);
   const Load rest = no_load(actuator_count());
   if (!done && !ms_nodes(unloaded_tip_, rest, M, &x)) {
     sol->message = "multiple shooting: the unloaded shape failed to integrate";
@@ -788,7 +803,7 @@ bool GeneralRodSolver::multiple_shooting(const Load& target, RodSolution* sol, F
     const double t_next = std::min(1.0, t + dt);
     MsNodes trial = x;
     ++steps;
-    if (ms_newton(&trial, load_between(rest, target, t_next), &residual, sol)) {
+    if (ms_newton(&trial, load_between(rest, target, t_next), &residual, sol, &pose)) {
       x = trial;
       t = t_next;
       dt = std::min(0.5, 2.0 * dt);
@@ -808,7 +823,17 @@ bool GeneralRodSolver::multiple_shooting(const Load& target, RodSolution* sol, F
   p.x = x.R[M];
   p.e = evaluate(p.x, target, &sol->rhs_evaluations);
   sol->residual = residual;
-  return finish(&p, p.e.ok, folds, false);
+  if (!finish(&p, p.e.ok, folds, false)) return false;
+  // The pose is multiple shooting's own; the single sweep that C^b, J_q and the shape use loses
+  // ~e^{λL}·1e-16: say so when it no longer reproduces the base.
+  sol->tip_rotation = pose.first;
+  sol->tip_position = pose.second;
+  if (p.e.r.norm() > 1e-6)
+    sol->warning += std::string(sol->warning.empty() ? "" : "; ") +
+                    "multiple shooting at λL = " + std::to_string(growth_estimate(target.q, target.wrench)) +
+                    ": C^b, J_q and the shape come from one sweep from the tip, which reaches the base only to " +
+                    std::to_string(p.e.r.norm()) + " rad";
+  return true;
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -162,7 +162,7 @@ std::vector<Job> make_jobs(const Setup& setup, int seeds) {
   std::vector<Job> jobs;
   for (int k = 0; k < setup.count; ++k)
     for (control::LoopMode m : {control::LoopMode::kOpen, control::LoopMode::kClosed})
-      for (int s = 0; s < seeds; ++s) jobs.push_back({m, setup.tilt_deg[k], static_cast<unsigned>(s + 1), {}, k});
+      for (int s = 0; s < seeds; ++s) jobs.push_back({m, setup.tilt_deg[k], static_cast<unsigned>(s + 1), k, {}});
   return jobs;
 }
 

@@ -18,6 +18,7 @@
 
 #include "hydrojet_control/control/controller_io.h"
 #include "hydrojet_control/control/controller_options.h"
+#include "hydrojet_control/control/disturbance_observer.h"
 #include "hydrojet_control/control/jet_actuation.h"
 #include "hydrojet_control/control/reachable_set.h"
 #include "hydrojet_control/control/reference.h"
@@ -78,6 +79,9 @@ class Controller {
   /// Backbone of the model at the last converged solve: segments+1 points [m], base frame.
   std::vector<Vec3> model_shape(int segments) const { return model_.shape(segments); }
 
+  /// The disturbance observer's estimate of the model error (issue 16; zero when it is off).
+  const DisturbanceObserver& observer() const { return observer_; }
+
   /// The model's forward kinematics at inputs q [N] (for open-loop prediction and tests).
   rod::RodSolution model_fk(const JetVector& q);
 
@@ -86,6 +90,9 @@ class Controller {
   ControllerOutput resting_output() const;
   std::string observe_jets(const ControllerInputs& in, ControllerOutput& out) const;
   rod::RodSolution solve_model(const JetVector& q);
+  bool predicting() const;
+  void observe_model_error(const ControllerInputs& in, const rod::RodSolution& sol,
+                           const ActuatedModel::Linearisation& lin, double dt);
   ControllerOutput hold(ControllerOutput out, const JetVector& flows, double dt);
   std::string check_stability(const ActuatedModel::Linearisation& lin, ControllerOutput& out) const;
   void start_configured_path(double t);
@@ -102,6 +109,7 @@ class Controller {
   JetActuation jets_;
   SafetyMonitor monitor_;
   DirectionPd pd_;
+  DisturbanceObserver observer_;
   JetVector previous_command_;                          ///< the last commanded inputs [N] (the base of the next step)
   std::shared_ptr<const ReachableSet> path_reachable_;  ///< full q_max: path points
   std::shared_ptr<const ReachableSet> reachable_;       ///< with reserve: operator targets

@@ -21,9 +21,26 @@ const char* to_string(PathType t);
 /// Gains, limits and safety thresholds. validate() names the first bad field.
 struct ControllerOptions {
   LoopMode mode = LoopMode::kClosed;
-  double kp = 3.0;                 ///< K_p of eq. (17) [1/s]: fraction of the direction error corrected per second
-  double kd = 0.0;                 ///< K_d of eq. (17) [-]: weight of the error change per step
-  double feedforward = 1.0;        ///< weight of the path's own motion per step [-] (0 = pure PD)
+  double kp = 3.0;  ///< K_p of eq. (17) [1/s]: fraction of the direction error corrected per second
+  double kd = 0.0;  ///< K_d of eq. (17) [-]: weight of the error change per step
+  /// K_i [1/s²]: the integral of the direction error (issue 16): the law of eq. (17) integrates the
+  /// tip force, so it is type 1 and a path at speed v leaves an error ≈ (1 − gain ratio)·v/K_p when
+  /// the model's gain differs from the plant's; K_i makes it type 2 (no steady error on a ramp).
+  double ki = 0.0;
+  double max_integral = 0.1;  ///< |∫x_err dt| is kept below this [rad s] (anti-windup)
+  double feedforward = 1.0;   ///< weight of the path's own motion per step [-] (0 = pure PD)
+  /// The feedforward follows the path this far ahead [s]: the loop's lag (flow loop, the rod's
+  /// first mode) that a fast path would otherwise leave as error (issue 16). 0: no lead.
+  double lead_time = 0.0;
+  /// Issue 16: the disturbance observer (disturbance_observer.h) in closed loop: the model is
+  /// loaded with its estimate of the model error as a tip force (so J_q and C^b are taken nearer the
+  /// plant's equilibrium). observer_time_constant: τ [s] of the estimate.
+  bool observer = false;
+  double observer_time_constant = 0.25;
+  /// With the observer: the loop closes on the corrected model's direction at the commanded inputs
+  /// (where the plant will settle) instead of the tracker's, which lags it (flow loop, rod dynamics,
+  /// tracker latency); the tracker enters through the observer.
+  bool observer_prediction = false;
   double damping = 0.02;           ///< μ of the damped pseudo-inverse of eq. (19) [rad/N]
   double max_force = 0.30;         ///< magnitude limit of the commanded tip force [N]
   double max_force_rate = 1.0;     ///< rate limit of the commanded tip force [N/s]

@@ -1,7 +1,9 @@
 // The reference x_des the controller tracks (issue 13): who commands it (one source at a time, the
 // latest command wins) and how it moves. A new target is not a step: the reference moves toward it
-// along the great circle at most max_angular_rate [rad/s]; its own motion per step is the PD's
-// feedforward (DirectionPd takes the change of x_des, eq. 17). Every commanded direction goes
+// along the great circle at most max_angular_rate [rad/s]; a path, once the reference is on it,
+// is followed as written at its own speed (issue 16: the paper's printed rates). Its own motion per
+// step is the PD's feedforward (DirectionPd takes the change of x_des, eq. 17; preview() gives the
+// path ahead for a lead). Every commanded direction goes
 // through ReachableSet::clip first, so the reference never leaves the reachable set. Two sets:
 // operator targets (direction, look_at, rates) are clipped to the set swept with a force reserve,
 // so that the closed loop keeps authority where a person may park the tip; a path (designed, as the
@@ -68,6 +70,9 @@ class Reference {
   double clip_angle() const { return clip_angle_; }
   /// The path being followed (null when another source drives).
   const Path* path() const { return source_ == Source::kPath ? path_.get() : nullptr; }
+  /// The direction the reference will have `lead` [s] after t [s] on a path it is on (clipped as the
+  /// path's points); the reference itself for any other source, or before it has joined the path.
+  Vec3 preview(double t, double lead) const;
   /// Time along the path at t [s] (0 when no path drives).
   double path_time(double t) const { return path() ? t - path_start_ : 0.0; }
   /// A path drives and has reached its end.
@@ -87,6 +92,7 @@ class Reference {
   std::shared_ptr<const Path> path_;
   double path_start_ = 0.0;                         ///< [s]
   bool jump_to_path_ = false;                       ///< the next advance() puts the reference on the path
+  bool on_path_ = false;                            ///< the reference has joined the path: it follows it as written
   Eigen::Vector2d rate_ = Eigen::Vector2d::Zero();  ///< (up, right) [rad/s], tip frame
   double rate_until_ = 0.0;                         ///< [s]
 };

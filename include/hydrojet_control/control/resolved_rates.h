@@ -18,19 +18,24 @@ namespace control {
 /// error and desired direction for the derivative and feedforward terms.
 class DirectionPd {
  public:
-  /// Starts afresh: the next step has no derivative and no feedforward term.
+  /// Starts afresh: the next step has no derivative term; its feedforward is the lead alone.
   void reset() { primed_ = false; }
 
   /// x_err is the rotation vector taking the observed tip direction onto the desired one (both
   /// unit, base frame); returns
-  ///   x_cntr = K_p dt x_err + K_d (x_err − x_err,prev) + k_ff ∠(x_des,prev → x_des)   [rad],
-  /// the rotation (base frame) the tip direction should make this step. dt [s].
-  Vec3 correction(const Vec3& observed, const Vec3& desired, double dt, const ControllerOptions& gains);
+  ///   x_cntr = K_p dt x_err + K_i dt ∫x_err dt + K_d (x_err − x_err,prev) + k_ff ∠(x_ff,prev → x_ff)   [rad],
+  /// the rotation (base frame) the tip direction should make this step. dt [s]. x_ff is the
+  /// reference `lead_time` ahead (Reference::preview; x_des itself without a lead): the feedforward
+  /// moves the inputs by the path's motion that far ahead, so that the loop's lag (valves, rod) is
+  /// covered; its first step after reset() adds ∠(x_des → x_ff), the lead itself.
+  Vec3 correction(const Vec3& observed, const Vec3& desired, const Vec3& ahead, double dt,
+                  const ControllerOptions& gains);
 
  private:
   bool primed_ = false;
   Vec3 prev_error_ = Vec3::Zero();
-  Vec3 prev_desired_ = Vec3::UnitZ();
+  Vec3 prev_ahead_ = Vec3::UnitZ();
+  Vec3 integral_ = Vec3::Zero();  ///< ∫ x_err dt [rad s]
 };
 
 /// Limits and weights of one step of the law on the actuation Jacobian (ControllerOptions' names).

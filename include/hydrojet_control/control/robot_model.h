@@ -81,8 +81,9 @@ class ActuatedModel {
   /// The uniform rod with tip actuators only: ShootingSolver's fast path.
   bool fast_path() const { return static_cast<bool>(fast_); }
 
-  /// The equilibrium at inputs q [N] (input_count() entries).
-  rod::RodSolution solve(const JetVector& q);
+  /// The equilibrium at inputs q [N] (input_count() entries), the tip loaded besides with `extra`
+  /// (a follower wrench, tip frame: the disturbance observer's estimate).
+  rod::RodSolution solve(const JetVector& q, const rod::TipWrench& extra = rod::TipWrench());
   /// C^b and J_q at the last converged solve (ok = false when there is none).
   Linearisation linearise();
   /// σ_c and eig_min of eq. (23) on the actuated directions: the HydroJet description's ActuatedSet

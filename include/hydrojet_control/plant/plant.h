@@ -45,6 +45,10 @@ struct PlantModel {
   bool sensor_noise = true;  ///< false: exact sensors (no noise, quantisation, latency)
   /// Force actuators (type force): first-order lag of the force behind its drive [s].
   double thruster_time_constant = 0.02;
+  /// An external follower wrench at the tip, tip frame [N] and [N m] (a disturbance: tissue contact,
+  /// a tether; issue 16's observer test). Zero by default.
+  Eigen::Vector3d external_tip_force = Eigen::Vector3d::Zero();
+  Eigen::Vector3d external_tip_moment = Eigen::Vector3d::Zero();
   double base_tilt = 0.0;  ///< base turned about its own x-axis [rad] (§7: 0 or 30°)
   double gravity = 9.81;   ///< [m/s^2]
   Eigen::Vector3d base_position = Eigen::Vector3d(0.0, 0.0, 0.25);  ///< base origin in the tracker frame [m]

@@ -29,6 +29,7 @@
 
 #include <Eigen/Core>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "hydrojet_control/rod/general_rod.h"
@@ -124,7 +125,7 @@ class GeneralRodSolver {
   bool ms_nodes(const Mat3& R_tip, const Load& load, int M, MsNodes* x);
   bool ms_evaluate(const MsNodes& x, const Load& load, Eigen::VectorXd* F, Eigen::MatrixXd* J, Vec3* sum_dp, Mat3* R0,
                    int* rhs);
-  bool ms_newton(MsNodes* x, const Load& load, double* residual, RodSolution* sol);
+  bool ms_newton(MsNodes* x, const Load& load, double* residual, RodSolution* sol, std::pair<Mat3, Vec3>* pose);
   static MsNodes ms_moved(const MsNodes& x, const Eigen::VectorXd& dX);
   bool multiple_shooting(const Load& target, RodSolution* sol, internal::FoldTracker* folds, int segments);
   double stability_indicator();
