@@ -16,10 +16,13 @@
 //                            the tip that moves by 0.2 mm per call (one control cycle)
 //   BM_ReachableClip         ReachableSet::clip of a random direction outside the set
 //   BM_ReachableSetCompute   ReachableSet::compute (the controller's start), 30° scene
+//   BM_ControlCycle          one Controller::update of the 20 s spiral, closed loop (counter p99_us)
 // The path benchmarks report the counter tip_error_m: the largest tip-position error along the
 // path against a reference (RK8, 256 steps, residual 1e-13).
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <random>
 #include <string>
@@ -27,7 +30,10 @@
 
 #include "../bench/numerics_cases.h"
 #include "hydrojet_control/actuation/jet_map.h"
+#include "hydrojet_control/actuation/thrust.h"
+#include "hydrojet_control/config/controller_config.h"
 #include "hydrojet_control/config/scene.h"
+#include "hydrojet_control/control/controller.h"
 #include "hydrojet_control/control/look_at.h"
 #include "hydrojet_control/control/reachable_set.h"
 #include "hydrojet_control/rod/general_rod_solver.h"
@@ -238,6 +244,45 @@ void BM_ReachableSetCompute(benchmark::State& state) {
 
 }  // namespace
 
+/// One control cycle (Controller::update, Algorithm 1 with the default config/controller.yaml) of
+/// the §7 spiral run at 20 s in closed loop against a quasi-static plant (the 30° scene's own rod,
+/// valves that set the flow at once); only update() is timed. Counter p99_us: its 99th percentile.
+void BM_ControlCycle(benchmark::State& state) {
+  namespace hc = hydrojet::control;
+  const std::string dir = std::string(HYDROJET_SOURCE_DIR) + "/config/";
+  const hydrojet::config::ControllerNodeOptions o = hydrojet::config::load_controller_options(dir + "controller.yaml");
+  hc::ControllerOptions c = o.controller;
+  c.path.duration = 20.0;
+  const hydrojet::config::Scene sc = scene();
+  hc::Controller ctl(hydrojet::config::make_controller_model(sc, o.flow_regulator), c);
+  hydrojet::rod::ShootingSolver plant(sc.model, sc.solver);
+  const hydrojet::actuation::JetMap jets(sc.jets);
+  hc::ControllerInputs in;
+  in.tip_valid = in.flow_valid = true;
+  in.flows = hc::JetVector::Zero(3);
+  std::vector<double> cycle_us;
+  double t = 0.0;
+  ctl.start(0.0);
+  for (auto _ : state) {
+    in.t = in.tip_stamp = in.flow_stamp = t;
+    const auto t0 = std::chrono::steady_clock::now();
+    const hc::ControllerOutput out = ctl.update(in);
+    const double us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
+    state.SetIterationTime(us * 1e-6);
+    cycle_us.push_back(us);
+    if (out.state != hc::ControllerState::kRunning) ctl.start(t);  // the path ended: again
+    hydrojet::rod::TipWrench w;
+    for (int i = 0; i < 3; ++i) in.flows[i] = std::clamp(out.valve_command[i], 0.0, 1.0) * 1.6e-5;
+    hc::JetVector q(3);
+    for (int i = 0; i < 3; ++i) q[i] = hydrojet::actuation::force_from_flow(in.flows[i], sc.nozzle);
+    w.force = jets.wrench(Eigen::Vector3d(q)).head<3>();
+    in.tip_rotation = plant.solve(w).tip_rotation;
+    t += 0.01;
+  }
+  std::sort(cycle_us.begin(), cycle_us.end());
+  state.counters["p99_us"] = cycle_us.empty() ? 0.0 : cycle_us[static_cast<size_t>(0.99 * (cycle_us.size() - 1))];
+}
+
 BENCHMARK(BM_ColdSolve)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_WarmSolve)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_WarmSolveCompliance)->Unit(benchmark::kMicrosecond);
@@ -249,4 +294,5 @@ BENCHMARK(BM_StabilityMap3000)->Arg(0)->Arg(30)->Unit(benchmark::kMillisecond)->
 BENCHMARK(BM_LookAt)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ReachableClip)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ReachableSetCompute)->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_ControlCycle)->UseManualTime()->Unit(benchmark::kMicrosecond)->MinTime(0.5);
 BENCHMARK_MAIN();
