@@ -334,3 +334,22 @@ TEST(DisturbanceObserver, ConvergesToAForceInjectedAtTheTip) {
               at_2s);
   EXPECT_LT(at_2s, 0.10);
 }
+
+// The plant variations of issue 16 (config/plants/*.yaml) load on both HydroJet scenes and differ
+// from the default plant where their comments say.
+TEST(PlantConfig, TheVariationsLoad) {
+  const std::string dir = std::string(HYDROJET_SOURCE_DIR) + "/config/plants/";
+  const config::Scene sc = test::scene("hydrojet_0deg");
+  const plant::PlantModel def = config::load_plant(sc, std::string(HYDROJET_SOURCE_DIR) + "/config/plant.yaml");
+  int n = 0;
+  for (const char* name : {"heavy_slow", "other_draw", "mid_latency"}) {
+    SCOPED_TRACE(name);
+    for (const char* scene : {"hydrojet_0deg", "hydrojet_30deg"})
+      EXPECT_NO_THROW(config::load_plant(test::scene(scene), dir + name + ".yaml"));
+    const plant::PlantModel v = config::load_plant(sc, dir + name + ".yaml");
+    EXPECT_NE(v.rod.kelvin_voigt_time, def.rod.kelvin_voigt_time);
+    EXPECT_NE(v.rod.model.tip_mass, def.rod.model.tip_mass);
+    ++n;
+  }
+  EXPECT_EQ(n, 3);
+}
