@@ -4,7 +4,9 @@
 // ranges of cfg/Controller.cfg).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <memory>
 
 #include <yaml-cpp/yaml.h>
 
@@ -789,5 +791,90 @@ TEST(ControllerOptions, RangesOfControllerCfgAreEnforced) {
         EXPECT_NE(std::string(e.what()).find("must lie in"), std::string::npos) << e.what();
       }
     }
+  }
+}
+
+// --- Fast paths (issue 16) ------------------------------------------------------------------------
+
+namespace {
+
+/// A great circle from +z toward +x at `rate` [rad/s] for `duration` [s].
+class ArcPath : public control::Path {
+ public:
+  ArcPath(double rate, double duration) : rate_(rate), duration_(duration) {}
+  Vec3 direction_at(double t) const override {
+    const double a = rate_ * std::clamp(t, 0.0, duration_);
+    return Vec3(std::sin(a), 0.0, std::cos(a));
+  }
+  double duration() const override { return duration_; }
+  const char* type() const override { return "arc"; }
+
+ private:
+  double rate_, duration_;
+};
+
+}  // namespace
+
+// A path is followed as written once the reference is on it, even faster than max_angular_rate
+// (which still limits the way onto it); preview() looks ahead along it and is the reference itself
+// otherwise.
+TEST(Reference, APathIsFollowedAtItsOwnSpeedOnceJoined) {
+  control::Reference ref(0.25, nullptr, nullptr);
+  const auto path = std::make_shared<ArcPath>(0.6, 2.0);  // 0.6 rad/s > 0.25
+  ref.follow(path, 0.0, /*starts_at_path=*/true);
+  ref.start(Vec3::UnitZ(), 0.0);
+  for (int k = 1; k <= 100; ++k) {
+    const double t = 0.01 * k;
+    const Vec3 d = ref.advance(t, 0.01, control::Mat3::Identity());
+    EXPECT_NEAR(control::geodesic_error(d, path->direction_at(t)), 0.0, 1e-12) << t;
+  }
+  EXPECT_NEAR(control::geodesic_error(ref.preview(1.0, 0.1), path->direction_at(1.1)), 0.0, 1e-12);
+  EXPECT_EQ(ref.preview(1.0, 0.0), ref.direction());
+  // Joining from elsewhere: at most max_angular_rate until on the path, then the path's speed.
+  control::Reference join(0.25, nullptr, nullptr);
+  join.start(Vec3(std::sin(0.3), 0.0, std::cos(0.3)), 0.0);
+  join.follow(std::make_shared<ArcPath>(0.6, 10.0), 0.0);
+  Vec3 prev = join.direction();
+  bool joined = false;
+  for (int k = 1; k <= 300 && !joined; ++k) {
+    const Vec3 d = join.advance(0.01 * k, 0.01, control::Mat3::Identity());
+    joined = control::geodesic_error(d, ArcPath(0.6, 10.0).direction_at(0.01 * k)) < 1e-12;
+    // Rate-limited on the way; the step that joins adds at most the path's own step (0.006 rad).
+    EXPECT_LE(control::geodesic_error(prev, d), 0.25 * 0.01 + (joined ? 0.006 : 0.0) + 1e-12) << k;
+    prev = d;
+  }
+  EXPECT_TRUE(joined);
+  EXPECT_EQ(join.preview(0.0, 0.0), join.direction());
+}
+
+// The lead enters the feedforward once, when it starts; after that the feedforward is the motion
+// ahead; when the lead ends it is not taken back in one step.
+TEST(DirectionPd, TheLeadEntersOnceAndIsNotTakenBackAtOnce) {
+  control::ControllerOptions g;
+  g.kp = 0.0;
+  g.kd = 0.0;
+  g.feedforward = 1.0;
+  control::DirectionPd pd;
+  auto dir = [](double a) { return Vec3(std::sin(a), 0.0, std::cos(a)); };
+  // Cycle 1 primes on x_des = dir(0) with x_ff = dir(0.05): the lead (0.05 rad about +y) enters.
+  Vec3 x = pd.correction(dir(0.0), dir(0.0), dir(0.05), 0.01, g);
+  EXPECT_NEAR((x - Vec3(0.0, 0.05, 0.0)).norm(), 0.0, 1e-12);
+  // Then the motion ahead: 0.01 rad per step.
+  x = pd.correction(dir(0.01), dir(0.01), dir(0.06), 0.01, g);
+  EXPECT_NEAR((x - Vec3(0.0, 0.01, 0.0)).norm(), 0.0, 1e-12);
+  // The lead ends (x_ff = x_des): x_des's own motion, no step back by 0.05.
+  x = pd.correction(dir(0.02), dir(0.02), dir(0.02), 0.01, g);
+  EXPECT_NEAR((x - Vec3(0.0, 0.01, 0.0)).norm(), 0.0, 1e-12);
+  // K_i: the integral of a constant error e over n steps of dt adds K_i dt (n dt) e, bounded.
+  control::ControllerOptions gi;
+  gi.kp = 0.0;
+  gi.feedforward = 0.0;
+  gi.ki = 2.0;
+  gi.max_integral = 1.0;
+  control::DirectionPd pi;
+  const Vec3 e(0.0, 0.02, 0.0);
+  for (int n = 1; n <= 5; ++n) {
+    x = pi.correction(dir(0.0), dir(0.02), dir(0.02), 0.01, gi);
+    EXPECT_NEAR((x - gi.ki * 0.01 * (n * 0.01) * e).norm(), 0.0, 1e-12) << n;
   }
 }

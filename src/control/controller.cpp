@@ -135,12 +135,17 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   if (std::string why = check_stability(lin, out); !why.empty()) return abort(out, why);
   observe_model_error(in, sol, lin, dt);
 
-  // With the observer's prediction the loop closes on the corrected model at the commanded inputs.
+  // With the observer's prediction the loop closes on the corrected model at the commanded inputs
+  // (checked for stability as the measured point is); if that solve fails, on the tracker this cycle.
   rod::RodSolution control = sol;
+  predicted_ = false;
   if (predicting()) {
     const rod::RodSolution predicted = solve_model(previous_command_);
     const ActuatedModel::Linearisation at = predicted.converged ? model_.linearise() : lin;
-    if (predicted.converged && at.ok) control = predicted, lin = at;
+    if (predicted.converged && at.ok) {
+      if (std::string why = check_stability(at, out); !why.empty()) return abort(out, why);
+      control = predicted, lin = at, predicted_ = true;
+    }
   }
   track_reference(in, control, dt, out);
   if (std::string why = monitor_.check_oscillation(out.error_geodesic); !why.empty()) return abort(out, why);
@@ -229,7 +234,7 @@ void Controller::track_reference(const ControllerInputs& in, const rod::RodSolut
   const bool closed = params_.mode == LoopMode::kClosed;
   const Mat3 tip_frame = closed ? in.tip_rotation : sol.tip_rotation;  // the camera's axes for rate sources
   out.measured_direction = in.tip_rotation.col(2).normalized();
-  out.observed_direction = closed && !predicting() ? out.measured_direction : Vec3(sol.tip_rotation.col(2));
+  out.observed_direction = closed && !predicted_ ? out.measured_direction : Vec3(sol.tip_rotation.col(2));
   if (first_cycle_) reference_.start(out.observed_direction, t_start_);
   out.desired_direction = reference_.advance(in.t, dt, tip_frame);
   out.source = reference_.source();

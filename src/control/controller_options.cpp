@@ -37,8 +37,6 @@ std::string ControllerOptions::validate() const {
   } ranges[] = {
       {"kp", kp, 0.0, 50.0},
       {"kd", kd, 0.0, 5.0},
-      {"ki", ki, 0.0, 100.0},
-      {"max_integral", max_integral, 0.0, 10.0},
       {"feedforward", feedforward, 0.0, 2.0},
       {"damping", damping, 1e-4, 10.0},
       {"max_force", max_force, 0.01, 1.0},
@@ -46,7 +44,12 @@ std::string ControllerOptions::validate() const {
   };
   for (const auto& r : ranges)
     if (std::string err = check_range(r.field, r.value, r.lo, r.hi); !err.empty()) return err;
+  // Set at start only (not in cfg/Controller.cfg).
+  if (!(ki >= 0.0 && ki <= 100.0)) return bad("ki", ki, "must lie in [0, 100] 1/s^2");
+  if (!(max_integral >= 0.0 && max_integral <= 10.0))
+    return bad("max_integral", max_integral, "must lie in [0, 10] rad s");
   if (!(lead_time >= 0.0 && lead_time <= 1.0)) return bad("lead_time", lead_time, "must lie in [0, 1] s");
+  if (observer_prediction && !observer) return bad("observer_prediction", 1.0, "needs observer (observer/enabled)");
   if (!(observer_time_constant >= 0.01 && observer_time_constant <= 100.0))
     return bad("observer_time_constant", observer_time_constant, "must lie in [0.01, 100] s");
   if (!finite_pos(max_angular_rate)) return bad("max_angular_rate", max_angular_rate, "must be finite and > 0");

@@ -29,6 +29,7 @@ void Reference::follow(std::shared_ptr<const Path> path, double t, bool starts_a
   path_start_ = t;
   jump_to_path_ = starts_at_path;
   on_path_ = false;
+  path_advanced_ = false;
 }
 
 void Reference::aim(const Vec3& target, Source source) {
@@ -59,10 +60,16 @@ void Reference::start(const Vec3& direction, double t) {
 
 const Vec3& Reference::advance(double t, double dt, const Mat3& tip_frame) {
   if (source_ == Source::kPath) {
+    const Vec3 before = target_;
     set_target(path_->direction_at(t - path_start_), path_set_.get());
     // On the path (jumped there at start, or reached it): follow it as written, whatever its speed.
-    if (jump_to_path_ || on_path_) reference_ = target_;
+    // Reached: within this step's max_angular_rate·dt plus the path's own motion over the step (a
+    // path faster than the rate would otherwise be crossed and never caught).
+    const double path_motion = path_advanced_ ? geodesic_error(before, target_) : 0.0;
+    if (jump_to_path_ || on_path_ || geodesic_error(reference_, target_) <= max_rate_ * dt + path_motion)
+      reference_ = target_;
     jump_to_path_ = false;
+    path_advanced_ = true;
   } else if (source_ == Source::kJoy || source_ == Source::kKeyboard) {
     if (t > rate_until_) {
       hold();  // no deadman or no message for the timeout: hold where it is

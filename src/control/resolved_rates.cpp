@@ -13,19 +13,30 @@ namespace control {
 Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, const Vec3& ahead, double dt,
                              const ControllerOptions& gains) {
   const Vec3 err = rotation_between(observed, desired);  // x_err of eq. (17)
+  const bool lead = ahead != desired;                    // Reference::preview returns x_des itself without a lead
   if (!primed_) {
     prev_error_ = err;
-    prev_ahead_ = desired;
+    prev_desired_ = prev_ahead_ = desired;
+    prev_lead_ = false;
     integral_.setZero();
     primed_ = true;
   }
   // The integral of the error (issue 16: a ramp, a fast path, leaves no steady error), bounded.
-  integral_ += dt * err;
-  if (gains.ki > 0.0 && integral_.norm() > gains.max_integral) integral_ *= gains.max_integral / integral_.norm();
-  const Vec3 x_cntr = gains.kp * dt * err + gains.ki * dt * integral_ + gains.kd * (err - prev_error_) +
-                      gains.feedforward * rotation_between(prev_ahead_, ahead);
+  if (gains.ki > 0.0) {
+    integral_ += dt * err;
+    if (integral_.norm() > gains.max_integral) integral_ *= gains.max_integral / integral_.norm();
+  }
+  // The path's motion over the step: ahead of it while the lead is on (and was), else x_des's own.
+  // The lead itself enters once, when it starts (∠(x_des → x_ff) on that step); when it ends (the
+  // path is cut off or done), it is not taken back in one step: the feedback removes it.
+  const Vec3 motion = lead ? rotation_between(prev_lead_ ? prev_ahead_ : prev_desired_, ahead)
+                           : rotation_between(prev_desired_, desired);
+  const Vec3 x_cntr =
+      gains.kp * dt * err + gains.ki * dt * integral_ + gains.kd * (err - prev_error_) + gains.feedforward * motion;
   prev_error_ = err;
+  prev_desired_ = desired;
   prev_ahead_ = ahead;
+  prev_lead_ = lead;
   return x_cntr;
 }
 

@@ -110,7 +110,8 @@ class Controller {
   SafetyMonitor monitor_;
   DirectionPd pd_;
   DisturbanceObserver observer_;
-  JetVector previous_command_;                          ///< the last commanded inputs [N] (the base of the next step)
+  bool predicted_ = false;      ///< this cycle closes on the observer's prediction (observer_prediction)
+  JetVector previous_command_;  ///< the last commanded inputs [N] (the base of the next step)
   std::shared_ptr<const ReachableSet> path_reachable_;  ///< full q_max: path points
   std::shared_ptr<const ReachableSet> reachable_;       ///< with reserve: operator targets
   Reference reference_;

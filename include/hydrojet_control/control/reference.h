@@ -93,6 +93,7 @@ class Reference {
   double path_start_ = 0.0;                         ///< [s]
   bool jump_to_path_ = false;                       ///< the next advance() puts the reference on the path
   bool on_path_ = false;                            ///< the reference has joined the path: it follows it as written
+  bool path_advanced_ = false;                      ///< advance() has set a path target since follow()
   Eigen::Vector2d rate_ = Eigen::Vector2d::Zero();  ///< (up, right) [rad/s], tip frame
   double rate_until_ = 0.0;                         ///< [s]
 };

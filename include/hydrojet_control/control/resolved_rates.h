@@ -27,14 +27,17 @@ class DirectionPd {
   /// the rotation (base frame) the tip direction should make this step. dt [s]. x_ff is the
   /// reference `lead_time` ahead (Reference::preview; x_des itself without a lead): the feedforward
   /// moves the inputs by the path's motion that far ahead, so that the loop's lag (valves, rod) is
-  /// covered; its first step after reset() adds ∠(x_des → x_ff), the lead itself.
+  /// covered; the step on which the lead starts adds ∠(x_des → x_ff), the lead itself, and when it
+  /// ends (x_ff = x_des again) the feedforward is x_des's own motion (no step back).
   Vec3 correction(const Vec3& observed, const Vec3& desired, const Vec3& ahead, double dt,
                   const ControllerOptions& gains);
 
  private:
   bool primed_ = false;
   Vec3 prev_error_ = Vec3::Zero();
+  Vec3 prev_desired_ = Vec3::UnitZ();
   Vec3 prev_ahead_ = Vec3::UnitZ();
+  bool prev_lead_ = false;
   Vec3 integral_ = Vec3::Zero();  ///< ∫ x_err dt [rad s]
 };
 
