@@ -503,10 +503,11 @@ bool GeneralRodSolver::finish(Shooting* p, bool ok, FoldTracker* folds, bool che
 // The smallest eigenvalue of the stiffness on settings_.cold_stability_check at the stored solution
 // (≤ 0: unstable); +inf when no component is checked, NaN when C^b fails (as ShootingSolver's).
 double GeneralRodSolver::stability_indicator() {
-  const ActuatedSet& a = settings_.cold_stability_check;
-  if (std::none_of(a.begin(), a.end(), [](bool b) { return b; })) return std::numeric_limits<double>::infinity();
-  const GeneralCompliance c = compliance();
-  return c.ok ? stability(c.body, a).eig_min : std::nan("");
+  return internal::cold_stability_indicator(settings_.cold_stability_check, [this](bool* ok) {
+    const GeneralCompliance c = compliance();
+    *ok = c.ok;
+    return c.body;
+  });
 }
 
 // As ShootingSolver::load_from_rest_if_unstable: a cold solve that reached an equilibrium the rod

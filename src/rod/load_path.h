@@ -16,11 +16,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <string>
 
 #include "hydrojet_control/rod/rod_model.h"
 #include "hydrojet_control/rod/shooting_solver.h"
 #include "hydrojet_control/rod/so3.h"
+#include "hydrojet_control/rod/stability.h"
 
 namespace hydrojet {
 namespace rod {
@@ -64,6 +66,18 @@ inline void report_folds(const FoldTracker& folds, RodSolution* sol) {
     sol->warning = "the load path crossed a fold or bifurcation " + std::to_string(folds.crossings) +
                    " time(s) (det of the shooting Jacobian changed sign, or the equilibrium snapped through); "
                    "the result may lie on another branch than the start: check stability (stability_eig_min)";
+}
+
+/// The cold-solve stability check's indicator: the smallest eigenvalue of the stiffness on the
+/// components `checked` of the body compliance C^b (≤ 0: unstable); +inf when no component is
+/// checked, NaN when C^b failed (`ok` false). `body_compliance` is called only when needed.
+template <class Compliance>
+double cold_stability_indicator(const ActuatedSet& checked, Compliance body_compliance) {
+  if (std::none_of(checked.begin(), checked.end(), [](bool b) { return b; }))
+    return std::numeric_limits<double>::infinity();
+  bool ok = false;
+  const Mat6 C = body_compliance(&ok);
+  return ok ? stability(C, checked).eig_min : std::nan("");
 }
 
 /// Adds to sol's warning that its equilibrium is unstable (stability indicator ≤ 0) and that loading

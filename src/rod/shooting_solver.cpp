@@ -148,10 +148,11 @@ RodSolution ShootingSolver::solve(const TipWrench& wrench) {
 // The smallest eigenvalue of the stiffness on settings_.cold_stability_check at the stored
 // solution (≤ 0: unstable); +inf when no component is checked, NaN when C^b fails.
 double ShootingSolver::stability_indicator() {
-  const ActuatedSet& a = settings_.cold_stability_check;
-  if (std::none_of(a.begin(), a.end(), [](bool b) { return b; })) return std::numeric_limits<double>::infinity();
-  const Compliance c = compliance();
-  return c.ok ? stability(c.body, a).eig_min : std::nan("");
+  return internal::cold_stability_indicator(settings_.cold_stability_check, [this](bool* ok) {
+    const Compliance c = compliance();
+    *ok = c.ok;
+    return c.body;
+  });
 }
 
 // A cold direct Newton may land on an equilibrium the rod cannot hold (the straight branch of a
