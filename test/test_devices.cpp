@@ -578,6 +578,217 @@ TEST(BxParser, RandomCorruptionNeverEmitsBadFrames) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// TX reply (hand-built strings, from the layout of the NDI API as ndicapi reads it)
+// ---------------------------------------------------------------------------------------------
+
+namespace {
+
+// Handle 0A valid: q = (0.7071, 0, 0.7071, 0) (norm 0.99999, renormalised), t = (12.34, -5.67,
+// -150.00) mm, rms 0.3 mm, port status 0x31, frame 0x1F4; handle 0B missing with port status 0x11,
+// frame 0x1F4; handle 0C disabled; system status 0x0000.
+const std::string kTxNominal =
+    "03"
+    "0A+07071+00000+07071+00000+001234-000567-015000+03000"
+    "00000031"
+    "000001F4"
+    "\n"
+    "0BMISSING"
+    "00000011"
+    "000001F4"
+    "\n"
+    "0CDISABLED\n"
+    "0000";
+
+}  // namespace
+
+TEST(AuroraTx, NominalReplyInSiUnits) {
+  ASSERT_EQ(std::string("+07071+00000+07071+00000+001234-000567-015000+03000").size(), kTxTransformChars);
+  BxFrame f;
+  std::string err;
+  ASSERT_TRUE(parse_tx_reply(kTxNominal, kDefaultOutOfVolumeMask, &f, &err)) << err;
+  ASSERT_EQ(f.handles.size(), 3u);
+  const HandlePose& a = f.handles[0];
+  EXPECT_EQ(a.handle, 0x0A);
+  EXPECT_EQ(a.status, HandlePose::kValid);
+  const double n = std::sqrt(2 * 0.7071 * 0.7071);
+  EXPECT_NEAR(a.q[0], 0.7071 / n, 1e-12);
+  EXPECT_NEAR(a.q[2], 0.7071 / n, 1e-12);
+  EXPECT_NEAR(a.q[0] * a.q[0] + a.q[2] * a.q[2], 1.0, 1e-12);  // renormalised
+  EXPECT_EQ(a.q[1], 0.0);
+  EXPECT_NEAR(a.t[0], 0.01234, 1e-12);
+  EXPECT_NEAR(a.t[1], -0.00567, 1e-12);
+  EXPECT_NEAR(a.t[2], -0.150, 1e-12);
+  EXPECT_NEAR(a.rms_m, 0.3e-3, 1e-12);
+  EXPECT_EQ(a.port_status, 0x31u);
+  EXPECT_EQ(a.frame, 500u);
+  const HandlePose& b = f.handles[1];
+  EXPECT_EQ(b.handle, 0x0B);
+  EXPECT_EQ(b.status, HandlePose::kMissing);
+  EXPECT_FALSE(b.has_transform());
+  EXPECT_EQ(b.port_status, 0x11u);  // missing handles carry port status and frame number too
+  EXPECT_EQ(b.frame, 500u);
+  EXPECT_EQ(f.handles[2].status, HandlePose::kDisabled);
+  EXPECT_EQ(f.handles[2].frame, 0u);
+  EXPECT_TRUE(f.has_system_status);
+  EXPECT_EQ(f.system_status, 0u);
+}
+
+TEST(AuroraTx, OutOfVolumeUnoccupiedAndDisabledWithStatus) {
+  const std::string t =
+      "03"
+      "0A+10000+00000+00000+00000+000000+000000-010000+00100"
+      "00000071"
+      "00000002"
+      "\n"
+      "0BUNOCCUPIED\n"
+      "0CDISABLED"
+      "00000000"
+      "00000000"
+      "\n"
+      "0102";
+  BxFrame f;
+  std::string err;
+  ASSERT_TRUE(parse_tx_reply(t, kDefaultOutOfVolumeMask, &f, &err)) << err;
+  ASSERT_EQ(f.handles.size(), 2u);                           // the unoccupied handle is skipped
+  EXPECT_EQ(f.handles[0].status, HandlePose::kOutOfVolume);  // port status bit 0x40
+  EXPECT_TRUE(f.handles[0].has_transform());
+  EXPECT_EQ(f.handles[1].handle, 0x0C);
+  EXPECT_EQ(f.handles[1].status, HandlePose::kDisabled);
+  EXPECT_EQ(f.system_status, 0x0102);
+  // The same port status is valid when the mask leaves bit 6 out.
+  ASSERT_TRUE(parse_tx_reply(t, 0x80, &f, &err)) << err;
+  EXPECT_EQ(f.handles[0].status, HandlePose::kValid);
+}
+
+TEST(AuroraTx, MalformedRepliesRejectedWithAReason) {
+  const struct {
+    std::string text;
+    const char* reason;
+  } cases[] = {
+      {"", "handle count"},
+      {"0G", "handle count"},
+      {kTxNominal.substr(0, kTxNominal.size() - 4 - 11) + "0000", "handle entry 2"},  // 2 of 3 entries
+      {"01"
+       "0A+20000+00000+00000+00000+000000+000000+000000+00000"
+       "00000031"
+       "00000001"
+       "\n"
+       "0000",
+       "quaternion norm"},
+      {"01"
+       "0A+10000+00000+00000+00000+000000+000000+000000-00001"
+       "00000031"
+       "00000001"
+       "\n"
+       "0000",
+       "negative rms"},
+      {"01"
+       "0A 10000+00000+00000+00000+000000+000000+000000+00000"
+       "00000031"
+       "00000001"
+       "\n"
+       "0000",
+       "field q0"},
+      {"01"
+       "0A+10000+00000+00000+00000+0000x0+000000+000000+00000"
+       "00000031"
+       "00000001"
+       "\n"
+       "0000",
+       "field tx"},
+      {"01"
+       "0AMISSING"
+       "0000003"
+       "00000001"
+       "\n"
+       "0000",
+       "8 hex digits"},
+      {"01"
+       "0AMISSING"
+       "00000031"
+       "00000001"
+       "0000",
+       "line feed"},
+      {"01"
+       "0AMISSING"
+       "00000031"
+       "00000001"
+       "\n"
+       "000",
+       "system status"},
+      {"01"
+       "0AMISSING"
+       "00000031"
+       "00000001"
+       "\n"
+       "0000X",
+       "system status"},
+      {"01"
+       "ZZMISSING"
+       "00000031"
+       "00000001"
+       "\n"
+       "0000",
+       "port handle"},
+      {"FF"
+       "0AMISSING"
+       "00000031"
+       "00000001"
+       "\n"
+       "0000",
+       "handle entry 1"},
+  };
+  for (const auto& c : cases) {
+    BxFrame f;
+    std::string err;
+    EXPECT_FALSE(parse_tx_reply(c.text, kDefaultOutOfVolumeMask, &f, &err)) << c.text;
+    EXPECT_NE(err.find(c.reason), std::string::npos) << "text: " << c.text << "\nerr: " << err;
+  }
+}
+
+TEST(AuroraTx, EveryTruncationAndByteFlipIsRejectedNeverCrashes) {
+  BxFrame f;
+  for (size_t n = 0; n < kTxNominal.size(); ++n) {
+    std::string err;
+    EXPECT_FALSE(parse_tx_reply(kTxNominal.substr(0, n), kDefaultOutOfVolumeMask, &f, &err)) << n;
+    EXPECT_FALSE(err.empty());
+  }
+  // Random byte values at every position: never a crash; a reply still accepted must decode to
+  // finite, unit quaternions (the CRC, not this parser, is what catches a changed digit).
+  std::mt19937 rng(5);
+  for (size_t i = 0; i < kTxNominal.size(); ++i) {
+    for (int k = 0; k < 8; ++k) {
+      std::string t = kTxNominal;
+      t[i] = static_cast<char>(rng() % 256);
+      std::string err;
+      if (parse_tx_reply(t, kDefaultOutOfVolumeMask, &f, &err)) {
+        for (const HandlePose& h : f.handles)
+          if (h.has_transform()) {
+            EXPECT_NEAR(h.q[0] * h.q[0] + h.q[1] * h.q[1] + h.q[2] * h.q[2] + h.q[3] * h.q[3], 1.0, 1e-12);
+          }
+      }
+    }
+  }
+}
+
+TEST(AuroraPvwr, ChunksAddressesAndPadding) {
+  std::vector<uint8_t> rom(65);
+  for (size_t i = 0; i < rom.size(); ++i) rom[i] = static_cast<uint8_t>(0xA0 + i);
+  const std::vector<std::string> p = pvwr_params(0x0A, rom);
+  ASSERT_EQ(p.size(), 2u);
+  EXPECT_EQ(p[0].size(), 2u + 4u + 128u);
+  EXPECT_EQ(p[0].substr(0, 10), "0A0000A0A1");
+  EXPECT_EQ(p[0].substr(132), "DF");         // byte 63 = 0xA0 + 63
+  EXPECT_EQ(p[1].substr(0, 8), "0A0040E0");  // byte 64 = 0xE0, then 63 bytes of padding
+  EXPECT_EQ(p[1].substr(8), std::string(126, '0'));
+  EXPECT_EQ(pvwr_params(0x0B, std::vector<uint8_t>(1024, 0xFF)).back().substr(0, 6), "0B03C0");
+  EXPECT_THROW(pvwr_params(0x0A, {}), std::invalid_argument);
+  EXPECT_THROW(pvwr_params(0x0A, std::vector<uint8_t>(1025)), std::invalid_argument);
+  // Each chunk goes out as a valid command.
+  EXPECT_EQ(format_command("PVWR", p[1]).size(), 5u + 134u + 4u + 1u);
+}
+
+// ---------------------------------------------------------------------------------------------
 // Flow-sensor lines
 // ---------------------------------------------------------------------------------------------
 

@@ -525,6 +525,10 @@ TEST(RigOptions, ShippedFileHoldsTheDefaults) {
   EXPECT_EQ(y.tracker.out_of_volume_mask, d.tracker.out_of_volume_mask);
   EXPECT_EQ(y.tracker.tracking_priority, d.tracker.tracking_priority);
   EXPECT_EQ(y.tracker.bx_options, d.tracker.bx_options);
+  EXPECT_EQ(y.tracker.reply_format, d.tracker.reply_format);
+  EXPECT_EQ(y.tracker.tx_fallback, d.tracker.tx_fallback);
+  EXPECT_DOUBLE_EQ(y.tracker.latency, d.tracker.latency);
+  EXPECT_EQ(y.tracker.srom_files, d.tracker.srom_files);
 
   EXPECT_DOUBLE_EQ(y.flow_rate, d.flow_rate);
   EXPECT_DOUBLE_EQ(y.flow_publish_rate, d.flow_publish_rate);
@@ -592,6 +596,18 @@ TEST(RigOptions, InvalidKeysAreNamed) {
       {[](YAML::Node& n) { n["command_timeout"] = 0; }, "command_timeout: must be finite and > 0"},
       {[](YAML::Node& n) { n["tip_frame"] = "/tip"; }, "tip_frame: must be a non-empty frame name"},
       {[](YAML::Node& n) { n["reconnect_period"] = 0; }, "reconnect_period: must lie in [0.05, 60] s"},
+      {[](YAML::Node& n) { n["tracker"]["reply_format"] = "binary"; },
+       "tracker/reply_format: 'binary' is not bx or tx"},
+      {[](YAML::Node& n) { n["tracker"]["tx_fallback"] = "maybe"; }, "tracker/tx_fallback: must be true or false"},
+      {[](YAML::Node& n) { n["tracker"]["latency"] = 2.0; }, "tracker/latency: must lie in [0, 1] s"},
+      {[](YAML::Node& n) { n["tracker"]["latency"] = -0.01; }, "tracker/latency: must lie in [0, 1] s"},
+      {[](YAML::Node& n) { n["tracker"]["srom_files"] = "tip.rom"; }, "tracker/srom_files: must be a mapping"},
+      {[](YAML::Node& n) { n["tracker"]["srom_files"]["0A"] = "/nonexistent/tip.rom"; },
+       "tracker/srom_files/0A: cannot read '/nonexistent/tip.rom'"},
+      {[](YAML::Node& n) { n["tracker"]["srom_files"]["zz"] = "/dev/null"; },
+       "tracker/srom_files/zz: the key must be a port handle"},
+      {[](YAML::Node& n) { n["tracker"]["srom_files"]["0A"] = "/dev/null"; },
+       "tracker/srom_files/0A: '/dev/null' is empty"},
   };
   for (const Case& c : cases) {
     YAML::Node n = shipped();
@@ -604,6 +620,58 @@ TEST(RigOptions, InvalidKeysAreNamed) {
   n["tracker"]["tip_handle"] = "0x0C";
   n["diagnostic_period"] = 0.5;
   EXPECT_EQ(parse_rig_options(n).tracker.tip_handle, 0x0C);
+}
+
+TEST(RigOptions, SromFilesAreReadAndCheckedAtStart) {
+  char dir_tmpl[] = "/tmp/hj_srom_XXXXXX";
+  const std::string dir = mkdtemp(dir_tmpl);
+  const std::string ok = dir + "/tip.rom", big = dir + "/big.rom";
+  std::ofstream(ok) << std::string(300, 'x');
+  std::ofstream(big) << std::string(1025, 'x');
+  YAML::Node n = shipped();
+  n["tracker"]["srom_files"]["0x0A"] = ok;
+  n["tracker"]["reply_format"] = "tx";
+  n["tracker"]["tx_fallback"] = false;
+  n["tracker"]["latency"] = 0.025;
+  const RigOptions c = parse_rig_options(n);
+  ASSERT_EQ(c.tracker.srom_files.size(), 1u);
+  EXPECT_EQ(c.tracker.srom_files.at(0x0A), ok);
+  EXPECT_EQ(c.tracker.reply_format, AuroraOptions::ReplyFormat::kTx);
+  EXPECT_FALSE(c.tracker.tx_fallback);
+  EXPECT_DOUBLE_EQ(c.tracker.latency, 0.025);
+  // The same handle as hex text without 0x ("0A") and as an integer (11 = 0x0B).
+  n["tracker"]["srom_files"] = YAML::Load("{0B: " + ok + "}");
+  EXPECT_EQ(parse_rig_options(n).tracker.srom_files.count(0x0B), 1u);
+  n["tracker"]["srom_files"] = YAML::Load("{11: " + ok + "}");
+  EXPECT_EQ(parse_rig_options(n).tracker.srom_files.count(0x0B), 1u);
+  n["tracker"]["srom_files"] = YAML::Load("{0A: " + big + "}");
+  EXPECT_EQ(error_of(n), "tracker/srom_files/0A: '" + big + "' has 1025 bytes, more than 1024");
+  std::remove(ok.c_str());
+  std::remove(big.c_str());
+  rmdir(dir.c_str());
+}
+
+TEST(RateCounter, SlidingMinuteWithInjectedClock) {
+  using std::chrono::seconds;
+  const RateCounter::Time t0{};
+  RateCounter r;  // 60 s window
+  EXPECT_EQ(r.per_minute(t0), 0.0);
+  r.add(t0 + seconds(1), 3);
+  r.add(t0 + seconds(30));
+  EXPECT_EQ(r.per_minute(t0 + seconds(30)), 4.0);
+  EXPECT_EQ(r.per_minute(t0 + seconds(60)), 4.0);  // 1 s event is 59 s old
+  EXPECT_EQ(r.per_minute(t0 + seconds(61)), 1.0);  // ... now 60 s old: out
+  EXPECT_EQ(r.per_minute(t0 + seconds(90)), 0.0);
+  // A cumulative counter: only its growth counts; a restart counts from 0.
+  RateCounter c(10.0);  // 10 s window: scaled to a minute
+  c.track(t0, 5);
+  c.track(t0 + seconds(2), 5);
+  c.track(t0 + seconds(4), 7);
+  EXPECT_EQ(c.in_window(t0 + seconds(5)), 7u);
+  EXPECT_DOUBLE_EQ(c.per_minute(t0 + seconds(5)), 42.0);
+  EXPECT_EQ(c.in_window(t0 + seconds(12)), 2u);
+  c.track(t0 + seconds(13), 1);  // restarted
+  EXPECT_EQ(c.in_window(t0 + seconds(13)), 3u);
 }
 
 TEST(RigOptions, DocumentedFlowFormatsReadTheirExampleLines) {

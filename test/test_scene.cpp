@@ -93,6 +93,15 @@ TEST(Scene, ErrorsNameTheKey) {
   EXPECT_EQ(error_key(std::string(kGood) + "plant: {anything: 1}\n"), "(no error)");
 }
 
+// Found by fuzz_scene_yaml (test/fuzz/, docs/robustness.md): a key that is not a plain name (a flow
+// list or mapping as a key, or a null key) escaped as yaml-cpp's BadConversion and ended the process.
+// Now a SceneError names the section that holds it.
+TEST(Scene, KeysThatAreNotNamesAreRefusedNamingTheSection) {
+  EXPECT_EQ(error_key(replace(kGood, "  length: 0.09\n", "  length: 0.09\n  ? [a, b]\n  : 1\n")), "rod");
+  EXPECT_EQ(error_key(replace(kGood, "  mass: 0.00258", "  mass: 0.00258\n  ~: 1")), "tip");
+  EXPECT_EQ(error_key(std::string(kGood) + "solver:\n  ? [a]\n  : 1\n"), "solver");
+}
+
 // rod.model: cosserat with K_se from the keys, or from moduli and the cross-section; the solver keys
 // of the numerics part; bad combinations name the key.
 TEST(Scene, CosseratModelAndSolverKeys) {

@@ -192,7 +192,8 @@ TableRow yaml_row(const YAML::Node& e, const std::string& where) {
     for (int k = 0; k < 3; ++k) v[k] = yaml_number(e[k], where, kFields[k]);
   } else if (e.IsMap()) {
     for (const auto& kv : e) {
-      const std::string key = kv.first.as<std::string>();
+      if (!kv.first.IsScalar()) throw std::invalid_argument(where + ": a key must be a plain name");
+      const std::string key = kv.first.Scalar();
       if (key != "t" && key != "theta" && key != "phi")
         throw std::invalid_argument(where + ": unknown key '" + key + "'");
     }

@@ -3,7 +3,10 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <stdexcept>
+#include <thread>
 
 #include "hydrojet_control/devices/crc16.h"
 
@@ -49,6 +52,41 @@ std::string aurora_comm_params(int baud) {
   }
 }
 
+bool load_srom(const std::string& path, std::vector<uint8_t>* data, std::string* err) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) {
+    *err = "cannot read '" + path + "'";
+    return false;
+  }
+  std::vector<uint8_t> v((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  if (f.bad()) {
+    *err = "cannot read '" + path + "'";
+    return false;
+  }
+  if (v.empty()) {
+    *err = "'" + path + "' is empty";
+    return false;
+  }
+  if (v.size() > kMaxSromBytes) {
+    *err = "'" + path + "' has " + std::to_string(v.size()) + " bytes, more than " + std::to_string(kMaxSromBytes);
+    return false;
+  }
+  *data = std::move(v);
+  return true;
+}
+
+const char* to_string(AuroraOptions::ReplyFormat f) { return f == AuroraOptions::ReplyFormat::kTx ? "tx" : "bx"; }
+
+const char* to_string(AuroraStatus::Connect c) {
+  switch (c) {
+    case AuroraStatus::Connect::kNone: return "none";
+    case AuroraStatus::Connect::kBreak: return "BREAK";
+    case AuroraStatus::Connect::kInitProbe9600: return "INIT probe at 9600 baud";
+    case AuroraStatus::Connect::kInitProbeConfigured: return "INIT probe at the configured baud";
+  }
+  return "?";
+}
+
 std::string AuroraOptions::validate() const {
   if (port.empty()) return "port: must not be empty";
   if (aurora_comm_params(baud).empty())
@@ -74,6 +112,14 @@ std::string AuroraOptions::validate() const {
   }
   if (!(opt & 0x0001)) return "bx_options: must include 0001 (transformation data)";
   if (opt & ~0x0801u) return "bx_options: only 0001 and 0800 are decoded";
+  if (!(std::isfinite(latency) && latency >= 0.0 && latency <= 1.0)) return "latency: must lie in [0, 1] s";
+  for (const auto& f : srom_files) {
+    const std::string key = "srom_files/" + hex2(f.first);
+    if (f.first == 0) return key + ": port handle 00 does not exist";
+    std::vector<uint8_t> data;
+    std::string e;
+    if (!load_srom(f.second, &data, &e)) return key + ": " + e;
+  }
   return "";
 }
 
@@ -92,6 +138,11 @@ AuroraClient::AuroraClient(const AuroraOptions& config, SampleCallback on_sample
       worker_(*this, mu_, status_, "tracker", config.reconnect_period, std::move(log)) {
   const std::string err = cfg_.validate();
   if (!err.empty()) throw std::invalid_argument("tracker: " + err);
+  for (const auto& f : cfg_.srom_files) {
+    std::string e;
+    if (!load_srom(f.second, &srom_[f.first], &e))
+      throw std::invalid_argument("tracker: srom_files/" + hex2(f.first) + ": " + e);
+  }
 }
 
 AuroraClient::~AuroraClient() { stop(); }
@@ -114,15 +165,28 @@ void AuroraClient::shut_down() {
     std::lock_guard<std::mutex> l(mu_);
     was_tracking = status_.tracking;
   }
-  if (was_tracking && port_.is_open()) {
-    closing_ = true;  // read TSTOP's reply although stopping
+  if (port_.is_open() && device_up_) {
+    closing_ = true;  // read the replies although stopping
     std::string reply, err;
-    if (command("TSTOP", "", &reply, &err, 0.5))
-      worker_.log(LogLevel::kInfo, "TSTOP, tracking stopped");
-    else
-      worker_.log(LogLevel::kWarn, "TSTOP failed: " + err);
+    if (was_tracking) {
+      if (command("TSTOP", "", &reply, &err, 0.5))
+        worker_.log(LogLevel::kInfo, "TSTOP, tracking stopped");
+      else
+        worker_.log(LogLevel::kWarn, "TSTOP failed: " + err);
+    }
+    // Back to 9600, where the next start (ours, ndicapi's, NDI ToolBox's) looks first.
+    if (host_baud_ != 9600) {
+      if (command("COMM", "00000", &reply, &err, 0.5) && okay_text(reply)) {
+        std::string e;
+        if (!switch_host_baud(9600, &e)) worker_.log(LogLevel::kWarn, "host port back to 9600: " + e);
+        worker_.log(LogLevel::kInfo, "COMM 00000, tracker back at 9600 baud");
+      } else {
+        worker_.log(LogLevel::kWarn, "COMM 00000 failed: " + err + " (the next start probes the configured baud)");
+      }
+    }
     closing_ = false;
   }
+  device_up_ = false;
   port_.close();
 }
 
@@ -135,66 +199,163 @@ bool AuroraClient::connect(std::string* err) {
     return false;
   };
   std::string e;
+  device_up_ = false;
   if (!port_.open(cfg_.port, 9600, &e)) return fail(e);
+  host_baud_ = 9600;
   parser_.reset();
   have_tip_frame_ = have_base_frame_ = false;
+  use_tx_ = cfg_.reply_format == AuroraOptions::ReplyFormat::kTx;
 
-  worker_.set_link(LinkState::kConnecting, "resetting (BREAK)");
-  if (!reset_device(&e)) return fail(e);
+  AuroraStatus::Connect how = AuroraStatus::Connect::kNone;
+  if (!wake_device(&how, &e)) return fail(e);
   std::string reply;
-  if (cfg_.baud != 9600) {
-    worker_.set_link(LinkState::kConnecting, "COMM " + std::to_string(cfg_.baud));
-    if (!command("COMM", aurora_comm_params(cfg_.baud), &reply, &e, cfg_.command_timeout)) return fail(e);
-    if (!okay_text(reply)) return fail("COMM: unexpected reply '" + reply + "'");
-    if (!port_.set_baud(cfg_.baud, &e)) return fail(e);
-    // The device switches after its OKAY; give it time before the first byte at the new rate.
-    if (!worker_.sleep_for(0.1)) return fail("stopping");
-    port_.flush_input();
+  if (how != AuroraStatus::Connect::kInitProbeConfigured && !change_baud(&e)) return fail(e);
+  if (how == AuroraStatus::Connect::kBreak) {
+    worker_.set_link(LinkState::kConnecting, "INIT");
+    if (!command("INIT", "", &reply, &e, cfg_.command_timeout)) return fail(e);
+    if (!okay_text(reply)) return fail("INIT: unexpected reply '" + reply + "'");
+    device_up_ = true;
   }
-  worker_.set_link(LinkState::kConnecting, "INIT");
-  if (!command("INIT", "", &reply, &e, cfg_.command_timeout)) return fail(e);
-  if (!okay_text(reply)) return fail("INIT: unexpected reply '" + reply + "'");
-
-  std::vector<std::pair<uint8_t, uint16_t>> all, to_free, to_init, to_enable, enabled;
-  if (!handle_list("00", &all, &e)) return fail(e);
-  for (const auto& h : {std::make_pair(cfg_.tip_handle, "tip"), std::make_pair(cfg_.base_handle, "base")})
-    if (!contains(all, h.first))
-      return fail(std::string(h.second) + " sensor: port handle " + hex2(h.first) +
-                  " not reported by the tracker (handles: " + handle_names(all) + ")");
-  if (!handle_list("01", &to_free, &e)) return fail(e);
-  for (const auto& h : to_free)
-    if (!command("PHF", hex2(h.first), &reply, &e, cfg_.command_timeout)) return fail(e);
-  if (!handle_list("02", &to_init, &e)) return fail(e);
-  for (uint8_t h : {cfg_.tip_handle, cfg_.base_handle}) {
-    if (!contains(to_init, h)) continue;
-    worker_.set_link(LinkState::kConnecting, "PINIT " + hex2(h));
-    if (!command("PINIT", hex2(h), &reply, &e, cfg_.command_timeout)) return fail(e);
-    if (!okay_text(reply)) return fail("PINIT " + hex2(h) + ": unexpected reply '" + reply + "'");
-  }
-  if (!handle_list("03", &to_enable, &e)) return fail(e);
-  for (uint8_t h : {cfg_.tip_handle, cfg_.base_handle}) {
-    if (!contains(to_enable, h)) continue;
-    if (!command("PENA", hex2(h) + std::string(1, cfg_.tracking_priority), &reply, &e, cfg_.command_timeout))
-      return fail(e);
-    if (!okay_text(reply)) return fail("PENA " + hex2(h) + ": unexpected reply '" + reply + "'");
-  }
-  if (!handle_list("04", &enabled, &e)) return fail(e);
-  for (const auto& h : {std::make_pair(cfg_.tip_handle, "tip"), std::make_pair(cfg_.base_handle, "base")})
-    if (!contains(enabled, h.first))
-      return fail(std::string(h.second) + " sensor: port handle " + hex2(h.first) +
-                  " not enabled after PINIT/PENA (enabled: " + handle_names(enabled) + ")");
+  if (!setup_handles(&e)) return fail(e);
   if (!command("TSTART", "", &reply, &e, cfg_.command_timeout)) return fail(e);
   if (!okay_text(reply)) return fail("TSTART: unexpected reply '" + reply + "'");
   std::lock_guard<std::mutex> l(mu_);
   status_.state = LinkState::kRunning;
   status_.tracking = true;
+  status_.tx_mode = use_tx_;
+  status_.connected_by = how;
   status_.message = "tracking";
   status_.last_frame = SteadyClock::now();  // the silence clock starts at TSTART
   ++status_.sessions;
   return true;
 }
 
-bool AuroraClient::reset_device(std::string* err) {
+bool AuroraClient::change_baud(std::string* err) {
+  if (cfg_.baud == 9600) return true;
+  worker_.set_link(LinkState::kConnecting, "COMM " + std::to_string(cfg_.baud));
+  std::string reply;
+  if (!command("COMM", aurora_comm_params(cfg_.baud), &reply, err, cfg_.command_timeout)) return false;
+  if (!okay_text(reply)) {
+    *err = "COMM: unexpected reply '" + reply + "'";
+    return false;
+  }
+  // The device switches after its OKAY; give it time before the first byte at the new rate.
+  if (!worker_.sleep_for(0.1)) {
+    *err = "stopping";
+    return false;
+  }
+  return switch_host_baud(cfg_.baud, err);
+}
+
+bool AuroraClient::switch_host_baud(int baud, std::string* err) {
+  if (!port_.set_baud(baud, err)) return false;
+  host_baud_ = baud;
+  port_.flush_input();
+  return true;
+}
+
+bool AuroraClient::setup_handles(std::string* err) {
+  std::string reply, e;
+  auto fail = [&](const std::string& m) {
+    *err = m;
+    return false;
+  };
+  std::vector<std::pair<uint8_t, uint16_t>> all, to_free, to_init, to_enable, enabled;
+  if (!handle_list("00", &all, err)) return false;
+  for (const auto& h : {std::make_pair(cfg_.tip_handle, "tip"), std::make_pair(cfg_.base_handle, "base")})
+    if (!contains(all, h.first))
+      return fail(std::string(h.second) + " sensor: port handle " + hex2(h.first) +
+                  " not reported by the tracker (handles: " + handle_names(all) + ")");
+  if (!handle_list("01", &to_free, err)) return false;
+  for (const auto& h : to_free)
+    if (!command("PHF", hex2(h.first), &reply, err, cfg_.command_timeout)) return false;
+  if (!handle_list("02", &to_init, err)) return false;
+  for (uint8_t h : {cfg_.tip_handle, cfg_.base_handle}) {
+    if (!contains(to_init, h)) continue;
+    if (srom_.count(h) && !write_srom(h, err)) return false;
+    worker_.set_link(LinkState::kConnecting, "PINIT " + hex2(h));
+    if (!command("PINIT", hex2(h), &reply, &e, cfg_.command_timeout)) {
+      if (!srom_.count(h) && !last_error_code_.empty())
+        e += " (a tool without a programmed ROM needs its tool-definition file in tracker/srom_files/" + hex2(h) + ")";
+      return fail(e);
+    }
+    if (!okay_text(reply)) return fail("PINIT " + hex2(h) + ": unexpected reply '" + reply + "'");
+  }
+  if (!handle_list("03", &to_enable, err)) return false;
+  for (uint8_t h : {cfg_.tip_handle, cfg_.base_handle}) {
+    if (!contains(to_enable, h)) continue;
+    if (!command("PENA", hex2(h) + std::string(1, cfg_.tracking_priority), &reply, err, cfg_.command_timeout))
+      return false;
+    if (!okay_text(reply)) return fail("PENA " + hex2(h) + ": unexpected reply '" + reply + "'");
+  }
+  if (!handle_list("04", &enabled, err)) return false;
+  for (const auto& h : {std::make_pair(cfg_.tip_handle, "tip"), std::make_pair(cfg_.base_handle, "base")})
+    if (!contains(enabled, h.first))
+      return fail(std::string(h.second) + " sensor: port handle " + hex2(h.first) +
+                  " not enabled after PINIT/PENA (enabled: " + handle_names(enabled) + ")");
+  return true;
+}
+
+bool AuroraClient::write_srom(uint8_t handle, std::string* err) {
+  worker_.set_link(LinkState::kConnecting, "PVWR " + hex2(handle));
+  const std::vector<std::string> chunks = pvwr_params(handle, srom_.at(handle));
+  for (const std::string& p : chunks) {
+    std::string reply, e;
+    if (!command("PVWR", p, &reply, &e, cfg_.command_timeout)) {
+      *err = "tracker/srom_files/" + hex2(handle) + ": " + e;
+      return false;
+    }
+    if (!okay_text(reply)) {
+      *err = "PVWR " + p.substr(0, 6) + ": unexpected reply '" + reply + "'";
+      return false;
+    }
+  }
+  worker_.log(LogLevel::kInfo, "tool definition " + cfg_.srom_files.at(handle) + " written to port handle " +
+                                   hex2(handle) + " (" + std::to_string(chunks.size()) + " PVWR)");
+  return true;
+}
+
+bool AuroraClient::wake_device(AuroraStatus::Connect* how, std::string* err) {
+  worker_.set_link(LinkState::kConnecting, "resetting (BREAK)");
+  if (reset_by_break()) {
+    *how = AuroraStatus::Connect::kBreak;
+    return true;
+  }
+  if (stopping()) {
+    *err = "stopping";
+    return false;
+  }
+  worker_.set_link(LinkState::kConnecting, "no RESET after the BREAK: INIT probe at 9600 baud");
+  if (probe_init(9600)) {
+    *how = AuroraStatus::Connect::kInitProbe9600;
+    return true;
+  }
+  std::string tried = "9600";
+  if (cfg_.baud != 9600 && !stopping()) {
+    worker_.set_link(LinkState::kConnecting, "INIT probe at " + std::to_string(cfg_.baud) + " baud");
+    std::string e;
+    if (!switch_host_baud(cfg_.baud, &e)) {
+      *err = "reset: " + e;
+      return false;
+    }
+    if (probe_init(cfg_.baud)) {
+      *how = AuroraStatus::Connect::kInitProbeConfigured;
+      return true;
+    }
+    tried += " nor at " + std::to_string(cfg_.baud);
+  }
+  const bool pty = port_.is_pseudo_terminal();
+  char buf[320];
+  std::snprintf(buf, sizeof buf,
+                "reset: no RESET reply within %.2f s to a BREAK%s, and no reply to INIT at %s baud "
+                "(tracker off, wrong port, or not an NDI device)",
+                pty ? std::min(cfg_.reset_timeout, 0.5) : cfg_.reset_timeout, pty ? " (NUL stand-in on a pty)" : "",
+                tried.c_str());
+  *err = buf;
+  return false;
+}
+
+bool AuroraClient::reset_by_break() {
   auto wait_reset = [&](double timeout) {
     const SteadyTime until = SteadyClock::now() + seconds(timeout);
     for (;;) {
@@ -210,34 +371,36 @@ bool AuroraClient::reset_device(std::string* err) {
   port_.flush_input();
   std::string e;
   const bool pty = port_.is_pseudo_terminal();
-  if (port_.send_break(&e) && wait_reset(pty ? 0.05 : cfg_.reset_timeout)) {
-    std::lock_guard<std::mutex> l(mu_);
-    status_.reset_by_break = true;
-    return true;
+  if (!port_.send_break(&e)) worker_.log(LogLevel::kWarn, "BREAK: " + e);
+  if (pty) {
+    // A pty drops the BREAK; the emulator takes a NUL byte for one (see the header comment).
+    const uint8_t nul = 0;
+    if (!port_.write_all(&nul, 1, 0.5, &e)) return false;
   }
-  // Fallback: the BREAK did not arrive (pseudo-terminal, adapter without BREAK support). A NUL byte
-  // is what a UART receives for a BREAK; the test emulator resets on it.
-  const uint8_t nul = 0;
-  if (!port_.write_all(&nul, 1, 0.5, &e)) {
-    *err = "reset: " + e;
-    return false;
+  return wait_reset(pty ? std::min(cfg_.reset_timeout, 0.5) : cfg_.reset_timeout);
+}
+
+bool AuroraClient::probe_init(int baud) {
+  std::string e;
+  if (host_baud_ != baud && !switch_host_baud(baud, &e)) return false;
+  for (int attempt = 0; attempt < 2 && !stopping(); ++attempt) {
+    std::string reply;
+    if (command("INIT", "", &reply, &e, cfg_.command_timeout) && okay_text(reply)) {
+      device_up_ = true;
+      return true;
+    }
+    if (last_error_code_.empty() || attempt == 1) return false;  // silent, garbled, or still refusing
+    // A CRC-valid ERROR: the device is there (e.g. ERROR0C, still tracking from an earlier run).
+    worker_.log(LogLevel::kInfo, "INIT at " + std::to_string(baud) + " baud: " + e + "; TSTOP and INIT again");
+    std::string ignored;
+    command("TSTOP", "", &reply, &ignored, cfg_.command_timeout);
   }
-  if (wait_reset(cfg_.reset_timeout)) {
-    std::lock_guard<std::mutex> l(mu_);
-    status_.reset_by_break = false;
-    return true;
-  }
-  char buf[160];
-  std::snprintf(buf, sizeof buf,
-                "reset: no RESET reply within %.1f s to a BREAK nor to the NUL-byte fallback "
-                "(tracker off, wrong port, or not an NDI device)",
-                cfg_.reset_timeout);
-  *err = buf;
   return false;
 }
 
-bool AuroraClient::read_ascii_line(std::string* line, double timeout, std::string* err) {
+bool AuroraClient::read_ascii_line(std::string* line, double timeout, std::string* err, bool* hangup) {
   line->clear();
+  if (hangup) *hangup = false;
   const SteadyTime until = SteadyClock::now() + seconds(timeout);
   uint8_t buf[256];
   for (;;) {
@@ -253,6 +416,7 @@ bool AuroraClient::read_ascii_line(std::string* line, double timeout, std::strin
     const auto st = port_.read_some(buf, sizeof buf, std::min(left, 0.05), &n, &e);
     if (st == SerialPort::ReadStatus::kHangup || st == SerialPort::ReadStatus::kError) {
       *err = e;
+      if (hangup) *hangup = true;
       return false;
     }
     for (size_t i = 0; i < n; ++i) {
@@ -264,6 +428,7 @@ bool AuroraClient::read_ascii_line(std::string* line, double timeout, std::strin
 
 bool AuroraClient::command(const std::string& name, const std::string& params, std::string* reply, std::string* err,
                            double timeout) {
+  last_error_code_.clear();
   port_.flush_input();
   const std::string cmd = format_command(name, params);
   std::string e;
@@ -286,6 +451,7 @@ bool AuroraClient::command(const std::string& name, const std::string& params, s
   }
   if (!r.ok) {
     std::lock_guard<std::mutex> l(mu_);
+    last_error_code_ = r.text;
     ++status_.device_errors;
     *err = name + (params.empty() ? "" : " " + params) + ": " + r.error;
     return false;
@@ -322,25 +488,11 @@ void AuroraClient::track(std::string* err) {
 
     BxFrame f;
     std::string e;
-    const BxResult r = request_bx(&f, &e);
+    const bool tx = use_tx_;
+    BxResult r = tx ? request_tx(&f, &e) : request_bx(&f, &e);
     now = SteadyClock::now();
-    {
-      std::lock_guard<std::mutex> l(mu_);
-      // The parser's counters are cumulative over sessions; mirror them.
-      status_.crc_errors = parser_.crc_errors() + ascii_crc_errors_;
-      status_.garbage_bytes = parser_.garbage_bytes();
-      status_.format_errors = parser_.format_errors();
-      status_.truncated_frames = parser_.truncated_frames();
-      if (r == BxResult::kFrame) {
-        ++status_.frames;
-        status_.last_frame = now;
-        status_.ever_frame = true;
-      } else if (r == BxResult::kNoFrame) {
-        ++status_.reply_timeouts;
-      } else if (r == BxResult::kDeviceError) {
-        ++status_.device_errors;
-      }
-    }
+    if (r == BxResult::kDeviceError && !tx && fall_back_to_tx(e)) continue;  // TX from the next period on
+    count_reply(r, now);
     if (r == BxResult::kHangup || r == BxResult::kDeviceError) {
       *err = e;
       return;
@@ -349,12 +501,78 @@ void AuroraClient::track(std::string* err) {
     AuroraStatus s = status();
     if (seconds_between(s.last_frame, now) > cfg_.timeout) {
       char buf[96];
-      std::snprintf(buf, sizeof buf, "no valid BX reply for %.2f s (tracker silent)",
+      std::snprintf(buf, sizeof buf, "no valid %s reply for %.2f s (tracker silent)", use_tx_ ? "TX" : "BX",
                     seconds_between(s.last_frame, now));
       *err = buf;
       return;
     }
   }
+}
+
+void AuroraClient::count_reply(BxResult r, SteadyTime now) {
+  std::lock_guard<std::mutex> l(mu_);
+  // The parser's counters are cumulative over sessions; mirror them.
+  status_.crc_errors = parser_.crc_errors() + ascii_crc_errors_;
+  status_.garbage_bytes = parser_.garbage_bytes();
+  status_.format_errors = parser_.format_errors() + tx_format_errors_;
+  status_.truncated_frames = parser_.truncated_frames();
+  if (r == BxResult::kFrame) {
+    ++status_.frames;
+    status_.last_frame = now;
+    status_.ever_frame = true;
+  } else if (r == BxResult::kNoFrame) {
+    ++status_.reply_timeouts;
+  } else if (r == BxResult::kDeviceError) {
+    ++status_.device_errors;
+  }
+}
+
+bool AuroraClient::fall_back_to_tx(const std::string& bx_error) {
+  if (!cfg_.tx_fallback || bx_error_code_.empty()) return false;  // off, or the device reset itself
+  use_tx_ = true;
+  {
+    std::lock_guard<std::mutex> l(mu_);
+    ++status_.device_errors;
+    status_.tx_mode = true;
+    ++status_.tx_fallbacks;
+  }
+  worker_.log(LogLevel::kWarn, bx_error + "; this firmware refuses BX: polling with TX:0001 for this session");
+  return true;
+}
+
+AuroraClient::BxResult AuroraClient::request_tx(BxFrame* frame, std::string* err) {
+  port_.flush_input();  // a late reply to an earlier TX must not pass for this one's
+  std::string e;
+  if (!port_.write_all(format_command("TX", "0001"), 0.05, &e)) {
+    *err = "TX: " + e;
+    return BxResult::kHangup;
+  }
+  std::string line;
+  bool hangup = false;
+  if (!read_ascii_line(&line, cfg_.reply_timeout, &e, &hangup)) {
+    if (hangup) *err = "TX: " + e;
+    return hangup ? BxResult::kHangup : BxResult::kNoFrame;
+  }
+  const AsciiReply a = parse_ascii_reply(line);
+  if (!a.crc_ok) {
+    std::lock_guard<std::mutex> l(mu_);
+    ++ascii_crc_errors_;
+    return BxResult::kNoFrame;
+  }
+  if (!a.ok) {
+    *err = "TX: " + a.error;
+    return BxResult::kDeviceError;
+  }
+  if (a.text == "RESET") {
+    *err = "TX: the tracker reset itself (power glitch?)";
+    return BxResult::kDeviceError;
+  }
+  if (!parse_tx_reply(a.text, cfg_.out_of_volume_mask, frame, &e)) {
+    std::lock_guard<std::mutex> l(mu_);
+    ++tx_format_errors_;
+    return BxResult::kNoFrame;
+  }
+  return BxResult::kFrame;
 }
 
 AuroraClient::BxResult AuroraClient::request_bx(BxFrame* frame, std::string* err) {
@@ -369,6 +587,7 @@ AuroraClient::BxResult AuroraClient::request_bx(BxFrame* frame, std::string* err
   const auto rejected = [this] { return parser_.crc_errors() + parser_.format_errors() + parser_.truncated_frames(); };
   const uint64_t rejected0 = rejected();
   ascii_tail_.clear();
+  bx_error_code_.clear();
   const SteadyTime until = SteadyClock::now() + seconds(cfg_.reply_timeout);
   uint8_t buf[512];
   for (;;) {
@@ -396,6 +615,7 @@ AuroraClient::BxResult AuroraClient::request_bx(BxFrame* frame, std::string* err
         if (cand.compare(0, 5, "ERROR") != 0 && cand.compare(0, 5, "RESET") != 0) continue;
         const AsciiReply a = parse_ascii_reply(cand);
         if (!a.crc_ok) continue;
+        if (a.text != "RESET") bx_error_code_ = a.text;
         *err = a.text == "RESET" ? "BX: the tracker reset itself (power glitch?)" : "BX: " + a.error;
         return BxResult::kDeviceError;
       }
@@ -408,6 +628,7 @@ AuroraClient::BxResult AuroraClient::request_bx(BxFrame* frame, std::string* err
 void AuroraClient::deliver(const BxFrame& frame, SteadyTime received) {
   AuroraSample s;
   s.received = received;
+  s.stamp = received - seconds(cfg_.latency);
   s.system_status = frame.system_status;
   auto pick = [&](uint8_t handle, HandlePose* out, uint32_t* last, bool* have) {
     const HandlePose* h = frame.find(handle);
@@ -451,7 +672,13 @@ void AuroraClient::deliver(const BxFrame& frame, SteadyTime received) {
     count(s.base, s.base_new, &status_.base);
     if (!s.tip_new && !s.base_new) ++status_.duplicate_frames;
   }
-  if ((s.tip_new || s.base_new) && on_sample_) on_sample_(s);
+  if (!s.tip_new && !s.base_new) return;
+  // Strictly increasing stamps: a reply that came sooner after the previous one than the jitter of
+  // the host's receive time must not be stamped before it.
+  if (have_stamp_ && s.stamp <= last_stamp_) s.stamp = last_stamp_ + std::chrono::microseconds(1);
+  last_stamp_ = s.stamp;
+  have_stamp_ = true;
+  if (on_sample_) on_sample_(s);
 }
 
 }  // namespace devices

@@ -3,6 +3,7 @@
 #include "hydrojet_control/devices/aurora_protocol.h"
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <stdexcept>
@@ -373,6 +374,171 @@ std::vector<uint8_t> encode_bx(const BxFrame& frame) {
   out.insert(out.end(), body.begin(), body.end());
   put16(&out, crc16_arc(body.data(), body.size()));
   return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// PVWR
+// ---------------------------------------------------------------------------------------------
+
+std::vector<std::string> pvwr_params(uint8_t handle, const std::vector<uint8_t>& data) {
+  if (data.empty()) throw std::invalid_argument("pvwr_params: empty tool definition");
+  if (data.size() > kMaxSromBytes)
+    throw std::invalid_argument("pvwr_params: tool definition of " + std::to_string(data.size()) +
+                                " bytes is longer than " + std::to_string(kMaxSromBytes));
+  std::vector<std::string> out;
+  char b[8];
+  for (size_t addr = 0; addr < data.size(); addr += kPvwrChunk) {
+    std::snprintf(b, sizeof b, "%02X%04X", handle, static_cast<unsigned>(addr));
+    std::string p = b;
+    for (size_t i = addr; i < addr + kPvwrChunk; ++i) {
+      std::snprintf(b, sizeof b, "%02X", i < data.size() ? data[i] : 0);
+      p += b;
+    }
+    out.push_back(p);
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// TX decode
+// ---------------------------------------------------------------------------------------------
+
+namespace {
+
+/// A signed decimal of `n` characters at s[pos]: '+' or '-' then n - 1 digits; false otherwise.
+bool parse_signed(const std::string& s, size_t pos, size_t n, long* v) {
+  if (pos + n > s.size() || (s[pos] != '+' && s[pos] != '-')) return false;
+  long x = 0;
+  for (size_t i = pos + 1; i < pos + n; ++i) {
+    if (s[i] < '0' || s[i] > '9') return false;
+    x = x * 10 + (s[i] - '0');
+  }
+  *v = s[pos] == '-' ? -x : x;
+  return true;
+}
+
+std::string tx_handle_label(size_t index, uint32_t handle) {
+  static const char kHex[] = "0123456789ABCDEF";
+  std::string h;
+  h += kHex[(handle >> 4) & 0xF];
+  h += kHex[handle & 0xF];
+  return "TX handle entry " + std::to_string(index) + " (" + h + ")";
+}
+
+/// The transform at s[*p]: q (4 x 6 chars, / 1e4), t (3 x 7 chars, / 100 mm), rms (6 chars, / 1e4 mm).
+bool parse_tx_transform(const std::string& s, size_t* p, const std::string& label, HandlePose* h, std::string* err) {
+  static const char* kField[8] = {"q0", "qx", "qy", "qz", "tx", "ty", "tz", "rms"};
+  double v[8];
+  size_t pos = *p;
+  for (int k = 0; k < 8; ++k) {
+    const size_t n = (k >= 4 && k < 7) ? 7 : 6;
+    long x = 0;
+    if (!parse_signed(s, pos, n, &x)) {
+      set_err(err, label + ": field " + kField[k] + " is not a sign and " + std::to_string(n - 1) + " digits");
+      return false;
+    }
+    v[k] = (k >= 4 && k < 7) ? x * 0.01 : x * 1e-4;
+    pos += n;
+  }
+  const double norm = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + v[3] * v[3]);
+  if (std::fabs(norm - 1.0) > 1e-2) {
+    set_err(err, label + ": quaternion norm " + std::to_string(norm) + " is not 1");
+    return false;
+  }
+  if (v[7] < 0.0) {
+    set_err(err, label + ": negative rms error");
+    return false;
+  }
+  for (int k = 0; k < 4; ++k) h->q[k] = v[k] / norm;
+  for (int k = 0; k < 3; ++k) h->t[k] = v[4 + k] * kMmToM;
+  h->rms_m = v[7] * kMmToM;
+  *p = pos;
+  return true;
+}
+
+/// Port status and frame number (8 hex digits each) at s[*p].
+bool parse_tx_status(const std::string& s, size_t* p, const std::string& label, HandlePose* h, std::string* err) {
+  if (!parse_hex(s, *p, 8, &h->port_status) || !parse_hex(s, *p + 8, 8, &h->frame)) {
+    set_err(err, label + ": port status and frame number must be 8 hex digits each");
+    return false;
+  }
+  *p += 16;
+  return true;
+}
+
+/// One handle entry at s[*p] up to and including its LF; *skip when it is UNOCCUPIED.
+bool parse_tx_handle(const std::string& s, size_t index, uint32_t oov_mask, size_t* p, HandlePose* h, bool* skip,
+                     std::string* err) {
+  uint32_t handle = 0;
+  if (!parse_hex(s, *p, 2, &handle)) {
+    set_err(err, "TX handle entry " + std::to_string(index) + ": missing 2-hex-digit port handle");
+    return false;
+  }
+  const std::string label = tx_handle_label(index, handle);
+  *p += 2;
+  h->handle = static_cast<uint8_t>(handle);
+  clear_pose(h);
+  *skip = false;
+  bool transform = false;
+  auto word = [&](const char* w) {
+    const size_t n = std::strlen(w);
+    if (s.compare(*p, n, w) != 0) return false;
+    *p += n;
+    return true;
+  };
+  if (word("UNOCCUPIED")) {
+    *skip = true;
+  } else if (word("DISABLED")) {
+    h->status = HandlePose::kDisabled;
+    h->port_status = h->frame = 0;
+    if (*p < s.size() && s[*p] != '\n' && !parse_tx_status(s, p, label, h, err)) return false;
+  } else if (word("MISSING")) {
+    if (!parse_tx_status(s, p, label, h, err)) return false;
+  } else {
+    if (!parse_tx_transform(s, p, label, h, err) || !parse_tx_status(s, p, label, h, err)) return false;
+    transform = true;
+  }
+  if (*p >= s.size() || s[*p] != '\n') {
+    set_err(err, label + ": expected a line feed after the entry");
+    return false;
+  }
+  ++*p;
+  if (h->status != HandlePose::kDisabled && !*skip) {
+    if (h->port_status & oov_mask)
+      h->status = HandlePose::kOutOfVolume;
+    else
+      h->status = transform ? HandlePose::kValid : HandlePose::kMissing;
+  }
+  return true;
+}
+
+}  // namespace
+
+bool parse_tx_reply(const std::string& text, uint32_t out_of_volume_mask, BxFrame* out, std::string* err) {
+  uint32_t count = 0;
+  if (!parse_hex(text, 0, 2, &count)) {
+    set_err(err, "TX reply: missing 2-hex-digit handle count");
+    return false;
+  }
+  BxFrame f;
+  size_t p = 2;
+  for (uint32_t i = 0; i < count; ++i) {
+    HandlePose h;
+    bool skip = false;
+    if (!parse_tx_handle(text, i, out_of_volume_mask, &p, &h, &skip, err)) return false;
+    if (!skip) f.handles.push_back(h);
+  }
+  uint32_t sys = 0;
+  if (!parse_hex(text, p, 4, &sys) || p + 4 != text.size()) {
+    set_err(err, "TX reply: expected 4 hex digits of system status after " + std::to_string(count) +
+                     " handles, then the end (" + std::to_string(text.size() - std::min(p, text.size())) +
+                     " characters left)");
+    return false;
+  }
+  f.has_system_status = true;
+  f.system_status = static_cast<uint16_t>(sys);
+  if (out) *out = std::move(f);
+  return true;
 }
 
 // ---------------------------------------------------------------------------------------------

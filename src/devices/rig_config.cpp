@@ -52,6 +52,36 @@ void parse_frames(Tree& p, RigOptions* c) {
     throw RigOptionsError("tip_frame: tracker_frame, tip_frame and base_frame must differ");
 }
 
+/// tracker/srom_files: {port handle (hex text or integer): tool-definition file}. Each file is read
+/// here, so that a missing or oversized one stops the start naming its key.
+void parse_srom_files(Tree& p, AuroraOptions* a) {
+  p.allow("tracker/srom_files");
+  const YAML::Node n = p.find("tracker/srom_files");
+  if (!n.IsDefined()) return;
+  if (!n.IsMap()) throw RigOptionsError("tracker/srom_files: must be a mapping {port handle: file}");
+  for (const auto& kv : n) {
+    const std::string key = "tracker/srom_files/" + kv.first.Scalar();
+    YAML::Node one;
+    one["h"] = kv.first;
+    long h = -1;
+    try {
+      h = Tree(one).hex_or_int("h", -1);
+    } catch (const RigOptionsError&) {
+      h = -1;  // named below with the full key
+    }
+    if (h < 1 || h > 0xFF)
+      throw RigOptionsError(key + ": the key must be a port handle in [0x01, 0xFF] (hex text like 0A, or 0x0A)");
+    if (!kv.second.IsScalar() || kv.second.Scalar().empty())
+      throw RigOptionsError(key + ": must be the path of a tool-definition (.rom) file");
+    const uint8_t handle = static_cast<uint8_t>(h);
+    if (a->srom_files.count(handle)) throw RigOptionsError(key + ": port handle given twice");
+    std::vector<uint8_t> data;
+    std::string err;
+    if (!load_srom(kv.second.Scalar(), &data, &err)) throw RigOptionsError(key + ": " + err);
+    a->srom_files[handle] = kv.second.Scalar();
+  }
+}
+
 /// tracker/...: the NDI Aurora (port required).
 void parse_tracker(Tree& p, RigOptions* c) {
   AuroraOptions& a = c->tracker;
@@ -76,6 +106,16 @@ void parse_tracker(Tree& p, RigOptions* c) {
   if (prio.size() != 1) throw RigOptionsError("tracker/tracking_priority: must be S, D or B");
   a.tracking_priority = prio[0];
   a.bx_options = p.text("tracker/bx_options", a.bx_options);
+  const std::string format = p.text("tracker/reply_format", to_string(a.reply_format));
+  if (format == "bx")
+    a.reply_format = AuroraOptions::ReplyFormat::kBx;
+  else if (format == "tx")
+    a.reply_format = AuroraOptions::ReplyFormat::kTx;
+  else
+    throw RigOptionsError("tracker/reply_format: '" + format + "' is not bx or tx");
+  a.tx_fallback = p.boolean("tracker/tx_fallback", a.tx_fallback);
+  a.latency = p.number("tracker/latency", a.latency);
+  parse_srom_files(p, &a);
   a.reconnect_period = c->reconnect_period;
   check("tracker", a.validate());
 }

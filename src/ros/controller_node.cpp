@@ -35,6 +35,7 @@
 #include "hydrojet_control/control/path.h"
 #include "hydrojet_control/ros/params.h"
 #include "hydrojet_control/ros/names.h"
+#include "hydrojet_control/ros/shutdown.h"
 
 namespace names = hydrojet::names;
 
@@ -192,7 +193,7 @@ class FollowPathServer {
 class ControllerNode {
  public:
   ControllerNode(ros::NodeHandle& nh, ros::NodeHandle& pnh) : nh_(nh), pnh_(pnh), tf_listener_(tf_) {
-    opts_ = ros_bridge::read_controller_options(pnh);
+    opts_ = ros_bridge::read_controller_options(pnh, reconfigure_keys());
     const config::Scene scene = config::load_scene(opts_.scene);
     const control::RobotModel model = config::make_controller_model(scene, opts_.flow_regulator);
     controller_.reset(new control::Controller(model, opts_.controller));
@@ -221,6 +222,19 @@ class ControllerNode {
     ROS_INFO("controller: scene %s, %s loop, %.0f Hz%s, at start: %s", opts_.scene.c_str(),
              control::to_string(opts_.controller.mode), opts_.rate, opts_.autostart ? ", autostart" : "",
              control::to_string(opts_.controller.path_type));
+  }
+
+  /// On the way out (a signal or a shutdown request): an all-zero jets/command, one entry per actuator,
+  /// so that the rig or the plant closes the valves now rather than at its command timeout.
+  void close_valves() {
+    hydrojet_control::JetCommand cmd;
+    cmd.header.stamp = ros::Time::now();
+    const size_t n = static_cast<size_t>(controller_->jet_count());
+    cmd.valve_command.assign(n, 0.0);
+    cmd.jet_force.assign(n, 0.0);
+    cmd.flow.assign(n, 0.0);
+    cmd_pub_.publish(cmd);
+    ROS_INFO("controller: stopping (signal %d): jets/command all zero", ros_bridge::shutdown_signal());
   }
 
  private:
@@ -344,6 +358,14 @@ class ControllerNode {
   void on_jet_state(const hydrojet_control::JetState::ConstPtr& m) {
     jets_ = *m;
     have_jets_ = true;
+  }
+
+  /// The parameters dynamic_reconfigure keeps under ~ (cfg/Controller.cfg): left there by an earlier
+  /// run of a node of this name (a restart), they are not options; start_reconfigure() sets them anew.
+  static std::vector<std::string> reconfigure_keys() {
+    std::vector<std::string> keys;
+    for (const auto& d : hydrojet_control::ControllerConfig::__getParamDescriptions__()) keys.push_back(d->name);
+    return keys;
   }
 
   // Gains through dynamic_reconfigure, starting from the options read. Callbacks run on the single
@@ -591,11 +613,14 @@ class ControllerNode {
 }  // namespace hydrojet
 
 int main(int argc, char** argv) {
-  ros::init(argc, argv, "controller");
+  ros::init(argc, argv, "controller", ros::init_options::NoSigintHandler);
+  hydrojet::ros_bridge::install_shutdown_signals();
   ros::NodeHandle nh, pnh("~");
   try {
     hydrojet::ControllerNode node(nh, pnh);
-    ros::spin();
+    hydrojet::ros_bridge::spin_until_signal();
+    node.close_valves();
+    hydrojet::ros_bridge::flush_and_shutdown();
   } catch (const std::exception& e) {
     // Bad configuration: refuse to start, naming the key.
     ROS_FATAL("controller: refusing to start: %s", e.what());

@@ -37,9 +37,12 @@ YAML::Node private_params_as_yaml(const ros::NodeHandle& pnh) {
   return to_yaml(v);
 }
 
-config::ControllerNodeOptions read_controller_options(const ros::NodeHandle& pnh) {
+config::ControllerNodeOptions read_controller_options(const ros::NodeHandle& pnh,
+                                                      const std::vector<std::string>& mirrored) {
   try {
-    config::ControllerNodeOptions o = config::parse_controller_options(private_params_as_yaml(pnh));
+    YAML::Node params = private_params_as_yaml(pnh);
+    for (const std::string& key : mirrored) params.remove(key);
+    config::ControllerNodeOptions o = config::parse_controller_options(params);
     if (o.scene.empty()) throw config::ParamError("scene", "missing (path of the scene YAML)");
     return o;
   } catch (const config::ParamError& e) {  // private parameters: name them ~key

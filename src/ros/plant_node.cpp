@@ -8,15 +8,19 @@
 #include <rosgraph_msgs/Clock.h>
 #include <tf2_ros/transform_broadcaster.h>
 
+#include <cmath>
 #include <iostream>
+#include <set>
 
 #include "hydrojet_control/JetCommand.h"
 #include "hydrojet_control/JetState.h"
+#include "hydrojet_control/PlantFault.h"
 #include "hydrojet_control/RodState.h"
 #include "hydrojet_control/actuation/thrust.h"
 #include "hydrojet_control/config/plant_config.h"
 #include "hydrojet_control/ros/params.h"
 #include "hydrojet_control/ros/names.h"
+#include "hydrojet_control/ros/shutdown.h"
 
 namespace names = hydrojet::names;
 
@@ -37,6 +41,15 @@ struct PlantNodeOptions {
   double stuck_open_at = -1.0;
   int stuck_open_jet = 2;   ///< 1-based
   double stuck_duty = 1.0;  ///< the stuck valve's opening [0, 1]
+  double start_time = 0.0;  ///< lockstep: /clock starts here [s] (a restarted plant, scripts/soak)
+};
+
+/// A fault received on plant/fault, active over [from, to) of the plant's own time [s].
+struct ActiveFault {
+  std::string kind;
+  int actuator = 0;
+  double from = 0.0, to = 0.0, value = 0.0;
+  double frozen_flow = 0.0;  ///< flow_silent: the reading at the start, repeated
 };
 
 PlantNodeOptions read_options(const ros::NodeHandle& pnh) {
@@ -45,7 +58,7 @@ PlantNodeOptions read_options(const ros::NodeHandle& pnh) {
   config::YamlTree<config::ParamError> t(y, '/', "~");
   t.keys("", {"scene", "plant", "seed", "rate", "lockstep", "command_wait", "duration", "tracker_frame",
               "tracker_dropout_at", "tracker_dropout_duration", "flow_fault_at", "stuck_open_at", "stuck_open_jet",
-              "stuck_duty"});
+              "stuck_duty", "start_time"});
   o.scene = t.text("scene", "");
   if (o.scene.empty()) t.fail("scene", "missing (path of the scene YAML)");
   o.plant_file = t.text("plant", o.plant_file);
@@ -61,6 +74,8 @@ PlantNodeOptions read_options(const ros::NodeHandle& pnh) {
   o.stuck_open_at = t.number("stuck_open_at", o.stuck_open_at);
   o.stuck_open_jet = t.integer("stuck_open_jet", o.stuck_open_jet, 1, 3);
   o.stuck_duty = t.number("stuck_duty", o.stuck_duty);
+  o.start_time = t.number("start_time", o.start_time);
+  if (!(o.start_time >= 0.0)) t.fail("start_time", "must be >= 0 s");
   if (!(o.rate >= 1.0 && o.rate <= 1000.0)) t.fail("rate", "must lie in [1, 1000] Hz");
   return o;
 }
@@ -87,6 +102,8 @@ class PlantNode {
     jet_pub_ = nh.advertise<hydrojet_control::JetState>(names::kJetState, 10);
     truth_pub_ = nh.advertise<hydrojet_control::RodState>(names::kPlantRodState, 10);
     cmd_sub_ = nh.subscribe(names::kJetCommand, 10, &PlantNode::command, this, ros::TransportHints().tcpNoDelay());
+    fault_sub_ = nh.subscribe(names::kPlantFault, 10, &PlantNode::on_fault, this);
+    fault_pub_ = nh.advertise<hydrojet_control::PlantFault>(names::kPlantFaultApplied, 10);
     ROS_INFO("plant: scene %s, base tilt %.1f deg, seed %d, %s", o_.scene.c_str(), model_.base_tilt * 180 / M_PI,
              o_.seed, o_.lockstep ? "lockstep (owns /clock)" : "real time");
   }
@@ -96,14 +113,20 @@ class PlantNode {
     if (o_.lockstep) {
       // Wait (wall time) for a controller to subscribe, so the first steps are not lost.
       const ros::WallTime until = ros::WallTime::now() + ros::WallDuration(30.0);
-      while (ros::ok() && jet_pub_.getNumSubscribers() == 0 && ros::WallTime::now() < until) {
+      while (ros_bridge::running() && jet_pub_.getNumSubscribers() == 0 && ros::WallTime::now() < until) {
         publish_clock(0.0);
         ros::WallDuration(0.05).sleep();
         ros::spinOnce();
       }
     }
+    if (o_.lockstep && o_.start_time > 0.0) {
+      // A restarted plant (scripts/soak): its clock resumes one control cycle before its sensors do,
+      // as a real rig's data come back after the time that passed; the controller sees the gap.
+      publish_clock(0.0);
+      wait_for_command(0.0, o_.command_wait);
+    }
     ros::WallRate pace(o_.rate);
-    for (long k = 0; ros::ok(); ++k) {
+    for (long k = 0; ros_bridge::running(); ++k) {
       const double t = k * dt;
       if (o_.duration > 0 && t > o_.duration) break;
       if (!plant_->advance_to(t)) {
@@ -114,11 +137,7 @@ class PlantNode {
         // Let the sensor messages go out before the clock that triggers the controller.
         ros::WallDuration(0.0005).sleep();
         publish_clock(t);
-        const ros::WallTime until = ros::WallTime::now() + ros::WallDuration(k == 0 ? 0.0 : o_.command_wait);
-        while (ros::ok() && last_command_stamp_ < t - 1e-9 && ros::WallTime::now() < until) {
-          ros::spinOnce();
-          ros::WallDuration(0.0001).sleep();
-        }
+        wait_for_command(t, k == 0 ? 0.0 : o_.command_wait);
       } else {
         ros::spinOnce();
         pace.sleep();
@@ -127,13 +146,81 @@ class PlantNode {
     }
   }
 
+  /// On the way out (a signal, the end of `duration`): the simulated valves shut, and a last
+  /// jets/state shows it (valve_command all zero unless a valve is stuck).
+  void close_valves() {
+    plant_->command(plant::Plant::Vector::Zero(plant_->actuator_count()), plant_->time());
+    publish_sensors(plant_->time());
+    ROS_INFO("plant: stopping (signal %d): valves closed", ros_bridge::shutdown_signal());
+  }
+
  private:
-  double now(double t) const { return o_.lockstep ? t : ros::Time::now().toSec(); }
+  /// Lockstep: spins until the command of time t [s] arrived, at most `wall_s` of wall time.
+  void wait_for_command(double t, double wall_s) {
+    const ros::WallTime until = ros::WallTime::now() + ros::WallDuration(wall_s);
+    while (ros_bridge::running() && last_command_stamp_ < t - 1e-9 && ros::WallTime::now() < until) {
+      ros::spinOnce();
+      ros::WallDuration(0.0001).sleep();
+    }
+  }
+
+  /// The ROS time of the plant's own time t [s]: offset by start_time in lockstep.
+  double now(double t) const { return o_.lockstep ? t + o_.start_time : ros::Time::now().toSec(); }
 
   void publish_clock(double t) {
     rosgraph_msgs::Clock c;
-    c.clock = ros::Time(t);
+    c.clock = ros::Time(now(t));
     clock_pub_.publish(c);
+  }
+
+  /// plant/fault: checked field by field, applied from the plant's current time, echoed on
+  /// plant/fault_applied with its ROS time.
+  void on_fault(const hydrojet_control::PlantFault::ConstPtr& m) {
+    static const std::set<std::string> kinds = {"tracker_dropout", "flow_nan", "flow_negative", "flow_silent",
+                                                "stuck_valve"};
+    std::string err;
+    if (!kinds.count(m->kind))
+      err = "kind: '" + m->kind + "' is not tracker_dropout, flow_nan, flow_negative, flow_silent or stuck_valve";
+    else if (!(std::isfinite(m->duration) && m->duration > 0.0))
+      err = "duration: must be finite and > 0 s";
+    else if (m->kind != "tracker_dropout" && (m->actuator < 0 || m->actuator >= plant_->actuator_count()))
+      err = "actuator: " + std::to_string(m->actuator) + " is not in [0, " + std::to_string(plant_->actuator_count()) +
+            ")";
+    else if (m->kind == "stuck_valve" &&
+             (!(m->value >= 0.0 && m->value <= 1.0) || m->actuator >= static_cast<int>(plant_->hydraulics().size())))
+      err = "value: a stuck valve's opening must lie in [0, 1] (and the actuator be a jet)";
+    if (!err.empty()) {
+      ROS_ERROR("plant: refused plant/fault: %s", err.c_str());
+      return;
+    }
+    ActiveFault f;
+    f.kind = m->kind, f.actuator = m->actuator, f.value = m->value;
+    f.from = plant_->time();
+    f.to = f.from + m->duration;
+    if (f.kind == "tracker_dropout") plant_->tracker().force_dropout(f.from, m->duration);
+    if (f.kind == "stuck_valve") plant_->hydraulics()[f.actuator].set_stuck(f.value);
+    if (f.kind == "flow_silent") f.frozen_flow = plant_->flow_sample()[f.actuator];
+    faults_.push_back(f);
+    hydrojet_control::PlantFault echo = *m;
+    echo.header.stamp = ros::Time(now(f.from));
+    fault_pub_.publish(echo);
+    ROS_WARN("plant: fault %s on actuator %d for %.3f s from t = %.3f s", f.kind.c_str(), f.actuator, m->duration,
+             now(f.from));
+  }
+
+  /// The faults of plant/fault on this sample's readings; an ended stuck valve is freed.
+  void apply_faults(double t, plant::Plant::Vector* q, std::vector<uint8_t>* valid) {
+    for (auto it = faults_.begin(); it != faults_.end();) {
+      if (t >= it->to) {
+        if (it->kind == "stuck_valve") plant_->hydraulics()[it->actuator].set_stuck(-1.0);
+        it = faults_.erase(it);
+        continue;
+      }
+      if (it->kind == "flow_nan") (*q)[it->actuator] = std::nan("");
+      if (it->kind == "flow_negative") (*q)[it->actuator] = -1e-6;
+      if (it->kind == "flow_silent") (*q)[it->actuator] = it->frozen_flow, (*valid)[it->actuator] = false;
+      ++it;
+    }
   }
 
   void command(const hydrojet_control::JetCommand::ConstPtr& m) {
@@ -141,7 +228,7 @@ class PlantNode {
     plant::Plant::Vector duty(std::min<int>(m->valve_command.size(), rod::kMaxActuators));
     for (int i = 0; i < duty.size(); ++i) duty[i] = m->valve_command[i];
     if (static_cast<int>(m->valve_command.size()) != plant_->actuator_count()) duty.setZero(0);
-    const double t = o_.lockstep ? m->header.stamp.toSec() : plant_->time();
+    const double t = o_.lockstep ? m->header.stamp.toSec() - o_.start_time : plant_->time();
     plant_->command(duty, plant_->time());
     last_command_stamp_ = std::max(last_command_stamp_, t);
   }
@@ -169,9 +256,11 @@ class PlantNode {
       q[0] = std::nan("");
       if (q.size() > 1) q[1] = -1e-6;
     }
+    const int n = plant_->actuator_count();
+    std::vector<uint8_t> valid(n, true);  // the plant reports what its sensors read; checks are the reader's job
+    apply_faults(t, &q, &valid);
     hydrojet_control::JetState js;
     js.header.stamp = stamp;
-    const int n = plant_->actuator_count();
     const plant::Plant::Vector duty = plant_->valves_closed_by_timeout()
                                           ? plant::Plant::Vector(plant::Plant::Vector::Zero(n))
                                           : plant_->valve_command();
@@ -181,7 +270,7 @@ class PlantNode {
     js.valve_command.resize(n);
     for (int i = 0; i < n; ++i) {
       js.flow[i] = q[i];
-      js.flow_valid[i] = true;  // the plant reports what its sensors read; checks are the reader's job
+      js.flow_valid[i] = valid[i];
       js.force[i] = plant_->is_jet(i) ? actuation::force_from_flow(q[i], model_.nozzle) : f[i];
       js.valve_command[i] = duty[i];
     }
@@ -221,7 +310,9 @@ class PlantNode {
   plant::PlantModel model_;
   std::unique_ptr<plant::Plant> plant_;
   ros::Publisher clock_pub_, tip_pub_, base_pub_, jet_pub_, truth_pub_;
-  ros::Subscriber cmd_sub_;
+  ros::Subscriber cmd_sub_, fault_sub_;
+  ros::Publisher fault_pub_;
+  std::vector<ActiveFault> faults_;
   tf2_ros::TransformBroadcaster tf_;
   double last_command_stamp_ = -1.0;
 };
@@ -230,11 +321,14 @@ class PlantNode {
 }  // namespace hydrojet
 
 int main(int argc, char** argv) {
-  ros::init(argc, argv, "plant");
+  ros::init(argc, argv, "plant", ros::init_options::NoSigintHandler);
+  hydrojet::ros_bridge::install_shutdown_signals();
   ros::NodeHandle nh, pnh("~");
   try {
     hydrojet::PlantNode node(nh, pnh);
     node.run();
+    node.close_valves();
+    hydrojet::ros_bridge::flush_and_shutdown();
   } catch (const std::exception& e) {
     ROS_FATAL("plant: refusing to start: %s", e.what());
     std::cerr << "plant: refusing to start: " << e.what() << std::endl;

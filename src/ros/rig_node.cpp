@@ -8,6 +8,7 @@
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
 #include <std_msgs/Float64.h>
+#include <std_msgs/Header.h>
 #include <tf2_ros/transform_broadcaster.h>
 
 #include <cmath>
@@ -21,6 +22,7 @@
 #include "hydrojet_control/devices/rig_config.h"
 #include "hydrojet_control/ros/params.h"
 #include "hydrojet_control/ros/names.h"
+#include "hydrojet_control/ros/shutdown.h"
 
 namespace names = hydrojet::names;
 
@@ -119,6 +121,7 @@ class RigNode {
     tip_pub_ = nh.advertise<geometry_msgs::PoseStamped>(names::kTipPose, 10);
     base_pub_ = nh.advertise<geometry_msgs::PoseStamped>(names::kBasePose, 10);
     tip_rms_pub_ = nh.advertise<std_msgs::Float64>(names::kTipRms, 10);
+    tip_frame_pub_ = nh.advertise<std_msgs::Header>(names::kTipFrameNumber, 10);
     base_rms_pub_ = nh.advertise<std_msgs::Float64>(names::kBaseRms, 10);
     jet_pub_ = nh.advertise<hydrojet_control::JetState>(names::kJetState, 10);
   }
@@ -165,10 +168,20 @@ class RigNode {
   // -- device threads -------------------------------------------------------------------------
 
   void on_tracker(const devices::AuroraSample& s) {
-    const ros::Time stamp = to_ros(s.received);
+    // s.stamp is strictly increasing on the steady clock (receive time - latency); the conversion
+    // to ROS time reads two clocks, so keep the published stamps strictly increasing too.
+    ros::Time stamp = to_ros(s.stamp);
+    if (!last_tracker_stamp_.isZero() && stamp <= last_tracker_stamp_)
+      stamp = last_tracker_stamp_ + ros::Duration(0, 1000);
+    last_tracker_stamp_ = stamp;
     std::vector<geometry_msgs::TransformStamped> tfs;
     if (s.tip_new && s.tip.status == HandlePose::kValid) {
       publish_pose(s.tip, stamp, tip_pub_, tip_rms_pub_, cfg_.tip_frame, &tfs);
+      std_msgs::Header frame;
+      frame.seq = s.tip.frame;
+      frame.stamp = stamp;
+      frame.frame_id = cfg_.tracker_frame;
+      tip_frame_pub_.publish(frame);
       tip_freq_.tick();
     }
     if (s.base_new && s.base.status == HandlePose::kValid) {
@@ -237,6 +250,7 @@ class RigNode {
   }
 
   void update_diagnostics(const ros::WallTimerEvent&) {
+    track_tracker_rates(SteadyClock::now());
     // Publish at once when a device's health changes; otherwise at the updater's period.
     std::string why;
     const bool ok = devices_healthy(SteadyClock::now(), &why);
@@ -323,7 +337,9 @@ class RigNode {
     s.add("port", cfg_.tracker.port);
     s.add("state", devices::to_string(a.state));
     s.add("last_error", a.last_error);
-    s.add("reset_by", a.reset_by_break ? "BREAK" : "NUL-byte fallback");
+    s.add("connected_by", devices::to_string(a.connected_by));
+    s.add("reply_format", a.tx_mode ? "TX (ASCII)" : "BX (binary)");
+    s.add("tx_fallbacks", a.tx_fallbacks);
     s.add("frames", a.frames);
     s.add("duplicate_frames", a.duplicate_frames);
     s.add("crc_errors", a.crc_errors);
@@ -334,6 +350,18 @@ class RigNode {
     s.add("device_errors", a.device_errors);
     s.add("sessions", a.sessions);
     s.add("connect_failures", a.connect_failures);
+    s.add("crc_errors_per_min", crc_rate_.per_minute(now));
+    s.add("reply_timeouts_per_min", timeout_rate_.per_minute(now));
+    s.add("reconnects_per_min", reconnect_rate_.per_minute(now));
+  }
+
+  /// Feeds the per-minute windows from the tracker's cumulative counters (diagnostics timer).
+  void track_tracker_rates(SteadyTime now) {
+    const AuroraStatus a = tracker_->status();
+    crc_rate_.track(now, a.crc_errors);
+    timeout_rate_.track(now, a.reply_timeouts);
+    // Reconnects: every session after the first, and every failed connection attempt.
+    reconnect_rate_.track(now, (a.sessions > 0 ? a.sessions - 1 : 0) + a.connect_failures);
   }
 
   void diagnose_handle(diagnostic_updater::DiagnosticStatusWrapper& s, bool tip) {
@@ -427,7 +455,9 @@ class RigNode {
   std::unique_ptr<diagnostic_updater::FrequencyStatus> flow_freq_[3];
   devices::FlowAggregator flows_;
 
-  ros::Publisher tip_pub_, base_pub_, tip_rms_pub_, base_rms_pub_, jet_pub_;
+  ros::Publisher tip_pub_, base_pub_, tip_rms_pub_, base_rms_pub_, tip_frame_pub_, jet_pub_;
+  ros::Time last_tracker_stamp_;                                   ///< written by the tracker thread only
+  devices::RateCounter crc_rate_, timeout_rate_, reconnect_rate_;  ///< diagnostics timer only
   ros::Subscriber cmd_sub_;
   ros::WallTimer jets_timer_, diag_timer_;
   tf2_ros::TransformBroadcaster tf_;
@@ -443,12 +473,16 @@ class RigNode {
 }  // namespace hydrojet
 
 int main(int argc, char** argv) {
-  ros::init(argc, argv, "rig");
+  ros::init(argc, argv, "rig", ros::init_options::NoSigintHandler);
+  hydrojet::ros_bridge::install_shutdown_signals();
   ros::NodeHandle nh, pnh("~");
   try {
     hydrojet::RigNode node(nh, pnh);
-    ros::spin();
-  } catch (const std::exception& e) {
+    hydrojet::ros_bridge::spin_until_signal();
+    if (hydrojet::ros_bridge::shutdown_signal() != 0)
+      ROS_INFO("rig: signal %d: closing the valves", hydrojet::ros_bridge::shutdown_signal());
+  }  // ~RigNode: valves closed (duty 0 acknowledged by the board, or the port closed), TSTOP
+  catch (const std::exception& e) {
     // Bad configuration: refuse to start, naming the key.
     ROS_FATAL("rig: refusing to start: %s", e.what());
     std::cerr << "rig: refusing to start: " << e.what() << std::endl;

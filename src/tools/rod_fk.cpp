@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "hydrojet_control/config/scene.h"
+#include "hydrojet_control/config/wrench_batch.h"
 #include "hydrojet_control/rod/general_rod_solver.h"
 #include "hydrojet_control/rod/shooting_solver.h"
 #include "hydrojet_control/rod/stability.h"
@@ -34,11 +35,11 @@ struct BadInput {
 };
 
 double parse_number(const std::string& text, const std::string& arg) {
-  char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  if (text.empty() || end != text.c_str() + text.size()) throw BadInput{arg + ": not a number '" + text + "'"};
-  if (!std::isfinite(v)) throw BadInput{arg + ": not a finite number '" + text + "'"};
-  return v;
+  try {
+    return hydrojet::config::parse_finite_number(text, arg);
+  } catch (const hydrojet::config::BatchError& e) {
+    throw BadInput{e.what()};
+  }
 }
 
 struct Options {
@@ -130,25 +131,11 @@ std::vector<hydrojet::rod::TipWrench> read_batch(const std::string& src) {
     if (!file) throw BadInput{"--batch: cannot read file '" + src + "'"};
     in = &file;
   }
-  std::vector<hydrojet::rod::TipWrench> out;
-  std::string line;
-  for (int lineno = 1; std::getline(*in, line); ++lineno) {
-    for (char& c : line)
-      if (c == ',' || c == '\t' || c == '\r') c = ' ';
-    std::istringstream ss(line);
-    std::vector<std::string> tok;
-    std::string t;
-    while (ss >> t) tok.push_back(t);
-    if (tok.empty() || tok[0][0] == '#') continue;
-    const std::string where = "--batch line " + std::to_string(lineno);
-    if (tok.size() != 6)
-      throw BadInput{where + ": expected 6 numbers fx fy fz mx my mz, got " + std::to_string(tok.size())};
-    hydrojet::rod::TipWrench w;
-    for (int k = 0; k < 3; ++k) w.force[k] = parse_number(tok[k], where);
-    for (int k = 0; k < 3; ++k) w.moment[k] = parse_number(tok[3 + k], where);
-    out.push_back(w);
+  try {
+    return hydrojet::config::parse_wrench_batch(*in);
+  } catch (const hydrojet::config::BatchError& e) {
+    throw BadInput{e.what()};
   }
-  return out;
 }
 
 /// True when the scene is more than one uniform rod with its actuation at the tip: segments, point

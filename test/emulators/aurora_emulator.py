@@ -14,7 +14,13 @@ Wire format (see include/hydrojet_control/devices/aurora_protocol.h):
            u32 frame number [missing: no floats; disabled: nothing], then u16 system status.
   CRC16 is CRC-16/ARC (poly 0xA001 reflected, init 0).
 
-Commands answered: RESET, INIT, COMM, VER, BEEP, PHSR, PINIT, PENA, PDIS, TSTART, TSTOP, BX.
+  TX reply (TX:0001) ASCII, CRC over all of it: 2 hex handle count; per handle 2 hex handle, then
+           the transform (q0 qx qy qz: sign + 5 digits, /10000; tx ty tz: sign + 6 digits, mm /100;
+           rms: sign + 5 digits, mm /10000) or "MISSING", then 8 hex port status, 8 hex frame
+           number, LF ("DISABLED" + LF for a disabled handle); then 4 hex system status.
+
+Commands answered: RESET, INIT, COMM, VER, BEEP, PHSR, PINIT, PENA, PDIS, PVWR, TSTART, TSTOP,
+BX, TX.
 Anything else gets ERROR01. Errors follow the NDI codes: 04 bad CRC, 02 line too long, 07 bad
 parameters, 06 unsupported COMM settings, 08 unknown port handle, 09 bad tracking priority,
 0C command invalid in the current mode, 0E port handle not initialized, 10 not initialized.
@@ -26,10 +32,18 @@ and (b) a literal "RESET" line, with or without ":" and CRC (b"RESET\\r", b"RESE
 b"RESET:" + CRC + b"\\r"). A driver under test should send its BREAK and, when talking to this
 emulator, may follow it with b"RESET\\r" (a real Aurora would answer that with an ERROR reply).
 
+--ignore-break: like a USB-serial adapter that does not pass a BREAK, neither the NUL byte nor a
+RESET line resets the emulator: the NUL stays in the input as one garbage byte (so the next command
+is answered with an ERROR, as a real Aurora would), and a RESET line is answered with ERROR01.
+
 Baud rate: a pty has no line speed, but the speed a driver sets with tcsetattr() is visible
 through the pty. With --strict-baud the emulator ignores (does not answer) lines received while
 the slave's output speed differs from the rate the emulated device is at: 9600 after reset, the
 COMM rate after the OKAY of a COMM command (COMM:50000 = 115200 8N1).
+--start-baud N starts the device at N baud instead of 9600, as a device left at that rate by a run
+that crashed (combine with --strict-baud, so that it answers only at that rate, and with
+--ignore-break, so that the driver cannot reset it to 9600). --start-tracking starts it initialised
+with both handles enabled and tracking (INIT is then answered with ERROR0C until TSTOP).
 
 Handles: 0x0A "tip" moves on a horizontal circle (radius --radius-mm, period --circle-period,
 centre (0, 0, -150) mm), yawing with the motion; 0x0B "base" is fixed at (0, 0, -50) mm with the
@@ -51,6 +65,14 @@ Fault injection (counts are over BX replies, times over seconds since the emulat
                           everything: the port stays open but the device no longer answers
   --die-after S           exit (status 0) after S seconds, closing the pty: the driver sees EOF/EIO
   --error-on NAME=XX      answer command NAME with ERRORXX (repeatable), e.g. PINIT=13
+  --bx-error XX           answer every BX with ERRORXX (firmware that refuses BX); TX works
+  --tx-crc-error-every N  every N-th TX reply has one character changed after its CRC was computed
+  --unprogrammed HH       port handle HH has no programmed tool ROM (repeatable): its PINIT is
+                          answered with ERROR13 until a tool definition was written to it with
+                          PVWR:<HH><AAAA><128 hex> in 64-byte chunks from address 0 on; the first
+                          PINIT after that logs the event "SROM HH: <n> bytes, CRC <crc16 hex>"
+                          (n: bytes written, a multiple of 64; CRC-16/ARC of them). PHSR lists the
+                          handle as usual.
 
 Usage:
   python3 aurora_emulator.py --symlink /tmp/rig/aurora [options]
@@ -110,6 +132,31 @@ def encode_bx(handles, system_status=0) -> bytes:
     return header + bytes(body) + struct.pack("<H", crc16_arc(bytes(body)))
 
 
+def encode_tx(handles, system_status=0) -> str:
+    """The TX:0001 reply text (without CRC) for the same handle dicts as encode_bx."""
+
+    def signed(x, digits):
+        v = int(round(x))
+        if abs(v) >= 10 ** digits:
+            raise ValueError("%r does not fit in %d digits" % (x, digits))
+        return ("-" if v < 0 else "+") + "%0*d" % (digits, abs(v))
+
+    out = "%02X" % len(handles)
+    for h in handles:
+        out += "%02X" % h["handle"]
+        if h["status"] == 0x04:
+            out += "DISABLED\n"
+            continue
+        if h["status"] == 0x01:
+            out += "".join(signed(q * 1e4, 5) for q in h["q"])
+            out += "".join(signed(t * 1e2, 6) for t in h["t_mm"])
+            out += signed(h["rms_mm"] * 1e4, 5)
+        else:
+            out += "MISSING"
+        out += "%08X%08X\n" % (h["port"], h["frame"])
+    return out + "%04X" % system_status
+
+
 # COMM baud-rate digit -> (bits per second, termios constant or None)
 BAUD_CODES = {
     "0": 9600, "1": 14400, "2": 19200, "3": 38400, "4": 57600, "5": 115200, "6": 921600, "7": 1228739,
@@ -136,8 +183,10 @@ class Aurora:
         self.rng = random.Random(args.seed)
         self.t0 = time.monotonic()
         self.bx_count = 0
+        self.tx_count = 0
         self.events = open(args.events_file, "a", buffering=1) if args.events_file else None
         self.reset()
+        self.start_as_left()
 
     def event(self, text):
         if self.events:
@@ -149,9 +198,27 @@ class Aurora:
         self.tracking = False
         self.track_t0 = None
         self.handles = {
-            0x0A: {"name": "tip", "initialized": False, "enabled": False},
-            0x0B: {"name": "base", "initialized": False, "enabled": False},
+            0x0A: {"name": "tip", "initialized": False, "enabled": False, "srom": {}},
+            0x0B: {"name": "base", "initialized": False, "enabled": False, "srom": {}},
         }
+
+    def start_as_left(self):
+        """--start-baud / --start-tracking: the state a previous run left the device in."""
+        self.baud = self.args.start_baud
+        if self.args.start_tracking:
+            self.initialized = True
+            for h in self.handles.values():
+                h["initialized"] = h["enabled"] = True
+            self.tracking = True
+            self.track_t0 = self.now()
+
+    def srom_image(self, hid):
+        """The bytes written with PVWR, contiguous from address 0 (b"" when none)."""
+        chunks = self.handles[hid]["srom"]
+        out = b""
+        while len(out) in chunks:
+            out += chunks[len(out)]
+        return out
 
     def now(self):
         return time.monotonic() - self.t0
@@ -167,6 +234,9 @@ class Aurora:
         except UnicodeDecodeError:
             return ascii_reply("ERROR01"), None
         if s in ("RESET", "RESET:") or s == "RESET:" + "%04X" % crc16_arc(b"RESET:"):
+            if self.args.ignore_break:
+                self.event("RESET line ignored: ERROR01")
+                return ascii_reply("ERROR01"), None
             self.reset()
             self.event("RESET (command)")
             return ascii_reply("RESET"), None
@@ -194,7 +264,7 @@ class Aurora:
             self.event("%s:%s ERROR01" % (name, params))
             return ascii_reply("ERROR01"), None
         reply, baud = fn(params.strip())
-        if name != "BX" or reply.startswith(b"ERROR"):
+        if name not in ("BX", "TX") or reply.startswith(b"ERROR"):
             self.event("%s:%s %s" % (name, params, reply[:-5].decode("ascii", "replace")))
         return reply, baud
 
@@ -272,7 +342,29 @@ class Aurora:
         hid = self.lookup(p)
         if hid is None or len(p) != 2:
             return ascii_reply("ERROR08"), None
+        if hid in self.args.unprogrammed:
+            image = self.srom_image(hid)
+            if not image:
+                return ascii_reply("ERROR13"), None
+            self.event("SROM %02X: %d bytes, CRC %04X" % (hid, len(image), crc16_arc(image)))
         self.handles[hid]["initialized"] = True
+        return ascii_reply("OKAY"), None
+
+    def cmd_PVWR(self, p):
+        e = self.need_init()
+        if e:
+            return e
+        if self.tracking:
+            return ascii_reply("ERROR0C"), None
+        if len(p) != 2 + 4 + 128 or any(c not in "0123456789ABCDEFabcdef" for c in p):
+            return ascii_reply("ERROR07"), None
+        hid = self.lookup(p)
+        if hid is None:
+            return ascii_reply("ERROR08"), None
+        addr = int(p[2:6], 16)
+        if addr % 64 or addr >= 1024:
+            return ascii_reply("ERROR07"), None
+        self.handles[hid]["srom"][addr] = bytes.fromhex(p[6:])
         return ascii_reply("OKAY"), None
 
     def cmd_PENA(self, p):
@@ -319,9 +411,27 @@ class Aurora:
         self.tracking = False
         return ascii_reply("OKAY"), None
 
+    def cmd_TX(self, p):
+        if not self.tracking:
+            return ascii_reply("ERROR0C"), None
+        if p not in ("", "0001", "0801"):
+            return ascii_reply("ERROR07"), None  # only transforms (+ all-handles) are emulated
+        reply = ascii_reply(encode_tx(self.poses(all_handles=p == "0801")))
+        self.tx_count += 1
+        n = self.args.tx_crc_error_every
+        if n and self.tx_count % n == 0:
+            b = bytearray(reply)
+            i = self.rng.randrange(len(b) - 1)  # any byte but the CR
+            b[i] = ord("7") if b[i] != ord("7") else ord("3")
+            reply = bytes(b)
+            self.log("fault: corrupted TX reply #%d" % self.tx_count)
+        return reply, None
+
     def cmd_BX(self, p):
         if not self.tracking:
             return ascii_reply("ERROR0C"), None
+        if self.args.bx_error:
+            return ascii_reply("ERROR" + self.args.bx_error), None
         try:
             opt = int(p, 16) if p else 0x0001
         except ValueError:
@@ -412,6 +522,16 @@ def main(argv=None):
     ap.add_argument("--die-after", type=float, default=None, metavar="S")
     ap.add_argument("--error-on", action="append", default=[], metavar="NAME=XX",
                     help="answer command NAME with ERRORXX (2 hex digits)")
+    ap.add_argument("--ignore-break", action="store_true",
+                    help="neither a NUL byte nor a RESET line resets the device (adapter without BREAK)")
+    ap.add_argument("--start-baud", type=int, default=9600, metavar="N",
+                    help="the device starts at N baud (left there by a previous run)")
+    ap.add_argument("--start-tracking", action="store_true",
+                    help="the device starts initialised and tracking (left so by a previous run)")
+    ap.add_argument("--unprogrammed", action="append", default=[], metavar="HH",
+                    help="port handle HH has no tool ROM: PINIT fails until PVWR wrote one")
+    ap.add_argument("--bx-error", default="", metavar="XX", help="answer BX with ERRORXX (TX works)")
+    ap.add_argument("--tx-crc-error-every", type=int, default=0, metavar="N")
     ap.add_argument("--strict-baud", action="store_true",
                     help="ignore lines received while the pty speed differs from the device's")
     ap.add_argument("--reply-delay", type=float, default=0.0, help="delay before each reply [s]")
@@ -420,7 +540,7 @@ def main(argv=None):
     ap.add_argument("--exit-with-parent", action="store_true",
                     help="exit when the process that started the emulator dies (tests)")
     args = ap.parse_args(argv)
-    for n in ("crc_error_every", "garbage_every", "truncate_every", "chunk_bytes"):
+    for n in ("crc_error_every", "garbage_every", "truncate_every", "chunk_bytes", "tx_crc_error_every"):
         if getattr(args, n) < 0:
             ap.error("--%s must be >= 0" % n.replace("_", "-"))
     errors = {}
@@ -430,6 +550,15 @@ def main(argv=None):
             ap.error("--error-on expects NAME=XX with 2 hex digits, got %r" % e)
         errors[name] = code.upper()
     args.error_on = errors
+    if args.start_baud not in BAUD_CODES.values():
+        ap.error("--start-baud must be one of %s" % sorted(BAUD_CODES.values()))
+    if args.bx_error and (len(args.bx_error) != 2 or any(c not in "0123456789ABCDEFabcdef" for c in args.bx_error)):
+        ap.error("--bx-error expects 2 hex digits, got %r" % args.bx_error)
+    args.bx_error = args.bx_error.upper()
+    try:
+        args.unprogrammed = {int(h, 16) for h in args.unprogrammed}
+    except ValueError:
+        ap.error("--unprogrammed expects a hex port handle, e.g. 0A")
     if args.circle_period <= 0 or args.frame_rate <= 0:
         ap.error("--circle-period and --frame-rate must be > 0")
 
@@ -474,7 +603,7 @@ def main(argv=None):
                 continue
             buf += chunk
             while True:
-                nul = buf.find(b"\x00")
+                nul = -1 if args.ignore_break else buf.find(b"\x00")
                 cr = buf.find(b"\r")
                 if nul >= 0 and (cr < 0 or nul < cr):
                     buf = buf[nul + 1:]

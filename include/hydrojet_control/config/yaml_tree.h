@@ -163,7 +163,7 @@ class YamlTree {
     if (!n.IsMap()) fail(section, "must be a mapping");
     std::set<std::string> ok(allowed.begin(), allowed.end());
     for (const auto& kv : n) {
-      const std::string k = kv.first.as<std::string>();
+      const std::string k = key_text(kv.first, section);
       if (!ok.count(k)) fail(section.empty() ? k : section + sep_ + k, "unknown key");
     }
   }
@@ -218,14 +218,27 @@ class YamlTree {
       if (k.compare(0, head.size(), head) == 0) return true;
     return false;
   }
+  /// The text of a mapping key of the section at `path`. Keys are plain names: a mapping, list or
+  /// null as a key ("? [a, b]: 1", "~: 1") fails naming the section (found by fuzzing: yaml-cpp
+  /// throws its own BadConversion on these, which no caller expects).
+  std::string key_text(const YAML::Node& key, const std::string& path) const {
+    if (!key.IsScalar())
+      fail(path.empty() ? std::string("(top level)") : path,
+           std::string("a key must be a plain name, not a ") + (key.IsMap()        ? "mapping"
+                                                                : key.IsSequence() ? "list"
+                                                                                   : "null"));
+    return key.Scalar();
+  }
   void visit(const YAML::Node& n, const std::string& path) const {
     const bool read = !path.empty() && read_.count(path);
     if (!n.IsMap() || (read && !read_below(path))) {
       if (!path.empty() && !read) fail(path, "unknown key");
       return;
     }
-    for (const auto& kv : n)
-      visit(kv.second, path.empty() ? kv.first.as<std::string>() : path + sep_ + kv.first.as<std::string>());
+    for (const auto& kv : n) {
+      const std::string k = key_text(kv.first, path);
+      visit(kv.second, path.empty() ? k : path + sep_ + k);
+    }
   }
 
   YAML::Node root_;

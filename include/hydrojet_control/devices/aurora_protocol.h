@@ -1,5 +1,6 @@
 // NDI Aurora (Combined API) wire protocol: command framing, ASCII reply checking, error codes, the
-// PHSR reply and the binary BX tracking reply. Bytes in, structs out: no I/O, no ROS, no threads.
+// PHSR reply, the binary BX tracking reply and the ASCII TX tracking reply. Bytes in, structs out:
+// no I/O, no ROS, no threads.
 //
 // Wire format summary (all CRCs are CRC-16/ARC, see crc16.h):
 //  * Command:      "NAME:params" + CRC of "NAME:params" as 4 uppercase hex digits + '\r'.
@@ -224,6 +225,46 @@ class BxParser {
   uint64_t format_errors_ = 0;
   uint64_t truncated_frames_ = 0;
 };
+
+// ---------------------------------------------------------------------------------------------
+// PVWR: writing a tool definition (SROM image) to a port handle
+// ---------------------------------------------------------------------------------------------
+
+/// Bytes of tool-definition data per PVWR command.
+constexpr size_t kPvwrChunk = 64;
+/// Largest SROM image accepted [bytes] (the Aurora's tool-definition memory).
+constexpr size_t kMaxSromBytes = 1024;
+
+/// The parameters of the PVWR commands that write `data` to `handle`: one per 64-byte chunk,
+/// "<hh><AAAA><128 hex digits>" (handle, start address, data; uppercase hex; the last chunk padded
+/// with 00 to 64 bytes).
+/// @throws std::invalid_argument when `data` is empty or longer than kMaxSromBytes.
+std::vector<std::string> pvwr_params(uint8_t handle, const std::vector<uint8_t>& data);
+
+// ---------------------------------------------------------------------------------------------
+// TX ASCII tracking reply (the fallback for firmware that rejects BX)
+// ---------------------------------------------------------------------------------------------
+
+/// Characters of one TX transform: q0 qx qy qz (sign + 5 digits each, implied / 10000), tx ty tz
+/// (sign + 6 digits each, [mm], implied / 100), rms error (sign + 5 digits, [mm], implied / 10000).
+constexpr size_t kTxTransformChars = 4 * 6 + 3 * 7 + 6;
+
+/// Parses the text of a TX:0001 reply (CRC and CR already removed, e.g. by parse_ascii_reply):
+///   2 hex digits handle count n, then n times
+///     2 hex digits handle, then one of
+///       <transform (kTxTransformChars)> 8 hex port status, 8 hex frame number
+///       "MISSING"                        8 hex port status, 8 hex frame number
+///       "DISABLED"                       [8 hex port status, 8 hex frame number] (optional)
+///       "UNOCCUPIED"                     (skipped: no entry in the frame)
+///     then LF
+///   then 4 hex digits system status, and nothing after it.
+/// (Layout as NDI's ndicapi reads it, ndiTXHelper / ndiGetTXTransform.) The result uses the BX
+/// conventions: lengths in [m], the quaternion renormalised (its norm must be within 1e-2 of 1),
+/// rms >= 0, port-status bits in `out_of_volume_mask` turn kValid / kMissing into kOutOfVolume,
+/// disabled handles carry port_status 0 and frame 0 unless the reply had them.
+/// @return false (with `*err` naming the handle and the field, if non-null; `*out` unspecified)
+/// on any violation. Never throws, never reads past the text.
+bool parse_tx_reply(const std::string& text, uint32_t out_of_volume_mask, BxFrame* out, std::string* err);
 
 }  // namespace devices
 }  // namespace hydrojet

@@ -8,19 +8,22 @@ namespace hydrojet {
 namespace names {
 
 // Topics
-constexpr char kTipPose[] = "tracker/tip_pose";                     ///< geometry_msgs/PoseStamped, tracker frame
-constexpr char kBasePose[] = "tracker/base_pose";                   ///< geometry_msgs/PoseStamped, tracker frame
-constexpr char kTipRms[] = "tracker/tip_rms";                       ///< std_msgs/Float64 [m] (rig only)
-constexpr char kBaseRms[] = "tracker/base_rms";                     ///< std_msgs/Float64 [m] (rig only)
-constexpr char kJetState[] = "jets/state";                          ///< hydrojet_control/JetState
-constexpr char kJetCommand[] = "jets/command";                      ///< hydrojet_control/JetCommand
-constexpr char kControllerStatus[] = "controller/status";           ///< hydrojet_control/ControllerStatus
-constexpr char kControllerTarget[] = "controller/target";           ///< hydrojet_control/TipTarget
-constexpr char kRodState[] = "rod/state";                           ///< hydrojet_control/RodState (controller's model)
-constexpr char kPlantRodState[] = "plant/rod_state";                ///< hydrojet_control/RodState (simulated truth)
-constexpr char kViewMarkers[] = "view/markers";                     ///< visualization_msgs/MarkerArray
-constexpr char kCalibrationResult[] = "calibration/result";         ///< std_msgs/String (JSON), latched
-constexpr char kClock[] = "/clock";                                 ///< rosgraph_msgs/Clock (plant_node in lockstep)
+constexpr char kTipPose[] = "tracker/tip_pose";                 ///< geometry_msgs/PoseStamped, tracker frame
+constexpr char kBasePose[] = "tracker/base_pose";               ///< geometry_msgs/PoseStamped, tracker frame
+constexpr char kTipRms[] = "tracker/tip_rms";                   ///< std_msgs/Float64 [m] (rig only)
+constexpr char kBaseRms[] = "tracker/base_rms";                 ///< std_msgs/Float64 [m] (rig only)
+constexpr char kTipFrameNumber[] = "tracker/tip_frame_number";  ///< std_msgs/Header: seq = frame no. (rig)
+constexpr char kJetState[] = "jets/state";                      ///< hydrojet_control/JetState
+constexpr char kJetCommand[] = "jets/command";                  ///< hydrojet_control/JetCommand
+constexpr char kControllerStatus[] = "controller/status";       ///< hydrojet_control/ControllerStatus
+constexpr char kControllerTarget[] = "controller/target";       ///< hydrojet_control/TipTarget
+constexpr char kRodState[] = "rod/state";                       ///< hydrojet_control/RodState (controller's model)
+constexpr char kPlantRodState[] = "plant/rod_state";            ///< hydrojet_control/RodState (simulated truth)
+constexpr char kPlantFault[] = "plant/fault";                   ///< hydrojet_control/PlantFault: inject (sim only)
+constexpr char kPlantFaultApplied[] = "plant/fault_applied";    ///< hydrojet_control/PlantFault: when it took effect
+constexpr char kViewMarkers[] = "view/markers";                 ///< visualization_msgs/MarkerArray
+constexpr char kCalibrationResult[] = "calibration/result";     ///< std_msgs/String (JSON), latched
+constexpr char kClock[] = "/clock";                             ///< rosgraph_msgs/Clock (plant_node in lockstep)
 constexpr char kTargetDirection[] = "controller/target_direction";  ///< geometry_msgs/Vector3Stamped: aim the tip
 constexpr char kLookAt[] = "controller/look_at";              ///< geometry_msgs/PointStamped: aim the camera at a point
 constexpr char kClickedPoint[] = "/clicked_point";            ///< geometry_msgs/PointStamped (rviz Publish Point)
@@ -39,11 +42,29 @@ constexpr char kClosedLoopService[] = "controller/closed_loop";    ///< std_srvs
 constexpr char kReloadSceneService[] = "controller/reload_scene";  ///< std_srvs/Trigger
 
 /// Every topic and every service above (docs/ros_api.md lists exactly these; test/test_docs.cpp).
-constexpr const char* kTopics[] = {kTipPose,  kBasePose,      kTipRms,           kBaseRms,
-                                   kJetState, kJetCommand,    kControllerStatus, kControllerTarget,
-                                   kRodState, kPlantRodState, kViewMarkers,      kCalibrationResult,
-                                   kClock,    kJoy,           kDiagnostics,      kTargetDirection,
-                                   kLookAt,   kClickedPoint,  kViewRate,         kReachableSet};
+constexpr const char* kTopics[] = {kTipPose,
+                                   kBasePose,
+                                   kTipRms,
+                                   kBaseRms,
+                                   kTipFrameNumber,
+                                   kJetState,
+                                   kJetCommand,
+                                   kControllerStatus,
+                                   kControllerTarget,
+                                   kRodState,
+                                   kPlantRodState,
+                                   kViewMarkers,
+                                   kCalibrationResult,
+                                   kClock,
+                                   kJoy,
+                                   kDiagnostics,
+                                   kTargetDirection,
+                                   kLookAt,
+                                   kClickedPoint,
+                                   kViewRate,
+                                   kReachableSet,
+                                   kPlantFault,
+                                   kPlantFaultApplied};
 constexpr const char* kServices[] = {kStartService, kStopService, kClosedLoopService, kReloadSceneService};
 
 }  // namespace names

@@ -2,6 +2,9 @@
 // parsers, so that the node and the ROS-free tools validate alike. Errors name the key ("~gains/kp").
 #pragma once
 
+#include <string>
+#include <vector>
+
 #include <ros/ros.h>
 #include <yaml-cpp/yaml.h>
 
@@ -14,7 +17,11 @@ namespace ros_bridge {
 YAML::Node private_params_as_yaml(const ros::NodeHandle& pnh);
 
 /// Controller options from ~ (see config/controller.yaml); throws config::ParamError("~key: ...").
-config::ControllerNodeOptions read_controller_options(const ros::NodeHandle& pnh);
+/// `mirrored`: top-level keys that are not options but another component's copy of them under ~,
+/// skipped (dynamic_reconfigure writes its parameters there, so a controller restarted under the same
+/// name finds them; the node sets them anew from the options at start).
+config::ControllerNodeOptions read_controller_options(const ros::NodeHandle& pnh,
+                                                      const std::vector<std::string>& mirrored = {});
 
 }  // namespace ros_bridge
 }  // namespace hydrojet

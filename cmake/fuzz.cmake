@@ -1,0 +1,19 @@
+# libFuzzer harnesses of test/fuzz/ (included from CMakeLists.txt when HYDROJET_FUZZ is ON).
+# scripts/fuzz builds them in .build-asan (clang-14, HYDROJET_SANITIZE: ASan + UBSan and libFuzzer's
+# coverage instrumentation on everything); the harnesses link -fsanitize=fuzzer.
+# One executable per test/fuzz/fuzz_<name>.cpp, all built by the target `fuzzers`.
+if(NOT CMAKE_CXX_COMPILER_ID MATCHES "Clang")
+  message(FATAL_ERROR "HYDROJET_FUZZ needs clang (libFuzzer): configure with -DCMAKE_CXX_COMPILER=clang++-14")
+endif()
+file(GLOB HJ_FUZZ_SOURCES CONFIGURE_DEPENDS ${PROJECT_SOURCE_DIR}/test/fuzz/fuzz_*.cpp)
+add_custom_target(fuzzers)
+foreach(src ${HJ_FUZZ_SOURCES})
+  get_filename_component(name ${src} NAME_WE)
+  add_executable(${name} EXCLUDE_FROM_ALL ${src})
+  target_include_directories(${name} BEFORE PRIVATE ${HJ_ROS_POISON_DIR})
+  target_link_libraries(${name} hydrojet_config hydrojet_devices hydrojet_calibration)
+  target_link_options(${name} PRIVATE -fsanitize=fuzzer)
+  target_compile_definitions(${name} PRIVATE HYDROJET_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+  set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/fuzz)
+  add_dependencies(fuzzers ${name})
+endforeach()
