@@ -12,9 +12,11 @@
 #include <signal.h>
 #include <spawn.h>
 #include <std_msgs/Float64.h>
+#include <std_msgs/Header.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -93,10 +95,16 @@ TEST(RigEmulated, PoseToControllerCommandToBoardTrackerLossClosesValves) {
   std::string tracker_error, valves_error;
   ros::Subscriber s1 = nh.subscribe<hydrojet_control::ControllerStatus>(
       names::kControllerStatus, 100, [&](const hydrojet_control::ControllerStatus::ConstPtr& m) { status = *m; });
+  // Tip pose stamps and the device frame numbers (issue 15).
+  std::vector<ros::Time> tip_stamps, frame_stamps;
+  std::vector<uint32_t> frames;
+  bool tip_stamps_increase = true;
   ros::Subscriber s2 = nh.subscribe<geometry_msgs::PoseStamped>(
       names::kTipPose, 100, [&](const geometry_msgs::PoseStamped::ConstPtr& m) {
         ++tip_poses;
         last_tip = ros::WallTime::now();
+        tip_stamps_increase = tip_stamps_increase && (tip_stamps.empty() || m->header.stamp > tip_stamps.back());
+        tip_stamps.push_back(m->header.stamp);
         EXPECT_EQ(m->header.frame_id, "tracker");
         EXPECT_NEAR(m->pose.position.z, -0.150, 1e-5);  // the emulator's tip [mm -> m]
       });
@@ -109,6 +117,12 @@ TEST(RigEmulated, PoseToControllerCommandToBoardTrackerLossClosesValves) {
         jets = *m;
         ++jet_msgs;
         jets_all_valid += m->flow_valid.size() == 3 && m->flow_valid[0] && m->flow_valid[1] && m->flow_valid[2];
+      });
+  // The device's frame number of each tip pose, on its own topic with the pose's stamp (issue 15).
+  ros::Subscriber s6 =
+      nh.subscribe<std_msgs::Header>(names::kTipFrameNumber, 100, [&](const std_msgs::Header::ConstPtr& m) {
+        frames.push_back(m->seq);
+        frame_stamps.push_back(m->stamp);
       });
   ros::Subscriber s5 = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
       names::kDiagnostics, 100, [&](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
@@ -165,6 +179,13 @@ TEST(RigEmulated, PoseToControllerCommandToBoardTrackerLossClosesValves) {
   EXPECT_GT(rms_msgs, 0);
   EXPECT_GT(jets_all_valid, 0);
   EXPECT_GT(jets.valve_command[0] + jets.valve_command[1] + jets.valve_command[2], 0.0);  // acknowledged duty
+  // Stamps strictly increase; each frame number is new (repeats dropped) and comes with a tip pose's stamp.
+  EXPECT_TRUE(tip_stamps_increase);
+  ASSERT_GT(frames.size(), 10u);
+  for (size_t i = 1; i < frames.size(); ++i) EXPECT_GT(frames[i], frames[i - 1]) << "frame number " << i;
+  for (const ros::Time& t : frame_stamps)  // (a frame number whose pose is still in flight is not checked)
+    if (t <= tip_stamps.back())
+      EXPECT_TRUE(std::find(tip_stamps.begin(), tip_stamps.end(), t) != tip_stamps.end()) << "no tip pose at " << t;
 
   // 3. The tracker emulator dies: valves closed, diagnostics name the tracker, no more poses.
   const ros::WallTime cut = ros::WallTime::now();
