@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <stdexcept>
@@ -53,22 +54,36 @@ std::string aurora_comm_params(int baud) {
 }
 
 bool load_srom(const std::string& path, std::vector<uint8_t>* data, std::string* err) {
+  // A regular file only, and never more than one byte past the limit read: a device or a FIFO
+  // (/dev/zero, a pipe) would otherwise hang or exhaust the node at start.
+  std::error_code ec;
+  const std::filesystem::file_status st = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(st)) {
+    *err = "cannot read '" + path + "'";
+    return false;
+  }
+  if (!std::filesystem::is_regular_file(st)) {
+    *err = "'" + path + "' is not a regular file";
+    return false;
+  }
   std::ifstream f(path, std::ios::binary);
   if (!f) {
     *err = "cannot read '" + path + "'";
     return false;
   }
-  std::vector<uint8_t> v((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  std::vector<uint8_t> v(kMaxSromBytes + 1);
+  f.read(reinterpret_cast<char*>(v.data()), static_cast<std::streamsize>(v.size()));
   if (f.bad()) {
     *err = "cannot read '" + path + "'";
     return false;
   }
+  v.resize(static_cast<size_t>(f.gcount()));
   if (v.empty()) {
     *err = "'" + path + "' is empty";
     return false;
   }
   if (v.size() > kMaxSromBytes) {
-    *err = "'" + path + "' has " + std::to_string(v.size()) + " bytes, more than " + std::to_string(kMaxSromBytes);
+    *err = "'" + path + "' has more than " + std::to_string(kMaxSromBytes) + " bytes";
     return false;
   }
   *data = std::move(v);

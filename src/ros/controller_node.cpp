@@ -224,8 +224,10 @@ class ControllerNode {
              control::to_string(opts_.controller.path_type));
   }
 
-  /// On the way out (a signal or a shutdown request): an all-zero jets/command, one entry per actuator,
-  /// so that the rig or the plant closes the valves now rather than at its command timeout.
+  /// On the way out after SIGINT or SIGTERM: an all-zero jets/command, one entry per actuator, so that
+  /// the rig or the plant closes the valves now rather than at its command timeout. (After
+  /// `rosnode kill` roscpp has already shut down and cannot send it: the receivers' command timeout
+  /// closes the valves then.)
   void close_valves() {
     hydrojet_control::JetCommand cmd;
     cmd.header.stamp = ros::Time::now();

@@ -111,19 +111,27 @@ class PlantNode {
   void run() {
     const double dt = 1.0 / o_.rate;
     if (o_.lockstep) {
-      // Wait (wall time) for a controller to subscribe, so the first steps are not lost.
+      // Wait (wall time) for a controller to subscribe, to the sensors and to the clock, so that
+      // the first steps are not lost.
       const ros::WallTime until = ros::WallTime::now() + ros::WallDuration(30.0);
-      while (ros_bridge::running() && jet_pub_.getNumSubscribers() == 0 && ros::WallTime::now() < until) {
+      while (ros_bridge::running() && (jet_pub_.getNumSubscribers() == 0 || clock_pub_.getNumSubscribers() == 0) &&
+             ros::WallTime::now() < until) {
         publish_clock(0.0);
         ros::WallDuration(0.05).sleep();
         ros::spinOnce();
       }
     }
     if (o_.lockstep && o_.start_time > 0.0) {
-      // A restarted plant (scripts/soak): its clock resumes one control cycle before its sensors do,
-      // as a real rig's data come back after the time that passed; the controller sees the gap.
-      publish_clock(0.0);
-      wait_for_command(0.0, o_.command_wait);
+      // A restarted plant (scripts/soak): its clock resumes, and the controller runs one cycle on it,
+      // before its first sensor sample: as a real rig's data come back after the time that passed,
+      // the controller sees the gap.
+      // The clock again until that cycle's command is back (a single message could still be on its
+      // way to a controller that has just connected), at most 5 s of wall time.
+      const ros::WallTime until = ros::WallTime::now() + ros::WallDuration(5.0);
+      while (ros_bridge::running() && last_command_stamp_ < -1e-9 && ros::WallTime::now() < until) {
+        publish_clock(0.0);
+        wait_for_command(0.0, 0.01);
+      }
     }
     ros::WallRate pace(o_.rate);
     for (long k = 0; ros_bridge::running(); ++k) {
@@ -186,9 +194,10 @@ class PlantNode {
     else if (m->kind != "tracker_dropout" && (m->actuator < 0 || m->actuator >= plant_->actuator_count()))
       err = "actuator: " + std::to_string(m->actuator) + " is not in [0, " + std::to_string(plant_->actuator_count()) +
             ")";
-    else if (m->kind == "stuck_valve" &&
-             (!(m->value >= 0.0 && m->value <= 1.0) || m->actuator >= static_cast<int>(plant_->hydraulics().size())))
-      err = "value: a stuck valve's opening must lie in [0, 1] (and the actuator be a jet)";
+    else if (m->kind == "stuck_valve" && !plant_->is_jet(m->actuator))
+      err = "actuator: " + std::to_string(m->actuator) + " is not a jet (only a jet has a valve to stick)";
+    else if (m->kind == "stuck_valve" && !(m->value >= 0.0 && m->value <= 1.0))
+      err = "value: a stuck valve's opening must lie in [0, 1]";
     if (!err.empty()) {
       ROS_ERROR("plant: refused plant/fault: %s", err.c_str());
       return;
@@ -198,7 +207,7 @@ class PlantNode {
     f.from = plant_->time();
     f.to = f.from + m->duration;
     if (f.kind == "tracker_dropout") plant_->tracker().force_dropout(f.from, m->duration);
-    if (f.kind == "stuck_valve") plant_->hydraulics()[f.actuator].set_stuck(f.value);
+    if (f.kind == "stuck_valve") plant_->hydraulics()[plant_->valve_of(f.actuator)].set_stuck(f.value);
     if (f.kind == "flow_silent") f.frozen_flow = plant_->flow_sample()[f.actuator];
     faults_.push_back(f);
     hydrojet_control::PlantFault echo = *m;
@@ -212,7 +221,7 @@ class PlantNode {
   void apply_faults(double t, plant::Plant::Vector* q, std::vector<uint8_t>* valid) {
     for (auto it = faults_.begin(); it != faults_.end();) {
       if (t >= it->to) {
-        if (it->kind == "stuck_valve") plant_->hydraulics()[it->actuator].set_stuck(-1.0);
+        if (it->kind == "stuck_valve") plant_->hydraulics()[plant_->valve_of(it->actuator)].set_stuck(-1.0);
         it = faults_.erase(it);
         continue;
       }

@@ -14,6 +14,8 @@
 #include <cstdlib>
 #include <string>
 
+#include <yaml-cpp/yaml.h>
+
 #define FUZZ_CHECK(cond, msg)                                                                      \
   do {                                                                                             \
     if (!(cond)) {                                                                                 \
@@ -27,6 +29,18 @@ namespace fuzz {
 
 inline std::string as_text(const uint8_t* data, size_t size) {
   return std::string(reinterpret_cast<const char*>(data), size);
+}
+
+/// The input as a YAML document, for the harnesses of parameter trees: false for an input over
+/// 8 KiB or one that is not YAML (a syntax error is the loader's, not the parser's under test).
+inline bool as_yaml(const uint8_t* data, size_t size, YAML::Node* root) {
+  if (size > 8192) return false;
+  try {
+    *root = YAML::Load(as_text(data, size));
+  } catch (const YAML::Exception&) {
+    return false;
+  }
+  return true;
 }
 
 }  // namespace fuzz

@@ -9,13 +9,8 @@
 using namespace hydrojet;
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  if (size > 8192) return 0;
   YAML::Node root;
-  try {
-    root = YAML::Load(fuzz::as_text(data, size));
-  } catch (const YAML::Exception&) {
-    return 0;
-  }
+  if (!fuzz::as_yaml(data, size, &root)) return 0;
   config::ControllerNodeOptions o;
   try {
     o = config::parse_controller_options(root);

@@ -3,6 +3,7 @@
 // (line_protocols.h): accepted duties are finite and in [0, 1], the checksum of an accepted line is
 // right, an accepted ack's duties survive format_valve_ack() -> parse_valve_ack() to half a unit of the 4th decimal,
 // and a refused line has a reason.
+#include <cctype>
 #include <cmath>
 
 #include "fuzz_common.h"
@@ -18,8 +19,11 @@ void check_duties(const std::array<double, 3>& d) {
 
 void check_checksum(const std::string& line) {
   const size_t star = line.find('*');
-  FUZZ_CHECK(star != std::string::npos && star + 2 < line.size() + 1, "an accepted line has '*XX'");
-  const unsigned long sum = std::strtoul(line.substr(star + 1, 2).c_str(), nullptr, 16);
+  FUZZ_CHECK(star != std::string::npos && star + 3 <= line.size(), "an accepted line has '*XX'");
+  const std::string xx = line.substr(star + 1, 2);
+  FUZZ_CHECK(std::isxdigit(static_cast<unsigned char>(xx[0])) && std::isxdigit(static_cast<unsigned char>(xx[1])),
+             "the checksum is two hex digits");
+  const unsigned long sum = std::strtoul(xx.c_str(), nullptr, 16);
   FUZZ_CHECK(sum == valve_checksum(line.substr(0, star)), "an accepted line has the right checksum");
 }
 
@@ -29,7 +33,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string line = hydrojet::fuzz::as_text(data, size);
   std::array<double, 3> d{-1.0, -1.0, -1.0};
   std::string err;
-  if (parse_valve_ack(line, &d, &err)) {
+  const bool acked = parse_valve_ack(line, &d, &err);
+  if (acked) {
     check_duties(d);
     check_checksum(line);
     std::array<double, 3> again{};
@@ -44,7 +49,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   }
   err.clear();
   std::string err2;
-  FUZZ_CHECK(parse_valve_ack(line, &err2) == (err2.empty()), "the short overload agrees with itself");
+  FUZZ_CHECK(parse_valve_ack(line, &err2) == acked, "the short overload agrees with the full one");
   if (parse_valve_command(line, &d, &err)) {
     check_duties(d);
     check_checksum(line);

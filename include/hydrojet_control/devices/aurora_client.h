@@ -1,4 +1,6 @@
-// NDI Aurora session over a serial port: wake-up (BREAK or INIT probes, as NDI's ndicapi does),
+// NDI Aurora session over a serial port: wake-up (BREAK, then INIT probes: ndicapi probes INIT
+// before it sends a BREAK, this driver after one; with an adapter that drops the BREAK each connect
+// costs reset_timeout more, and a device that did reset is found at 9600 at once),
 // baud change, tool definitions, port-handle set-up, BX (or TX) tracking loop, orderly shutdown,
 // reconnect. ROS-free; one thread per client. The wire format lives in aurora_protocol.h.
 //

@@ -88,6 +88,8 @@ class Plant {
   int actuator_count() const { return static_cast<int>(duty_.size()); }
   /// Actuator i is a water jet (valve and flow); else a force actuator.
   bool is_jet(int i) const { return jet_[i]; }
+  /// The index in hydraulics() of actuator i's valve, or −1 for a force actuator.
+  int valve_of(int i) const { return valve_of_[i]; }
 
   double time() const { return t_; }
   Eigen::Matrix3d tip_rotation() const { return rod_->tip_rotation(); }  ///< truth, base frame
