@@ -349,8 +349,9 @@ class Soak:
             injected = self.mon.t
             self.call("/controller/stop")
             # The stop is handled between two cycles, while the clock runs on: the jets must be zero
-            # by the first cycle after the call returned.
-            stop_bound = self.mon.t - injected + CONTROL_PERIOD
+            # by the first cycle after the call returned. This script's reading of the clock lags the
+            # plant's by up to two periods (messages in flight): the bound allows for them.
+            stop_bound = self.mon.t - injected + 3 * CONTROL_PERIOD
             detect_states = ("idle",)
         elif kind == "plant_restart":
             self.restarting = True
