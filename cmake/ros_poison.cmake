@@ -1,7 +1,8 @@
-# The ROS-free build (HYDROJET_WITH_ROS=OFF): Debian installs ROS headers in /usr/include, where any
-# compiler finds them, so leaving catkin out is not enough to keep ROS out of the core. Here every
-# header of the installed ROS packages gets a stand-in that stops the build, in a folder searched
-# before the system's: a core library or tool that includes <ros/...> (or a message header) fails.
+# Keeping ROS out of the core: Debian installs ROS headers in /usr/include, where any compiler finds
+# them, so leaving catkin's include folders out is not enough. Here every header of the installed ROS
+# packages gets a stand-in that stops the build, in a folder searched before the system's: a core
+# library (in every build) or a core tool or test (in the HYDROJET_WITH_ROS=OFF build) that includes
+# <ros/...> (or a message header) fails.
 set(HJ_ROS_POISON_DIR ${CMAKE_BINARY_DIR}/ros_poison)
 set(_hj_ros_roots ros roscpp rosconsole xmlrpcpp std_msgs std_srvs geometry_msgs sensor_msgs diagnostic_msgs
     diagnostic_updater visualization_msgs rosgraph_msgs actionlib actionlib_msgs tf2 tf2_ros tf2_msgs

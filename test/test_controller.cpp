@@ -696,6 +696,7 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
       {"path/phi_end", f.path.phi_end, d.path.phi_end},
       {"path/duration", f.path.duration, d.path.duration},
       {"flow_regulator/feedforward", ff.feedforward, fd.feedforward},
+      {"flow_regulator/lead_time", ff.lead_time, fd.lead_time},
       {"flow_regulator/kp", ff.kp, fd.kp},
       {"flow_regulator/ki", ff.ki, fd.ki},
       {"flow_regulator/output_min", ff.output_min, fd.output_min},

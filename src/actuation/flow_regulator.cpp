@@ -8,9 +8,11 @@ namespace hydrojet {
 namespace actuation {
 
 std::string validate(const FlowRegulatorOptions& p) {
-  const std::pair<const char*, double> gains[] = {{"kp", p.kp}, {"ki", p.ki}, {"feedforward", p.feedforward}};
+  const std::pair<const char*, double> gains[] = {
+      {"kp", p.kp}, {"ki", p.ki}, {"feedforward", p.feedforward}, {"lead_time", p.lead_time}};
   for (const auto& g : gains)
     if (!std::isfinite(g.second) || g.second < 0.0) return std::string(g.first) + " must be finite and >= 0";
+  if (p.lead_time > 1.0) return "lead_time must lie in [0, 1] s";
   if (!std::isfinite(p.output_min) || p.output_min < 0.0) return "output_min must be in [0, 1]";
   if (!std::isfinite(p.output_max) || p.output_max > 1.0) return "output_max must be in [0, 1]";
   if (!(p.output_min <= p.output_max)) return "output_min must be <= output_max";
@@ -25,6 +27,8 @@ FlowRegulator::FlowRegulator(const FlowRegulatorOptions& params) : params_(param
 void FlowRegulator::reset() {
   integrator_ = 0.0;
   output_ = 0.0;
+  previous_desired_ = 0.0;
+  primed_ = false;
   saturated_ = false;
   error_.clear();
 }
@@ -42,7 +46,10 @@ double FlowRegulator::update(double q_des, double q_meas, double dt) {
   error_.clear();
 
   const double e = q_des - q_meas;
-  const double base = params_.feedforward * q_des + params_.kp * e;
+  const double rate = primed_ ? (q_des - previous_desired_) / dt : 0.0;
+  previous_desired_ = q_des;
+  primed_ = true;
+  const double base = params_.feedforward * (q_des + params_.lead_time * rate) + params_.kp * e;
   // Conditional integration: if the output (with the integrator as it stands) is already beyond a
   // limit and e pushes further out, freeze I. So I overshoots its headroom by at most one step.
   const double before = base + integrator_;

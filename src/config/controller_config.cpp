@@ -88,6 +88,7 @@ void read_flow_regulator(Tree& p, actuation::FlowRegulatorOptions& f) {
   f.kp = p.number("flow_regulator/kp", f.kp);
   f.ki = p.number("flow_regulator/ki", f.ki);
   f.feedforward = p.number("flow_regulator/feedforward", f.feedforward);
+  f.lead_time = p.number("flow_regulator/lead_time", f.lead_time);
   f.output_min = p.number("flow_regulator/output_min", f.output_min);
   f.output_max = p.number("flow_regulator/output_max", f.output_max);
   const std::string ferr = actuation::validate(f);

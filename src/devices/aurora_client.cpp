@@ -128,13 +128,10 @@ std::string AuroraOptions::validate() const {
   if (!(opt & 0x0001)) return "bx_options: must include 0001 (transformation data)";
   if (opt & ~0x0801u) return "bx_options: only 0001 and 0800 are decoded";
   if (!(std::isfinite(latency) && latency >= 0.0 && latency <= 1.0)) return "latency: must lie in [0, 1] s";
-  for (const auto& f : srom_files) {
-    const std::string key = "srom_files/" + hex2(f.first);
-    if (f.first == 0) return key + ": port handle 00 does not exist";
-    std::vector<uint8_t> data;
-    std::string e;
-    if (!load_srom(f.second, &data, &e)) return key + ": " + e;
-  }
+  // The files themselves are read once, by the constructor (and by the rig YAML's parser, which names
+  // the key of a missing one before anything starts).
+  for (const auto& f : srom_files)
+    if (f.first == 0) return "srom_files/" + hex2(f.first) + ": port handle 00 does not exist";
   return "";
 }
 

@@ -64,7 +64,7 @@ RecorderOptions read_options(const ros::NodeHandle& pnh) {
   t.keys("", {"scene", "bag", "out", "result_file", "report_file", "fit", "calibrate_args", "samples", "seed", "rate",
               "hold_time", "start_hold", "max_jet_force_fraction", "max_net_force", "min_net_force", "calibrate",
               "exit_when_done", "flow_regulator"});
-  t.keys("flow_regulator", {"feedforward", "kp", "ki", "output_min", "output_max"});
+  t.keys("flow_regulator", {"feedforward", "lead_time", "kp", "ki", "output_min", "output_max"});
   o.scene = t.text("scene", o.scene);
   o.bag = t.text("bag", o.bag);
   o.out = t.text("out", o.out);
@@ -83,6 +83,7 @@ RecorderOptions read_options(const ros::NodeHandle& pnh) {
   o.calibrate = t.boolean("calibrate", o.calibrate);
   o.exit_when_done = t.boolean("exit_when_done", o.exit_when_done);
   o.flow.feedforward = t.number("flow_regulator/feedforward", o.flow.feedforward);
+  o.flow.lead_time = t.number("flow_regulator/lead_time", o.flow.lead_time);
   o.flow.kp = t.number("flow_regulator/kp", o.flow.kp);
   o.flow.ki = t.number("flow_regulator/ki", o.flow.ki);
   o.flow.output_min = t.number("flow_regulator/output_min", o.flow.output_min);

@@ -4,7 +4,10 @@
 // PI with optional feedforward, output clamped to [output_min, output_max] ⊆ [0, 1] (valve duty):
 //   e = Q_des − Q_meas
 //   I ← I + k_i e dt      (unless frozen, see below)
-//   u = clamp(k_ff Q_des + k_p e + I,  output_min, output_max)
+//   u = clamp(k_ff (Q_des + T_lead dQ_des/dt) + k_p e + I,  output_min, output_max)
+// T_lead (issue 16): the feedforward inverts a first-order valve lag of that time constant, so that
+// a fast-changing desired flow is met on time, not one valve time constant late (0 = off). The rate
+// is the backward difference of Q_des over dt (the desired flow is the controller's smooth command).
 // Anti-windup by conditional integration (clamping): the integration step is skipped when the output
 // computed with the current I is already beyond a limit AND the error would push it further out; it
 // keeps integrating when the error drives the output back into range. So I exceeds the headroom to
@@ -24,6 +27,7 @@ struct FlowRegulatorOptions {
   double kp = 0.0;           ///< proportional gain [1/(m^3/s)] (duty per flow error)
   double ki = 0.0;           ///< integral gain [1/m^3] (duty per flow error per second)
   double feedforward = 0.0;  ///< k_ff [1/(m^3/s)]: duty per unit desired flow; 0 = none
+  double lead_time = 0.0;    ///< T_lead [s]: the feedforward leads the desired flow by this lag; 0 = none
   double output_min = 0.0;   ///< lower duty limit [1], ≥ 0
   double output_max = 1.0;   ///< upper duty limit [1], ≤ 1
   bool anti_windup = true;   ///< false: plain PI (integrator unbounded), for comparison only
@@ -59,6 +63,8 @@ class FlowRegulator {
   FlowRegulatorOptions params_;
   double integrator_ = 0.0;
   double output_ = 0.0;
+  double previous_desired_ = 0.0;  ///< Q_des of the last valid step [m^3/s] (T_lead's rate)
+  bool primed_ = false;            ///< a valid step since reset() (the first has no rate)
   bool saturated_ = false;
   std::string error_;
 };

@@ -86,7 +86,7 @@ struct AuroraOptions {
   /// programmed ROM); at most kMaxSromBytes bytes each. Empty: none.
   std::map<uint8_t, std::string> srom_files;
 
-  /// Empty when usable, else "<field>: <what>".
+  /// Empty when usable, else "<field>: <what>". Checks the srom_files' handles, not their files.
   std::string validate() const;
 };
 
@@ -154,8 +154,9 @@ class AuroraClient : private DeviceSession {
  public:
   using SampleCallback = std::function<void(const AuroraSample&)>;
 
-  /// Reads the `srom_files`.
-  /// @throws std::invalid_argument when `config.validate()` fails (a tool-definition file included).
+  /// Reads the `srom_files` (once; validate() does not open them).
+  /// @throws std::invalid_argument when `config.validate()` fails or a tool-definition file cannot be
+  /// read (the message names srom_files/<handle>).
   AuroraClient(const AuroraOptions& config, SampleCallback on_sample, LogCallback log = nullptr);
   ~AuroraClient() override;
   AuroraClient(const AuroraClient&) = delete;
