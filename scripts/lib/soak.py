@@ -177,10 +177,10 @@ class Monitor:
         rospy.Subscriber("/jets/command", JetCommand, self.on_command, queue_size=1000)
         rospy.Subscriber("/tracker/tip_pose", PoseStamped, self.on_tip, queue_size=1000)
         rospy.Subscriber("/jets/state", JetState, self.on_state, queue_size=1000)
+        rospy.Subscriber("/plant/fault_applied", PlantFault, self.applied.append, queue_size=100)
 
     def on_state(self, m):
         self.last_state = max(self.last_state, m.header.stamp.to_sec())
-        rospy.Subscriber("/plant/fault_applied", PlantFault, self.applied.append, queue_size=100)
 
     def on_clock(self, m):
         self.t = m.clock.to_sec()
