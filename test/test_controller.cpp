@@ -670,6 +670,7 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
       {"gains/kd", f.kd, d.kd},
       {"gains/ki", f.ki, d.ki},
       {"gains/max_integral", f.max_integral, d.max_integral},
+      {"fast_path_rate", f.fast_path_rate, d.fast_path_rate},
       {"gains/feedforward", f.feedforward, d.feedforward},
       {"gains/damping", f.damping, d.damping},
       {"gains/lead_time", f.lead_time, d.lead_time},
@@ -678,6 +679,7 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
       {"observer/prediction", double(f.observer_prediction), double(d.observer_prediction)},
       {"limits/max_force", f.max_force, d.max_force},
       {"limits/max_force_rate", f.max_force_rate, d.max_force_rate},
+      {"limits/min_jet_force", f.min_jet_force, d.min_jet_force},
       {"limits/max_angular_rate", f.max_angular_rate, d.max_angular_rate},
       {"limits/reachable_force_fraction", f.reachable_force_fraction, d.reachable_force_fraction},
       {"allocation_weight", f.allocation_weight, d.allocation_weight},
@@ -872,10 +874,139 @@ TEST(DirectionPd, TheLeadEntersOnceAndIsNotTakenBackAtOnce) {
   gi.feedforward = 0.0;
   gi.ki = 2.0;
   gi.max_integral = 1.0;
+  gi.fast_path_rate = 0.0;  // unscheduled: the still reference below gets the integral too
   control::DirectionPd pi;
   const Vec3 e(0.0, 0.02, 0.0);
   for (int n = 1; n <= 5; ++n) {
     x = pi.correction(dir(0.0), dir(0.02), dir(0.02), 0.01, gi);
     EXPECT_NEAR((x - gi.ki * 0.01 * (n * 0.01) * e).norm(), 0.0, 1e-12) << n;
+  }
+}
+
+// The integral's weight on the reference's speed v: w = v²/(v² + v₀²), 1 without v₀. A still
+// reference gets none of it (the paper's law); a moving one gets w of the error per step; when the
+// reference stops, the integral leaks at K_p.
+TEST(DirectionPd, TheIntegralIsWeightedByTheReferenceSpeedAndLeaksWhenItStops) {
+  EXPECT_EQ(control::fast_path_weight(0.0, 0.1), 0.0);
+  EXPECT_DOUBLE_EQ(control::fast_path_weight(0.1, 0.1), 0.5);
+  EXPECT_DOUBLE_EQ(control::fast_path_weight(0.3, 0.1), 0.9);
+  EXPECT_EQ(control::fast_path_weight(0.0, 0.0), 1.0);
+  auto dir = [](double a) { return Vec3(std::sin(a), 0.0, std::cos(a)); };
+  control::ControllerOptions g;
+  g.kp = 0.0;
+  g.kd = 0.0;
+  g.feedforward = 0.0;
+  g.ki = 2.0;
+  g.max_integral = 1.0;
+  g.fast_path_rate = 0.1;
+  const double dt = 0.01, e = 0.02;
+  // Still: no integral at all.
+  control::DirectionPd still;
+  for (int n = 0; n < 5; ++n) EXPECT_EQ(still.correction(dir(0.0), dir(e), dir(e), dt, g).norm(), 0.0) << n;
+  // Moving at 0.3 rad/s (w = 0.9), the tip e behind: after the priming step, K_i dt Σ w e dt.
+  control::DirectionPd moving;
+  moving.correction(dir(-e), dir(0.0), dir(0.0), dt, g);  // primes (v unknown: 0)
+  Vec3 x;
+  for (int n = 1; n <= 5; ++n) {
+    const double a = 0.3 * dt * n;
+    x = moving.correction(dir(a - e), dir(a), dir(a), dt, g);
+    EXPECT_NEAR(x.y(), g.ki * dt * (n * dt * 0.9 * e), 1e-9) << n;
+  }
+  // It stops: with K_p the integral leaks by (1 − K_p dt) per step (and K_p's own term adds K_p dt e).
+  g.kp = 3.0;
+  const double before = x.y() / (g.ki * dt);
+  const double a = 0.3 * dt * 5;
+  x = moving.correction(dir(a - e), dir(a), dir(a), dt, g);
+  EXPECT_NEAR(x.y(), g.kp * dt * e + g.ki * dt * before * (1.0 - g.kp * dt), 1e-9);
+}
+
+// A plant 25 % softer than the model (its direction gain 1.25×): on an arc at 0.3 rad/s the paper's
+// law settles at the type-1 ramp error ≈ (1 − 1/1.25) v / K_p = 0.02 rad; the speed-weighted
+// integral (K_i 6) removes most of it.
+TEST(Controller, TheSpeedWeightedIntegralRemovesTheRampErrorOfAGainMismatch) {
+  const config::Scene sc = test::scene("hydrojet_0deg");
+  rod::RodModel truth = sc.model;
+  truth.rod.stiffness *= 0.8;
+  double ramp_error[2];
+  for (int with_ki = 0; with_ki < 2; ++with_ki) {
+    control::ControllerOptions p;  // K_p 3/s
+    p.ki = with_ki ? 6.0 : 0.0;
+    p.min_jet_force = 0.0;
+    p.path_type = control::PathType::kNone;
+    Controller c(config::make_controller_model(sc, flow_gains()), p);
+    StaticPlant plant(sc, truth);
+    c.follow(std::make_shared<ArcPath>(0.3, 3.0), 0.0);  // joined from the rest direction at ≤ 0.25 rad/s
+    c.start(0.0);
+    double sum2 = 0.0;
+    int n = 0;
+    for (int k = 0; k <= 300; ++k) {
+      const ControllerOutput out = c.update(plant.inputs(k * kDt));
+      ASSERT_NE(out.state, ControllerState::kAborted) << out.reason;
+      plant.apply(out.valve_command);
+      if (k * kDt >= 2.0) sum2 += out.error_geodesic * out.error_geodesic, ++n;
+    }
+    ramp_error[with_ki] = std::sqrt(sum2 / n);
+  }
+  EXPECT_NEAR(ramp_error[0], 0.2 * 0.3 / 3.0, 0.01);  // the closed form, within the arc's gain spread
+  EXPECT_LT(ramp_error[1], 0.25 * ramp_error[0]);
+}
+
+// Held still, the fast-path elements (K_i, idling jets) do nothing: config/controller.yaml's law
+// commands what the paper's law does, bit for bit, on a still target with a mismatched plant.
+TEST(Controller, OnAStillTargetTheFastPathElementsAreThePapersLaw) {
+  const config::Scene sc = test::scene("hydrojet_0deg");
+  rod::RodModel truth = sc.model;
+  truth.rod.stiffness *= 0.8;
+  control::ControllerOptions bare = static_target(0.6, 1.0);
+  bare.ki = 0.0;
+  bare.min_jet_force = 0.0;
+  const control::ControllerOptions fast = static_target(0.6, 1.0);  // the defaults: K_i 6, idle 0.005 N
+  ASSERT_GT(fast.ki, 0.0);
+  ASSERT_GT(fast.min_jet_force, 0.0);
+  Controller paper(config::make_controller_model(sc, flow_gains()), bare);
+  Controller scheduled(config::make_controller_model(sc, flow_gains()), fast);
+  StaticPlant a(sc, truth), b(sc, truth);
+  paper.start(0.0);
+  scheduled.start(0.0);
+  for (int k = 0; k < 300; ++k) {
+    const ControllerOutput oa = paper.update(a.inputs(k * kDt)), ob = scheduled.update(b.inputs(k * kDt));
+    ASSERT_EQ(oa.jet_force_command, ob.jet_force_command) << k;
+    a.apply(oa.valve_command);
+    b.apply(ob.valve_command);
+  }
+}
+
+// Idling jets (min_jet_force, here at every speed: fast_path_rate 0): every jet stays at or above
+// the idle force while the controller runs, and the targets are reached as before (the jets' common
+// force adds no net tip force the law cannot correct). Without it the allocation closes a jet at
+// these targets (so the check can fail). Stopped, the jets are at zero.
+TEST(Controller, IdlingJetsStayOpenAndTheTargetIsStillReached) {
+  const config::Scene sc = test::scene("hydrojet_0deg");
+  for (const auto& target : {std::make_pair(0.4, 0.5), std::make_pair(0.9, 2.5)}) {
+    for (double idle : {0.0, 0.01}) {
+      control::ControllerOptions p = static_target(target.first, target.second);
+      p.min_jet_force = idle;
+      p.fast_path_rate = 0.0;
+      Controller c(config::make_controller_model(sc, flow_gains()), p);
+      StaticPlant plant(sc, sc.model);
+      c.start(0.0);
+      double lowest = 1e9;
+      ControllerOutput out;
+      for (int k = 0; k < 800; ++k) {
+        out = c.update(plant.inputs(k * kDt));
+        ASSERT_EQ(out.state, ControllerState::kRunning) << out.reason;
+        plant.apply(out.valve_command);
+        lowest = std::min(lowest, out.jet_force_command.minCoeff());
+      }
+      EXPECT_LT(out.error_geodesic, 1e-3) << "idle " << idle;
+      if (idle > 0.0)
+        EXPECT_GE(lowest, idle - 1e-12);
+      else
+        EXPECT_LT(out.jet_force_command.minCoeff(), 1e-9);
+      c.stop();
+      out = c.update(plant.inputs(8.0));
+      EXPECT_EQ(out.valve_command.norm(), 0.0);
+      EXPECT_EQ(out.jet_force_command.norm(), 0.0);
+    }
   }
 }

@@ -260,13 +260,24 @@ std::string Controller::command_inputs(const rod::RodSolution& sol, const Actuat
   o.max_force = params_.max_force;
   o.length = model_.body().length();
   const JetVector& base = params_.integrate_from_measured ? out.jet_force_observed : previous_command_;
-  const InputStep step = input_step(sol.tip_rotation, lin, x_cntr, base, model_.lower(), model_.upper(), o);
+  const InputStep step = input_step(sol.tip_rotation, lin, x_cntr, base, running_lower(), model_.upper(), o);
   if (!step.ok) return step.message;
   previous_command_ = step.q;
   out.jet_force_command = step.q;
   out.force_reachable = step.bound_cost <= params_.unreachable_tolerance;
   out.wrench_command = model_.tip_wrench(step.q);
   return "";
+}
+
+// The inputs' lower bounds while running: each jet idles at w min_jet_force (at most half its q_max),
+// w the fast-path weight of the reference's speed.
+JetVector Controller::running_lower() const {
+  JetVector lower = model_.lower();
+  const double idle = params_.min_jet_force * fast_path_weight(pd_.speed(), params_.fast_path_rate);
+  if (idle > 0.0)
+    for (int i = 0; i < jets_.jet_count(); ++i)
+      if (jets_.is_jet(i)) lower[i] = std::max(lower[i], std::min(idle, 0.5 * model_.upper()[i]));
+  return lower;
 }
 
 // Eq. (26) and the actuator feedback: flow for each jet force and the per-jet PI flow regulators;

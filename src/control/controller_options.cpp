@@ -48,7 +48,11 @@ std::string ControllerOptions::validate() const {
   if (!(ki >= 0.0 && ki <= 100.0)) return bad("ki", ki, "must lie in [0, 100] 1/s^2");
   if (!(max_integral >= 0.0 && max_integral <= 10.0))
     return bad("max_integral", max_integral, "must lie in [0, 10] rad s");
+  if (!(fast_path_rate >= 0.0 && fast_path_rate <= 10.0))
+    return bad("fast_path_rate", fast_path_rate, "must lie in [0, 10] rad/s");
   if (!(lead_time >= 0.0 && lead_time <= 1.0)) return bad("lead_time", lead_time, "must lie in [0, 1] s");
+  if (!(min_jet_force >= 0.0 && min_jet_force <= 1.0))
+    return bad("min_jet_force", min_jet_force, "must lie in [0, 1] N");
   if (observer_prediction && !observer) return bad("observer_prediction", 1.0, "needs observer (observer/enabled)");
   if (!(observer_time_constant >= 0.01 && observer_time_constant <= 100.0))
     return bad("observer_time_constant", observer_time_constant, "must lie in [0.01, 100] s");

@@ -2,6 +2,7 @@
 
 #include <Eigen/Cholesky>
 #include <algorithm>
+#include <cmath>
 
 #include "hydrojet_control/actuation/bounded_allocation.h"
 
@@ -9,6 +10,12 @@
 
 namespace hydrojet {
 namespace control {
+
+double fast_path_weight(double rate, double min_rate) {
+  if (!(min_rate > 0.0)) return 1.0;
+  const double v2 = rate * rate;
+  return std::isfinite(v2) ? v2 / (v2 + min_rate * min_rate) : 1.0;
+}
 
 Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, const Vec3& ahead, double dt,
                              const ControllerOptions& gains) {
@@ -21,9 +28,12 @@ Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, const Ve
     integral_.setZero();
     primed_ = true;
   }
-  // The integral of the error (issue 16: a ramp, a fast path, leaves no steady error), bounded.
+  // The integral of the error (issue 16: a ramp, a fast path, leaves no steady error), bounded and
+  // weighted by the reference's speed (ControllerOptions::fast_path_rate).
+  speed_ = dt > 0.0 ? rotation_between(prev_desired_, desired).norm() / dt : 0.0;
   if (gains.ki > 0.0) {
-    integral_ += dt * err;
+    const double w = fast_path_weight(speed_, gains.fast_path_rate);
+    integral_ += dt * w * err - std::min(1.0, dt * (1.0 - w) * gains.kp) * integral_;
     if (integral_.norm() > gains.max_integral) integral_ *= gains.max_integral / integral_.norm();
   }
   // The path's motion over the step: ahead of it while the lead is on (and was), else x_des's own.

@@ -100,6 +100,7 @@ class Controller {
   void track_reference(const ControllerInputs& in, const rod::RodSolution& sol, double dt, ControllerOutput& out);
   std::string command_inputs(const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin, double dt,
                              ControllerOutput& out);
+  JetVector running_lower() const;
   std::string actuate(const JetVector& flows, double dt, ControllerOutput& out);
   ControllerOutput finish_cycle(ControllerOutput out);
   ControllerOutput abort(ControllerOutput out, const std::string& why);

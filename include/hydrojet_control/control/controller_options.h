@@ -26,7 +26,8 @@ struct ControllerOptions {
   /// K_i [1/s²]: the integral of the direction error (issue 16): the law of eq. (17) integrates the
   /// tip force, so it is type 1 and a path at speed v leaves an error ≈ (1 − gain ratio)·v/K_p when
   /// the model's gain differs from the plant's; K_i makes it type 2 (no steady error on a ramp).
-  double ki = 0.0;
+  /// Weighted by the reference's speed (fast_path_rate): a still reference gets none of it.
+  double ki = 6.0;
   double max_integral = 0.1;  ///< |∫x_err dt| is kept below this [rad s] (anti-windup)
   double feedforward = 1.0;   ///< weight of the path's own motion per step [-] (0 = pure PD)
   /// The feedforward follows the path this far ahead [s]: the loop's lag (flow loop, the rod's
@@ -41,9 +42,21 @@ struct ControllerOptions {
   /// (where the plant will settle) instead of the tracker's, which lags it (flow loop, rod dynamics,
   /// tracker latency); the tracker enters through the observer.
   bool observer_prediction = false;
-  double damping = 0.02;           ///< μ of the damped pseudo-inverse of eq. (19) [rad/N]
-  double max_force = 0.30;         ///< magnitude limit of the commanded tip force [N]
-  double max_force_rate = 1.0;     ///< rate limit of the commanded tip force [N/s]
+  double damping = 0.02;        ///< μ of the damped pseudo-inverse of eq. (19) [rad/N]
+  double max_force = 0.30;      ///< magnitude limit of the commanded tip force [N]
+  double max_force_rate = 1.0;  ///< rate limit of the commanded tip force [N/s]
+  /// While the reference moves, each jet's force is at least w · min_jet_force [N] (w: fast_path_rate;
+  /// force actuators: unaffected; at most half a jet's q_max). The jets idle instead of closing, so
+  /// that their flows do not cross the valves' dead zone, nor the thrust law's √ at zero, each time the
+  /// tip force turns past a jet: on a fast path every such switch kicked the first bending mode
+  /// (issue 16). Held still, the jets close as before (no water spent on idling). 0: jets close.
+  double min_jet_force = 0.005;
+  /// v₀ [rad/s] of the fast-path elements: K_i and min_jet_force act with the weight
+  /// w = v²/(v² + v₀²) of the reference's speed v (fast_path_weight()); the integral leaks at
+  /// (1 − w) K_p. A moving path (the ramp the integral is for) gets them whole; a still or slow one
+  /// (a held target, the paper's 600 s spiral) the paper's law, without the integral's hunting
+  /// through the valves' hysteresis. 0: both act at every speed.
+  double fast_path_rate = 0.1;
   double max_angular_rate = 0.25;  ///< the reference moves toward a new target at most this fast [rad/s]
   /// The reachable set is swept with this fraction of each jet's q_max: authority kept in reserve for
   /// the closed loop (model mismatch, valves that saturate below their nominal flow) [-], in (0, 1].

@@ -14,23 +14,33 @@
 namespace hydrojet {
 namespace control {
 
+/// The fast-path elements' weight at the reference's speed `rate` [rad/s]: rate² / (rate² + min_rate²),
+/// 1 when min_rate is 0 (ControllerOptions::fast_path_rate).
+double fast_path_weight(double rate, double min_rate);
+
 /// eqs. (17)–(18), Algorithm 1 line 5: x_cntr = PD(x_err) + feedforward. Remembers the previous
 /// error and desired direction for the derivative and feedforward terms.
 class DirectionPd {
  public:
   /// Starts afresh: the next step has no derivative term; its feedforward is the lead alone.
-  void reset() { primed_ = false; }
+  void reset() {
+    primed_ = false;
+    speed_ = 0.0;
+  }
 
   /// x_err is the rotation vector taking the observed tip direction onto the desired one (both
   /// unit, base frame); returns
-  ///   x_cntr = K_p dt x_err + K_i dt ∫x_err dt + K_d (x_err − x_err,prev) + k_ff ∠(x_ff,prev → x_ff)   [rad],
-  /// the rotation (base frame) the tip direction should make this step. dt [s]. x_ff is the
+  ///   x_cntr = K_p dt x_err + K_i dt ∫w x_err dt + K_d (x_err − x_err,prev) + k_ff ∠(x_ff,prev → x_ff)   [rad],
+  /// the rotation (base frame) the tip direction should make this step. dt [s]. w: fast_path_weight()
+  /// of x_des's speed; the integral leaks at (1 − w) K_p. x_ff is the
   /// reference `lead_time` ahead (Reference::preview; x_des itself without a lead): the feedforward
   /// moves the inputs by the path's motion that far ahead, so that the loop's lag (valves, rod) is
   /// covered; the step on which the lead starts adds ∠(x_des → x_ff), the lead itself, and when it
   /// ends (x_ff = x_des again) the feedforward is x_des's own motion (no step back).
   Vec3 correction(const Vec3& observed, const Vec3& desired, const Vec3& ahead, double dt,
                   const ControllerOptions& gains);
+  /// The reference's speed over the last correction() [rad/s] (0 before the second).
+  double speed() const { return speed_; }
 
  private:
   bool primed_ = false;
@@ -38,7 +48,8 @@ class DirectionPd {
   Vec3 prev_desired_ = Vec3::UnitZ();
   Vec3 prev_ahead_ = Vec3::UnitZ();
   bool prev_lead_ = false;
-  Vec3 integral_ = Vec3::Zero();  ///< ∫ x_err dt [rad s]
+  Vec3 integral_ = Vec3::Zero();  ///< ∫ w x_err dt [rad s]
+  double speed_ = 0.0;            ///< x_des's speed over the last step [rad/s]
 };
 
 /// Limits and weights of one step of the law on the actuation Jacobian (ControllerOptions' names).
