@@ -920,17 +920,19 @@ TEST(DirectionPd, TheIntegralIsWeightedByTheReferenceSpeedAndLeaksWhenItStops) {
   EXPECT_NEAR(x.y(), g.kp * dt * e + g.ki * dt * before * (1.0 - g.kp * dt), 1e-9);
 }
 
-// A plant 25 % softer than the model (its direction gain 1.25×): on an arc at 0.3 rad/s the paper's
-// law settles at the type-1 ramp error ≈ (1 − 1/1.25) v / K_p = 0.02 rad; the speed-weighted
-// integral (K_i 6) removes most of it.
+// A plant 25 % softer than the model (its direction gain g = 1.25): on an arc at v = 0.3 rad/s the
+// paper's law settles at the type-1 ramp error (1 − 1/g) v / K_p = 0.02 rad; with the speed-weighted,
+// leaking integral (K_i 6, w = 0.9 at v₀ = 0.1 rad/s) the closed form is
+// (1 − 1/g) v / (K_p + K_i w / ((1 − w) K_p)) = 0.06 / 21 = 0.0029 rad, and without the weight (type 2) 0.
 TEST(Controller, TheSpeedWeightedIntegralRemovesTheRampErrorOfAGainMismatch) {
   const config::Scene sc = test::scene("hydrojet_0deg");
   rod::RodModel truth = sc.model;
   truth.rod.stiffness *= 0.8;
-  double ramp_error[2];
-  for (int with_ki = 0; with_ki < 2; ++with_ki) {
+  double ramp_error[3];  // the paper's law; K_i weighted (the default); K_i unweighted
+  for (int law = 0; law < 3; ++law) {
     control::ControllerOptions p;  // K_p 3/s
-    p.ki = with_ki ? 6.0 : 0.0;
+    p.ki = law == 0 ? 0.0 : 6.0;
+    p.fast_path_rate = law == 2 ? 0.0 : 0.1;
     p.min_jet_force = 0.0;
     p.path_type = control::PathType::kNone;
     Controller c(config::make_controller_model(sc, flow_gains()), p);
@@ -945,10 +947,13 @@ TEST(Controller, TheSpeedWeightedIntegralRemovesTheRampErrorOfAGainMismatch) {
       plant.apply(out.valve_command);
       if (k * kDt >= 2.0) sum2 += out.error_geodesic * out.error_geodesic, ++n;
     }
-    ramp_error[with_ki] = std::sqrt(sum2 / n);
+    ramp_error[law] = std::sqrt(sum2 / n);
   }
-  EXPECT_NEAR(ramp_error[0], 0.2 * 0.3 / 3.0, 0.01);  // the closed form, within the arc's gain spread
-  EXPECT_LT(ramp_error[1], 0.25 * ramp_error[0]);
+  // The closed forms, within the gain's spread along the arc (the plant is not exactly 1.25× the
+  // model everywhere: the paper's law measures 0.017); the weighted law's ratio to it is K_p / 21.
+  EXPECT_NEAR(ramp_error[0], 0.2 * 0.3 / 3.0, 0.005);
+  EXPECT_NEAR(ramp_error[1] / ramp_error[0], 3.0 / 21.0, 0.04);
+  EXPECT_LT(ramp_error[2], 0.1 * ramp_error[0]);
 }
 
 // Held still, the fast-path elements (K_i, idling jets) do nothing: config/controller.yaml's law
@@ -987,6 +992,7 @@ TEST(Controller, IdlingJetsStayOpenAndTheTargetIsStillReached) {
       control::ControllerOptions p = static_target(target.first, target.second);
       p.min_jet_force = idle;
       p.fast_path_rate = 0.0;
+      p.ki = 0.0;
       Controller c(config::make_controller_model(sc, flow_gains()), p);
       StaticPlant plant(sc, sc.model);
       c.start(0.0);
@@ -1003,10 +1009,31 @@ TEST(Controller, IdlingJetsStayOpenAndTheTargetIsStillReached) {
         EXPECT_GE(lowest, idle - 1e-12);
       else
         EXPECT_LT(out.jet_force_command.minCoeff(), 1e-9);
-      c.stop();
-      out = c.update(plant.inputs(8.0));
-      EXPECT_EQ(out.valve_command.norm(), 0.0);
-      EXPECT_EQ(out.jet_force_command.norm(), 0.0);
     }
   }
+}
+
+// With the default weighting, on an arc at 0.3 rad/s (w = 0.9): once the reference moves at that
+// speed and the idle force has risen (at most max_force_rate), every jet is at least 0.9 × the idle
+// force; a still reference before the arc starts leaves the jets free to close.
+TEST(Controller, JetsIdleInProportionToTheReferenceSpeed) {
+  const config::Scene sc = test::scene("hydrojet_0deg");
+  control::ControllerOptions p;
+  p.path_type = control::PathType::kNone;
+  p.min_jet_force = 0.01;
+  Controller c(config::make_controller_model(sc, flow_gains()), p);
+  StaticPlant plant(sc, sc.model);
+  c.start(0.0);
+  double lowest_still = 1e9, lowest_moving = 1e9;
+  for (int k = 0; k < 400; ++k) {
+    const double t = k * kDt;
+    if (k == 100) c.follow(std::make_shared<ArcPath>(0.3, 10.0), t);  // from the rest direction
+    const ControllerOutput out = c.update(plant.inputs(t));
+    ASSERT_EQ(out.state, ControllerState::kRunning) << out.reason;
+    plant.apply(out.valve_command);
+    if (k < 100) lowest_still = std::min(lowest_still, out.jet_force_command.minCoeff());
+    if (t >= 2.5) lowest_moving = std::min(lowest_moving, out.jet_force_command.minCoeff());
+  }
+  EXPECT_LT(lowest_still, 1e-9);
+  EXPECT_GE(lowest_moving, 0.9 * p.min_jet_force - 1e-9);
 }

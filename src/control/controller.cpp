@@ -1,5 +1,6 @@
 #include "hydrojet_control/control/controller.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace hydrojet {
@@ -55,6 +56,7 @@ void Controller::start(double t) {
   monitor_.reset();
   pd_.reset();
   jets_.reset();
+  idle_force_ = 0.0;
   if (!commands_pending_) start_configured_path(t);
   commands_pending_ = false;
 }
@@ -63,6 +65,7 @@ void Controller::stop() {
   state_ = ControllerState::kIdle;
   previous_command_ = jets_.zeros();
   jets_.reset();
+  idle_force_ = 0.0;
   commands_pending_ = false;
 }
 
@@ -260,7 +263,7 @@ std::string Controller::command_inputs(const rod::RodSolution& sol, const Actuat
   o.max_force = params_.max_force;
   o.length = model_.body().length();
   const JetVector& base = params_.integrate_from_measured ? out.jet_force_observed : previous_command_;
-  const InputStep step = input_step(sol.tip_rotation, lin, x_cntr, base, running_lower(), model_.upper(), o);
+  const InputStep step = input_step(sol.tip_rotation, lin, x_cntr, base, running_lower(dt), model_.upper(), o);
   if (!step.ok) return step.message;
   previous_command_ = step.q;
   out.jet_force_command = step.q;
@@ -270,13 +273,17 @@ std::string Controller::command_inputs(const rod::RodSolution& sol, const Actuat
 }
 
 // The inputs' lower bounds while running: each jet idles at w min_jet_force (at most half its q_max),
-// w the fast-path weight of the reference's speed.
-JetVector Controller::running_lower() const {
+// w the fast-path weight of the reference's speed. The idle force moves no faster than the tip force
+// may (limits/max_force_rate): a jet raised to it is a tip-force step that input_step's rate limit
+// does not see (it clamps the base into the bounds first).
+JetVector Controller::running_lower(double dt) {
+  const double target = params_.min_jet_force * fast_path_weight(pd_.speed(), params_.fast_path_rate);
+  const double step = params_.max_force_rate * dt;
+  idle_force_ = std::clamp(target, idle_force_ - step, idle_force_ + step);
   JetVector lower = model_.lower();
-  const double idle = params_.min_jet_force * fast_path_weight(pd_.speed(), params_.fast_path_rate);
-  if (idle > 0.0)
+  if (idle_force_ > 0.0)
     for (int i = 0; i < jets_.jet_count(); ++i)
-      if (jets_.is_jet(i)) lower[i] = std::max(lower[i], std::min(idle, 0.5 * model_.upper()[i]));
+      if (jets_.is_jet(i)) lower[i] = std::max(lower[i], std::min(idle_force_, 0.5 * model_.upper()[i]));
   return lower;
 }
 
@@ -303,6 +310,7 @@ ControllerOutput Controller::abort(ControllerOutput out, const std::string& why)
   state_ = ControllerState::kAborted;
   abort_reason_ = why;
   jets_.reset();
+  idle_force_ = 0.0;
   previous_command_ = jets_.zeros();
   out.state = state_;
   out.reason = why;
