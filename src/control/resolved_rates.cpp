@@ -28,8 +28,9 @@ Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, const Ve
     integral_.setZero();
     primed_ = true;
   }
-  // The integral of the error (issue 16: a ramp, a fast path, leaves no steady error), bounded and
-  // weighted by the reference's speed (ControllerOptions::fast_path_rate).
+  // The integral of the error (issue 16: on a ramp, a fast path, it leaves nearly no steady error),
+  // bounded, weighted by the reference's speed and leaking as it slows (ControllerOptions::ki,
+  // fast_path_rate).
   speed_ = dt > 0.0 ? rotation_between(prev_desired_, desired).norm() / dt : 0.0;
   if (gains.ki > 0.0) {
     const double w = fast_path_weight(speed_, gains.fast_path_rate);
