@@ -17,6 +17,7 @@
 //   BM_ReachableClip         ReachableSet::clip of a random direction outside the set
 //   BM_ReachableSetCompute   ReachableSet::compute (the controller's start), 30° scene
 //   BM_ControlCycle          one Controller::update of the 20 s spiral, closed loop (counter p99_us)
+//   BM_ControlCyclePapersLaw the same with the fast-path elements off (the paper's law)
 // The path benchmarks report the counter tip_error_m: the largest tip-position error along the
 // path against a reference (RK8, 256 steps, residual 1e-13).
 #include <benchmark/benchmark.h>
@@ -244,15 +245,19 @@ void BM_ReachableSetCompute(benchmark::State& state) {
 
 }  // namespace
 
-/// One control cycle (Controller::update, Algorithm 1 with the default config/controller.yaml) of
-/// the §7 spiral run at 20 s in closed loop against a quasi-static plant (the 30° scene's own rod,
-/// valves that set the flow at once); only update() is timed. Counter p99_us: its 99th percentile.
-void BM_ControlCycle(benchmark::State& state) {
+namespace {
+
+/// One control cycle (Controller::update, Algorithm 1 with the default config/controller.yaml, or
+/// with its fast-path elements off: the paper's law) of the §7 spiral run at 20 s in closed loop
+/// against a quasi-static plant (the 30° scene's own rod, valves that set the flow at once); only
+/// update() is timed. Counter p99_us: its 99th percentile.
+void control_cycle(benchmark::State& state, bool papers_law) {
   namespace hc = hydrojet::control;
   const std::string dir = std::string(HYDROJET_SOURCE_DIR) + "/config/";
   const hydrojet::config::ControllerNodeOptions o = hydrojet::config::load_controller_options(dir + "controller.yaml");
   hc::ControllerOptions c = o.controller;
   c.path.duration = 20.0;
+  if (papers_law) c.ki = c.min_jet_force = 0.0;
   const hydrojet::config::Scene sc = scene();
   hc::Controller ctl(hydrojet::config::make_controller_model(sc, o.flow_regulator), c);
   hydrojet::rod::ShootingSolver plant(sc.model, sc.solver);
@@ -286,6 +291,11 @@ void BM_ControlCycle(benchmark::State& state) {
   state.counters["p99_us"] = cycle_us.empty() ? 0.0 : cycle_us[static_cast<size_t>(0.99 * (cycle_us.size() - 1))];
 }
 
+}  // namespace
+
+void BM_ControlCycle(benchmark::State& state) { control_cycle(state, false); }
+void BM_ControlCyclePapersLaw(benchmark::State& state) { control_cycle(state, true); }
+
 BENCHMARK(BM_ColdSolve)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_WarmSolve)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_WarmSolveCompliance)->Unit(benchmark::kMicrosecond);
@@ -298,4 +308,5 @@ BENCHMARK(BM_LookAt)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ReachableClip)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ReachableSetCompute)->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_ControlCycle)->UseManualTime()->Unit(benchmark::kMicrosecond)->MinTime(0.5);
+BENCHMARK(BM_ControlCyclePapersLaw)->UseManualTime()->Unit(benchmark::kMicrosecond)->MinTime(0.5);
 BENCHMARK_MAIN();
