@@ -31,7 +31,8 @@ Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, const Ve
   // The integral of the error (issue 16: on a ramp, a fast path, it leaves nearly no steady error),
   // bounded, weighted by the reference's speed and leaking as it slows (ControllerOptions::ki,
   // fast_path_rate).
-  speed_ = dt > 0.0 ? rotation_between(prev_desired_, desired).norm() / dt : 0.0;
+  const Vec3 own_motion = rotation_between(prev_desired_, desired);  // x_des's own motion over the step
+  speed_ = dt > 0.0 ? own_motion.norm() / dt : 0.0;
   if (gains.ki > 0.0) {
     const double w = fast_path_weight(speed_, gains.fast_path_rate);
     integral_ += dt * w * err - std::min(1.0, dt * (1.0 - w) * gains.kp) * integral_;
@@ -40,8 +41,7 @@ Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, const Ve
   // The path's motion over the step: ahead of it while the lead is on (and was), else x_des's own.
   // The lead itself enters once, when it starts (∠(x_des → x_ff) on that step); when it ends (the
   // path is cut off or done), it is not taken back in one step: the feedback removes it.
-  const Vec3 motion = lead ? rotation_between(prev_lead_ ? prev_ahead_ : prev_desired_, ahead)
-                           : rotation_between(prev_desired_, desired);
+  const Vec3 motion = lead ? rotation_between(prev_lead_ ? prev_ahead_ : prev_desired_, ahead) : own_motion;
   const Vec3 x_cntr =
       gains.kp * dt * err + gains.ki * dt * integral_ + gains.kd * (err - prev_error_) + gains.feedforward * motion;
   prev_error_ = err;
