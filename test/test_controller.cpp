@@ -920,6 +920,35 @@ TEST(DirectionPd, TheIntegralIsWeightedByTheReferenceSpeedAndLeaksWhenItStops) {
   EXPECT_NEAR(x.y(), g.kp * dt * e + g.ki * dt * before * (1.0 - g.kp * dt), 1e-9);
 }
 
+// A cycle without a correction (the controller held while the model did not converge): the reference's
+// speed is its motion over both cycles, not over the last one (which would double it), and the
+// feedforward carries the motion of both.
+TEST(DirectionPd, AHeldCycleCountsInTheReferenceSpeed) {
+  auto dir = [](double a) { return Vec3(std::sin(a), 0.0, std::cos(a)); };
+  control::ControllerOptions g;
+  g.kp = 0.0;
+  g.kd = 0.0;
+  g.ki = 0.0;
+  g.feedforward = 1.0;
+  const double dt = 0.01, v = 0.2;
+  control::DirectionPd pd;
+  pd.skip(dt);  // before the first correction: nothing to carry
+  pd.correction(dir(0.0), dir(0.0), dir(0.0), dt, g);
+  pd.correction(dir(v * dt), dir(v * dt), dir(v * dt), dt, g);
+  EXPECT_NEAR(pd.speed(), v, 1e-9);
+  pd.skip(dt);  // the held cycle; x_des moved on by v dt
+  const Vec3 x = pd.correction(dir(3 * v * dt), dir(3 * v * dt), dir(3 * v * dt), dt, g);
+  EXPECT_NEAR(pd.speed(), v, 1e-9);
+  EXPECT_NEAR(x.y(), 2 * v * dt, 1e-12);
+  pd.correction(dir(4 * v * dt), dir(4 * v * dt), dir(4 * v * dt), dt, g);  // the skip is spent
+  EXPECT_NEAR(pd.speed(), v, 1e-9);
+  pd.reset();
+  pd.skip(dt);
+  pd.correction(dir(0.0), dir(0.0), dir(0.0), dt, g);
+  pd.correction(dir(v * dt), dir(v * dt), dir(v * dt), dt, g);
+  EXPECT_NEAR(pd.speed(), v, 1e-9);
+}
+
 // A plant 25 % softer than the model (its direction gain g = 1.25): on an arc at v = 0.3 rad/s the
 // paper's law settles at the type-1 ramp error (1 − 1/g) v / K_p = 0.02 rad; with the speed-weighted,
 // leaking integral (K_i 6, w = 0.9 at v₀ = 0.1 rad/s) the closed form is

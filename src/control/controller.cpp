@@ -51,21 +51,17 @@ void Controller::start(double t) {
   t_start_ = t;
   t_last_ = t;
   first_cycle_ = true;
-  previous_command_ = jets_.zeros();
   observer_.reset();
   monitor_.reset();
   pd_.reset();
-  jets_.reset();
-  idle_force_ = 0.0;
+  reset_actuation();
   if (!commands_pending_) start_configured_path(t);
   commands_pending_ = false;
 }
 
 void Controller::stop() {
   state_ = ControllerState::kIdle;
-  previous_command_ = jets_.zeros();
-  jets_.reset();
-  idle_force_ = 0.0;
+  reset_actuation();
   commands_pending_ = false;
 }
 
@@ -211,6 +207,7 @@ void Controller::observe_model_error(const ControllerInputs& in, const rod::RodS
 // The solver did not converge (fewer times in a row than max_solver_failures): no new force this
 // cycle; the flow regulators keep the jets at the flows of the observed jet forces.
 ControllerOutput Controller::hold(ControllerOutput out, const JetVector& flows, double dt) {
+  pd_.skip(dt);
   out.jet_force_command.setZero();
   out.flow_command = jets_.flows_for_forces(out.jet_force_observed);
   out.valve_command = jets_.regulate(out.jet_force_observed, out.flow_command, flows, dt);
@@ -305,13 +302,19 @@ ControllerOutput Controller::finish_cycle(ControllerOutput out) {
   return out;
 }
 
+// The actuation as at rest: no previous command, flow regulators and the jets' idle force at zero
+// (start, stop, abort).
+void Controller::reset_actuation() {
+  previous_command_ = jets_.zeros();
+  jets_.reset();
+  idle_force_ = 0.0;
+}
+
 // Stops the jets and latches the reason until the next start().
 ControllerOutput Controller::abort(ControllerOutput out, const std::string& why) {
   state_ = ControllerState::kAborted;
   abort_reason_ = why;
-  jets_.reset();
-  idle_force_ = 0.0;
-  previous_command_ = jets_.zeros();
+  reset_actuation();
   out.state = state_;
   out.reason = why;
   out.valve_command.setZero();

@@ -31,8 +31,10 @@ Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, const Ve
   // The integral of the error (issue 16: on a ramp, a fast path, it leaves nearly no steady error),
   // bounded, weighted by the reference's speed and leaking as it slows (ControllerOptions::ki,
   // fast_path_rate).
-  const Vec3 own_motion = rotation_between(prev_desired_, desired);  // x_des's own motion over the step
-  speed_ = dt > 0.0 ? own_motion.norm() / dt : 0.0;
+  const Vec3 own_motion = rotation_between(prev_desired_, desired);  // x_des's own motion since the last step
+  const double span = dt + skipped_;                                 // ... which took this long [s]
+  speed_ = span > 0.0 ? own_motion.norm() / span : 0.0;
+  skipped_ = 0.0;
   if (gains.ki > 0.0) {
     const double w = fast_path_weight(speed_, gains.fast_path_rate);
     integral_ += dt * w * err - std::min(1.0, dt * (1.0 - w) * gains.kp) * integral_;

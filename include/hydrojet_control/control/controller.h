@@ -104,6 +104,7 @@ class Controller {
   std::string actuate(const JetVector& flows, double dt, ControllerOutput& out);
   ControllerOutput finish_cycle(ControllerOutput out);
   ControllerOutput abort(ControllerOutput out, const std::string& why);
+  void reset_actuation();
 
   ControllerOptions params_;
   ActuatedModel model_;  ///< equilibrium, C^b, J_q and stability at inputs q

@@ -26,6 +26,14 @@ class DirectionPd {
   void reset() {
     primed_ = false;
     speed_ = 0.0;
+    skipped_ = 0.0;
+  }
+
+  /// A cycle of dt [s] without a correction (the controller held its inputs): x_des's motion over it
+  /// arrives with the next correction(), whose speed is then taken over both cycles (its feedforward
+  /// moves the inputs by both, as none moved them on this one).
+  void skip(double dt) {
+    if (primed_ && dt > 0.0) skipped_ += dt;
   }
 
   /// x_err is the rotation vector taking the observed tip direction onto the desired one (both
@@ -50,6 +58,7 @@ class DirectionPd {
   bool prev_lead_ = false;
   Vec3 integral_ = Vec3::Zero();  ///< ∫ w x_err dt [rad s]
   double speed_ = 0.0;            ///< x_des's speed over the last step [rad/s]
+  double skipped_ = 0.0;          ///< time since the last correction, before this step [s] (skip)
 };
 
 /// Limits and weights of one step of the law on the actuation Jacobian (ControllerOptions' names).
