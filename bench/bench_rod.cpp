@@ -257,7 +257,7 @@ void control_cycle(benchmark::State& state, bool papers_law) {
   const hydrojet::config::ControllerNodeOptions o = hydrojet::config::load_controller_options(dir + "controller.yaml");
   hc::ControllerOptions c = o.controller;
   c.path.duration = 20.0;
-  if (papers_law) c.ki = c.min_jet_force = 0.0;
+  if (papers_law) c.ki = c.min_jet_force = c.allocation_smoothing = 0.0;
   const hydrojet::config::Scene sc = scene();
   hc::Controller ctl(hydrojet::config::make_controller_model(sc, o.flow_regulator), c);
   hydrojet::rod::ShootingSolver plant(sc.model, sc.solver);

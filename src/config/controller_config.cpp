@@ -50,6 +50,7 @@ void read_controller_options(Tree& p, control::ControllerOptions& c) {
       {"limits/max_angular_rate", "max_angular_rate", &c.max_angular_rate},
       {"limits/reachable_force_fraction", "reachable_force_fraction", &c.reachable_force_fraction},
       {"allocation_weight", "allocation_weight", &c.allocation_weight},
+      {"allocation_smoothing", "allocation_smoothing", &c.allocation_smoothing},
       {"safety/max_oscillation", "max_oscillation", &c.max_oscillation},
       {"safety/sample_period", "sample_period", &c.sample_period},
       {"safety/min_stability_margin", "min_stability_margin", &c.min_stability_margin},

@@ -263,7 +263,7 @@ std::string Controller::command_inputs(const rod::RodSolution& sol, const Actuat
   const InputStep step = input_step(sol.tip_rotation, lin, x_cntr, base, running_lower(dt), model_.upper(), o);
   if (!step.ok) return step.message;
   previous_command_ = step.q;
-  out.jet_force_command = step.q;
+  out.jet_force_command = round_corners(step.q, lin, dt);
   out.force_reachable = step.bound_cost <= params_.unreachable_tolerance;
   out.wrench_command = model_.tip_wrench(step.q);
   return "";
@@ -284,6 +284,33 @@ JetVector Controller::running_lower(double dt) {
   return lower;
 }
 
+// Issue 16 (allocation_smoothing): the step's inputs with their corners rounded along the jets' common
+// mode at the scale σ ‖f‖, f the step's tip wrench (moments as forces at the arm L); by w of the
+// rounding (w: the fast-path weight of the reference's speed), the amount moving at most at
+// max_force_rate; at most up to the inputs' upper bounds. The base of the next step stays
+// the QP's own inputs (previous_command_), so the rounding does not accumulate; with
+// integrate_from_measured, q carries the measured common mode, which round_allocation takes out
+// (its excess) before adding its own. Nothing while the amount is 0: a still reference gets q.
+JetVector Controller::round_corners(const JetVector& q, const ActuatedModel::Linearisation& lin, double dt) {
+  if (!(params_.allocation_smoothing > 0.0)) return q;
+  JetVector jets = jets_.zeros();
+  for (int i = 0; i < jets_.jet_count(); ++i) jets[i] = jets_.is_jet(i) ? 1.0 : 0.0;
+  const JetVector mode = jet_common_mode(lin.actuation, jets);
+  const JetVector lower = running_lower(0.0);  // this cycle's bounds (no new idle step)
+  rod::Vec6 wrench = lin.wrenches * q;         // the mode adds none
+  wrench.tail<3>() /= model_.body().length();
+  const double force = wrench.norm();  // [N]
+  const AllocationRounding r = round_allocation(q, lower, mode, params_.allocation_smoothing * force);
+  const double target = r.amount * fast_path_weight(pd_.speed(), params_.fast_path_rate);
+  const double step = params_.max_force_rate * dt;
+  common_force_ = std::clamp(target, common_force_ - step, common_force_ + step);
+  if (common_force_ == 0.0) return q;
+  double c = common_force_;
+  for (int i = 0; i < q.size(); ++i)
+    if (mode[i] > 0.0) c = std::min(c, (model_.upper()[i] - q[i]) / mode[i] + r.excess);
+  return q + (std::max(c, 0.0) - r.excess) * mode;
+}
+
 // Eq. (26) and the actuator feedback: flow for each jet force and the per-jet PI flow regulators;
 // force actuators get their drive.
 std::string Controller::actuate(const JetVector& flows, double dt, ControllerOutput& out) {
@@ -302,9 +329,10 @@ ControllerOutput Controller::finish_cycle(ControllerOutput out) {
   return out;
 }
 
-// The actuation as at rest: no previous command, flow regulators and the jets' idle force at zero
+// The actuation as at rest: no previous command; flow regulators, the jets' idle force and rounding at zero
 // (start, stop, abort).
 void Controller::reset_actuation() {
+  common_force_ = 0.0;
   previous_command_ = jets_.zeros();
   jets_.reset();
   idle_force_ = 0.0;

@@ -60,6 +60,8 @@ std::string ControllerOptions::validate() const {
   if (!(reachable_force_fraction > 0.0 && reachable_force_fraction <= 1.0))
     return bad("reachable_force_fraction", reachable_force_fraction, "must lie in (0, 1]");
   if (!finite_nonneg(allocation_weight)) return bad("allocation_weight", allocation_weight, "must be finite and >= 0");
+  if (!(allocation_smoothing >= 0.0 && allocation_smoothing <= 10.0))
+    return bad("allocation_smoothing", allocation_smoothing, "must lie in [0, 10]");
   if (!finite_pos(max_oscillation)) return bad("max_oscillation", max_oscillation, "must be finite and > 0");
   if (!finite_pos(sample_period)) return bad("sample_period", sample_period, "must be finite and > 0");
   if (stale_periods < 1) return bad("stale_periods", stale_periods, "must be >= 1");

@@ -3,6 +3,8 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <Eigen/SVD>
 
 #include "hydrojet_control/actuation/bounded_allocation.h"
 
@@ -51,6 +53,49 @@ Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, const Ve
   prev_ahead_ = ahead;
   prev_lead_ = lead;
   return x_cntr;
+}
+
+JetVector jet_common_mode(const rod::ActuationJacobian& actuation, const JetVector& jets) {
+  const int n = static_cast<int>(jets.size());
+  JetVector mode = JetVector::Zero(n);
+  Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxJets> A(6, 0);
+  Eigen::Matrix<int, Eigen::Dynamic, 1, 0, kMaxJets, 1> index(0);
+  for (int i = 0; i < n; ++i)
+    if (jets[i] != 0.0) {
+      A.conservativeResize(Eigen::NoChange, A.cols() + 1);
+      A.col(A.cols() - 1) = actuation.col(i);
+      index.conservativeResize(index.size() + 1);
+      index(index.size() - 1) = i;
+    }
+  const int m = static_cast<int>(A.cols());
+  if (m < 2 || !A.allFinite()) return mode;
+  // The null space: right singular vectors of the 6 × m jet columns with σ ≤ 1e-9 σ_max (and
+  // every vector past the sixth when m > 6).
+  const Eigen::JacobiSVD<Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxJets>> svd(A, Eigen::ComputeFullV);
+  const auto& s = svd.singularValues();
+  const double tol = 1e-9 * (s.size() > 0 ? s(0) : 0.0);
+  Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxJets, 1> ones = Eigen::VectorXd::Ones(m);
+  Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxJets, 1> nearest = Eigen::VectorXd::Zero(m);
+  for (int k = 0; k < m; ++k)
+    if (k >= s.size() || s(k) <= tol) nearest += svd.matrixV().col(k) * svd.matrixV().col(k).dot(ones);
+  const double top = nearest.maxCoeff();
+  if (!(top > 0.0) || nearest.minCoeff() <= 1e-6 * top) return mode;  // cannot raise every jet
+  for (int k = 0; k < m; ++k) mode[index(k)] = nearest(k) / top;
+  return mode;
+}
+
+AllocationRounding round_allocation(const JetVector& q, const JetVector& lower, const JetVector& mode, double scale) {
+  AllocationRounding r;
+  double y0 = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < q.size(); ++i)
+    if (mode[i] > 0.0) y0 = std::min(y0, (q[i] - lower[i]) / mode[i]);
+  if (!std::isfinite(y0) || !(scale > 0.0)) return r;
+  double sum = 0.0;
+  for (int i = 0; i < q.size(); ++i)
+    if (mode[i] > 0.0) sum += std::exp(-((q[i] - lower[i]) / mode[i] - y0) / scale);  // each term in (0, 1]
+  r.excess = std::max(0.0, y0);
+  r.amount = scale * std::log(sum);
+  return r;
 }
 
 namespace {

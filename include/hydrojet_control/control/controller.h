@@ -101,6 +101,7 @@ class Controller {
   std::string command_inputs(const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin, double dt,
                              ControllerOutput& out);
   JetVector running_lower(double dt);
+  JetVector round_corners(const JetVector& q, const ActuatedModel::Linearisation& lin, double dt);
   std::string actuate(const JetVector& flows, double dt, ControllerOutput& out);
   ControllerOutput finish_cycle(ControllerOutput out);
   ControllerOutput abort(ControllerOutput out, const std::string& why);
@@ -114,6 +115,7 @@ class Controller {
   DisturbanceObserver observer_;
   bool predicted_ = false;      ///< this cycle closes on the observer's prediction (observer_prediction)
   JetVector previous_command_;  ///< the last commanded inputs [N] (the base of the next step)
+  double common_force_ = 0.0;   ///< the jets' rounding now [N] (round_corners; allocation_smoothing)
   double idle_force_ = 0.0;     ///< the jets' idle force now [N] (running_lower; limits/min_jet_force)
   std::shared_ptr<const ReachableSet> path_reachable_;  ///< full q_max: path points
   std::shared_ptr<const ReachableSet> reachable_;       ///< with reserve: operator targets

@@ -56,7 +56,7 @@ struct ControllerOptions {
   /// command's magnitude up to about min_jet_force over max_force, and path points on the edge of the
   /// reachable set (swept without idling) out of reach by as much.
   double min_jet_force = 0.005;
-  /// v₀ [rad/s] of the fast-path elements: K_i and min_jet_force act with the weight
+  /// v₀ [rad/s] of the fast-path elements: K_i, min_jet_force and allocation_smoothing act with the weight
   /// w = v²/(v² + v₀²) of the reference's speed v (fast_path_weight()); the integral leaks at
   /// (1 − w) K_p. A moving path (the ramp the integral is for) gets them nearly whole; a slow one (the
   /// paper's 600 s spiral, w ≤ 0.04) nearly the paper's law, without the integral's hunting through
@@ -68,6 +68,17 @@ struct ControllerOptions {
   /// the closed loop (model mismatch, valves that saturate below their nominal flow) [-], in (0, 1].
   double reachable_force_fraction = 0.8;
   double allocation_weight = 1e-6;  ///< λ of eq. (20) [-]
+  /// While the reference moves, the corners of the bounded allocation are rounded [-]: the jets'
+  /// common mode (inputs the rod does not feel: jet_common_mode()) is raised by a smooth maximum
+  /// of the jets' margins over their lower bounds (round_allocation()) of scale σ ‖f‖, σ this and
+  /// f the step's tip force, times the weight w (fast_path_rate), at most at max_force_rate. Each
+  /// time the tip force turns past a jet the box QP's active set changes and every jet's force rate
+  /// steps; through the jets' unequal valve lags and the thrust law's √ that step is a tip-force
+  /// transient that kicks the first bending mode (issue 16). Rounded, the jets' forces are smooth
+  /// functions of the tip force; with the scale in proportion to ‖f‖, the same function of its
+  /// direction at every magnitude (a corner is rounded over the same angle), and nothing at f = 0.
+  /// Held still: nothing (the paper's allocation, no water spent). 0: off. Force actuators: untouched.
+  double allocation_smoothing = 0.3;
   /// Base of the new wrench command: false = the previous command (default), true = the measured
   /// w_a as printed in Algorithm 1, line 9.
   bool integrate_from_measured = false;

@@ -61,6 +61,27 @@ class DirectionPd {
   double skipped_ = 0.0;          ///< time since the last correction, before this step [s] (skip)
 };
 
+/// Issue 16 (allocation_smoothing): the jets' common mode of the linearised rod: inputs on the jets
+/// alone that move the tip by nothing to first order (the null space of J_q's jet columns; J_q:
+/// tip twist per unit input), the one nearest to every jet equal, scaled to a largest entry of 1.
+/// Zero when there is none that raises every jet (fewer jets than the rank of their tip motion, or
+/// jets that cannot cancel). jets[i] ≠ 0: input i is a jet (force actuators are left out).
+JetVector jet_common_mode(const rod::ActuationJacobian& actuation, const JetVector& jets);
+
+/// Inputs q's corners rounded along the common mode n (jet_common_mode(), n_i > 0 on the jets it
+/// covers). With the margins y_i = (q_i − lower_i)/n_i over those jets and y₀ their least (0 where
+/// the box QP put a jet on its bound), q's least common mode is q − y₀ n (excess y₀), and the
+/// rounding adds to it
+///   c = scale · log Σ_i exp(−(y_i − y₀)/scale)   [N, at the jet with n_i = 1],
+/// the log-sum-exp smooth maximum of the −y_i less their maximum −y₀: q − y₀ n + c n is a smooth
+/// function of the tip force (at most scale · log m over the least common mode, m jets; c → 0 as
+/// the other jets' margins grow). scale > 0.
+struct AllocationRounding {
+  double excess = 0.0;  ///< y₀: q's common mode above its least [N]
+  double amount = 0.0;  ///< c [N]
+};
+AllocationRounding round_allocation(const JetVector& q, const JetVector& lower, const JetVector& mode, double scale);
+
 /// Limits and weights of one step of the law on the actuation Jacobian (ControllerOptions' names).
 struct InputStepOptions {
   double damping = 0.02;            ///< μ of eq. (19) [rad/N], on the tip-force change
