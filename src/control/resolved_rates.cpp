@@ -1,10 +1,10 @@
 #include "hydrojet_control/control/resolved_rates.h"
 
 #include <Eigen/Cholesky>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <Eigen/SVD>
 
 #include "hydrojet_control/actuation/bounded_allocation.h"
 
