@@ -1147,11 +1147,14 @@ TEST(Controller, TheRoundedAllocationSmoothsTheJetsAndLeavesTheTip) {
     std::vector<control::JetVector> q;
     double e2 = 0.0;
     int n = 0;
+    const control::JetVector upper = control::ActuatedModel(config::make_controller_model(sc, flow_gains())).upper();
     for (int k = 0; k < 1200; ++k) {
       const double t = k * kDt;
       const ControllerOutput out = c.update(plant.inputs(t));
       ASSERT_EQ(out.state, ControllerState::kRunning) << out.reason;
       plant.apply(out.valve_command);
+      ASSERT_GE(out.jet_force_command.minCoeff(), 0.0) << t;  // within the jets' bounds
+      ASSERT_TRUE((out.jet_force_command.array() <= upper.array()).all()) << t;
       if (t >= 3.0) {
         q.push_back(out.jet_force_command);
         e2 += out.error_geodesic * out.error_geodesic;

@@ -1,6 +1,7 @@
 #include "hydrojet_control/control/controller.h"
 
 #include <algorithm>
+#include <limits>
 #include <cmath>
 
 namespace hydrojet {
@@ -207,7 +208,7 @@ void Controller::observe_model_error(const ControllerInputs& in, const rod::RodS
 // The solver did not converge (fewer times in a row than max_solver_failures): no new force this
 // cycle; the flow regulators keep the jets at the flows of the observed jet forces.
 ControllerOutput Controller::hold(ControllerOutput out, const JetVector& flows, double dt) {
-  pd_.skip(dt);
+  if (reference_.on_path()) pd_.skip(dt);  // a path moves with time: the next cycle sees two cycles' motion
   out.jet_force_command.setZero();
   out.flow_command = jets_.flows_for_forces(out.jet_force_observed);
   out.valve_command = jets_.regulate(out.jet_force_observed, out.flow_command, flows, dt);
@@ -265,7 +266,7 @@ std::string Controller::command_inputs(const rod::RodSolution& sol, const Actuat
   previous_command_ = step.q;
   out.jet_force_command = round_corners(step.q, lin, dt);
   out.force_reachable = step.bound_cost <= params_.unreachable_tolerance;
-  out.wrench_command = model_.tip_wrench(step.q);
+  out.wrench_command = model_.tip_wrench(out.jet_force_command);
   return "";
 }
 
@@ -285,30 +286,39 @@ JetVector Controller::running_lower(double dt) {
 }
 
 // Issue 16 (allocation_smoothing): the step's inputs with their corners rounded along the jets' common
-// mode at the scale σ ‖f‖, f the step's tip wrench (moments as forces at the arm L); by w of the
-// rounding (w: the fast-path weight of the reference's speed), the amount moving at most at
-// max_force_rate; at most up to the inputs' upper bounds. The base of the next step stays
-// the QP's own inputs (previous_command_), so the rounding does not accumulate; with
-// integrate_from_measured, q carries the measured common mode, which round_allocation takes out
-// (its excess) before adding its own. Nothing while the amount is 0: a still reference gets q.
+// mode n: q + a n. At w = 1 the target of a is c − y₀ (round_allocation: q's least common mode plus
+// the log-sum-exp amount at the scale σ ‖f‖, f the step's tip wrench with moments as forces at the
+// arm L); at speed weight w it is w (c − y₀), so a still reference gets q itself. a moves at most at
+// max_force_rate (also when the option is off or the mode vanishes: it decays along the last
+// mode) and stays within the bounds (−y₀ ≤ a: no jet below its lower bound; at most each jet's
+// room to its upper bound), which come before the rate. The next step's base stays the QP's own q
+// (previous_command_), so the rounding does not accumulate.
 JetVector Controller::round_corners(const JetVector& q, const ActuatedModel::Linearisation& lin, double dt) {
-  if (!(params_.allocation_smoothing > 0.0)) return q;
-  JetVector jets = jets_.zeros();
-  for (int i = 0; i < jets_.jet_count(); ++i) jets[i] = jets_.is_jet(i) ? 1.0 : 0.0;
-  const JetVector mode = jet_common_mode(lin.actuation, jets);
-  const JetVector lower = running_lower(0.0);  // this cycle's bounds (no new idle step)
-  rod::Vec6 wrench = lin.wrenches * q;         // the mode adds none
-  wrench.tail<3>() /= model_.body().length();
-  const double force = wrench.norm();  // [N]
-  const AllocationRounding r = round_allocation(q, lower, mode, params_.allocation_smoothing * force);
-  const double target = r.amount * fast_path_weight(pd_.speed(), params_.fast_path_rate);
+  double target = 0.0;
+  if (params_.allocation_smoothing > 0.0) {
+    JetVector jets = jets_.zeros();
+    for (int i = 0; i < jets_.jet_count(); ++i) jets[i] = jets_.is_jet(i) ? 1.0 : 0.0;
+    const JetVector mode = jet_common_mode(lin.actuation, jets);
+    if (!mode.isZero()) {
+      common_mode_ = mode;
+      rod::Vec6 wrench = lin.wrenches * q;  // the mode adds none
+      wrench.tail<3>() /= model_.body().length();
+      const double scale = params_.allocation_smoothing * wrench.norm();  // [N]
+      const AllocationRounding r = round_allocation(q, running_lower(0.0), mode, scale);
+      target = (r.amount - r.excess) * fast_path_weight(pd_.speed(), params_.fast_path_rate);
+    }
+  }
+  if (common_mode_.size() != q.size()) return q;  // never rounded
+  // The bounds along the mode: down to the least common mode, up to the first jet at q_max.
+  const AllocationRounding least = round_allocation(q, running_lower(0.0), common_mode_, 0.0);
+  double room = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < q.size(); ++i)
+    if (common_mode_[i] > 0.0) room = std::min(room, (model_.upper()[i] - q[i]) / common_mode_[i]);
   const double step = params_.max_force_rate * dt;
   common_force_ = std::clamp(target, common_force_ - step, common_force_ + step);
+  common_force_ = std::clamp(common_force_, -least.excess, std::max(room, 0.0));
   if (common_force_ == 0.0) return q;
-  double c = common_force_;
-  for (int i = 0; i < q.size(); ++i)
-    if (mode[i] > 0.0) c = std::min(c, (model_.upper()[i] - q[i]) / mode[i] + r.excess);
-  return q + (std::max(c, 0.0) - r.excess) * mode;
+  return q + common_force_ * common_mode_;
 }
 
 // Eq. (26) and the actuator feedback: flow for each jet force and the per-jet PI flow regulators;
@@ -333,6 +343,7 @@ ControllerOutput Controller::finish_cycle(ControllerOutput out) {
 // (start, stop, abort).
 void Controller::reset_actuation() {
   common_force_ = 0.0;
+  common_mode_.resize(0);
   previous_command_ = jets_.zeros();
   jets_.reset();
   idle_force_ = 0.0;

@@ -69,11 +69,13 @@ JetVector jet_common_mode(const rod::ActuationJacobian& actuation, const JetVect
     }
   const int m = static_cast<int>(A.cols());
   if (m < 2 || !A.allFinite()) return mode;
-  // The null space: right singular vectors of the 6 × m jet columns with σ ≤ 1e-9 σ_max (and
-  // every vector past the sixth when m > 6).
+  // The null space: right singular vectors of the 6 × m jet columns with σ ≤ 1e-6 σ_max (and
+  // every vector past the sixth when m > 6). 1e-6, not rounding's 1e-16: a general robot's J_q is
+  // computed, to about 1e-9; a direction that moves the tip by 1e-6 of the others is still a
+  // common mode for this purpose.
   const Eigen::JacobiSVD<Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxJets>> svd(A, Eigen::ComputeFullV);
   const auto& s = svd.singularValues();
-  const double tol = 1e-9 * (s.size() > 0 ? s(0) : 0.0);
+  const double tol = 1e-6 * (s.size() > 0 ? s(0) : 0.0);
   Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxJets, 1> ones = Eigen::VectorXd::Ones(m);
   Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxJets, 1> nearest = Eigen::VectorXd::Zero(m);
   for (int k = 0; k < m; ++k)
@@ -89,11 +91,12 @@ AllocationRounding round_allocation(const JetVector& q, const JetVector& lower, 
   double y0 = std::numeric_limits<double>::infinity();
   for (int i = 0; i < q.size(); ++i)
     if (mode[i] > 0.0) y0 = std::min(y0, (q[i] - lower[i]) / mode[i]);
-  if (!std::isfinite(y0) || !(scale > 0.0)) return r;
+  if (!std::isfinite(y0)) return r;
+  r.excess = std::max(0.0, y0);
+  if (!(scale > 0.0)) return r;  // no rounding: the least common mode
   double sum = 0.0;
   for (int i = 0; i < q.size(); ++i)
     if (mode[i] > 0.0) sum += std::exp(-((q[i] - lower[i]) / mode[i] - y0) / scale);  // each term in (0, 1]
-  r.excess = std::max(0.0, y0);
   r.amount = scale * std::log(sum);
   return r;
 }

@@ -114,8 +114,9 @@ class Controller {
   DirectionPd pd_;
   DisturbanceObserver observer_;
   bool predicted_ = false;      ///< this cycle closes on the observer's prediction (observer_prediction)
-  JetVector previous_command_;  ///< the last commanded inputs [N] (the base of the next step)
-  double common_force_ = 0.0;   ///< the jets' rounding now [N] (round_corners; allocation_smoothing)
+  JetVector previous_command_;  ///< the last step's inputs [N], before the rounding (the base of the next step)
+  double common_force_ = 0.0;   ///< a: the rounding's offset along common_mode_ now [N] (round_corners)
+  JetVector common_mode_;       ///< the jets' common mode last found (empty: none yet)
   double idle_force_ = 0.0;     ///< the jets' idle force now [N] (running_lower; limits/min_jet_force)
   std::shared_ptr<const ReachableSet> path_reachable_;  ///< full q_max: path points
   std::shared_ptr<const ReachableSet> reachable_;       ///< with reserve: operator targets

@@ -32,14 +32,15 @@ struct ControllerInputs {
 /// One control cycle's result. valve_command is what goes to the valves.
 struct ControllerOutput {
   ControllerState state = ControllerState::kIdle;
-  std::string reason;            ///< why it aborted (empty otherwise)
-  JetVector valve_command;       ///< per actuator: valve duty [0, 1] (jets), drive [−1, 1] (force actuators)
-  JetVector jet_force_command;   ///< inputs q [N] of the step on J_q (eqs. 19–20)
-  JetVector flow_command;        ///< flow for q by the thrust equation (26) [m^3/s]; 0 for force actuators
+  std::string reason;       ///< why it aborted (empty otherwise)
+  JetVector valve_command;  ///< per actuator: valve duty [0, 1] (jets), drive [−1, 1] (force actuators)
+  JetVector
+      jet_force_command;   ///< inputs q [N] of the step on J_q (eqs. 19–20), corners rounded (allocation_smoothing)
+  JetVector flow_command;  ///< flow for q by the thrust equation (26) [m^3/s]; 0 for force actuators
   JetVector jet_force_observed;  ///< q_obs [N] from measured flow (jets) or force (force actuators)
   /// w_a = W q_obs: tip body wrench of the actuators at the tip (Algorithm 1, line 4) [N, N m]
   rod::Vec6 wrench_observed = rod::Vec6::Zero();
-  rod::Vec6 wrench_command = rod::Vec6::Zero();  ///< W q: the same for the commanded inputs
+  rod::Vec6 wrench_command = rod::Vec6::Zero();  ///< W q: the same for the commanded inputs (jet_force_command)
   Vec3 desired_direction = Vec3::UnitZ();        ///< x_des: tip z-axis, base frame (the reference)
   Source source = Source::kHold;                 ///< who drives the reference
   bool clipped = false;                          ///< the target was outside the reachable set ...

@@ -68,16 +68,19 @@ struct ControllerOptions {
   /// the closed loop (model mismatch, valves that saturate below their nominal flow) [-], in (0, 1].
   double reachable_force_fraction = 0.8;
   double allocation_weight = 1e-6;  ///< λ of eq. (20) [-]
-  /// While the reference moves, the corners of the bounded allocation are rounded [-]: the jets'
-  /// common mode (inputs the rod does not feel: jet_common_mode()) is raised by a smooth maximum
-  /// of the jets' margins over their lower bounds (round_allocation()) of scale σ ‖f‖, σ this and
-  /// f the step's tip force, times the weight w (fast_path_rate), at most at max_force_rate. Each
+  /// While the reference moves, the corners of the bounded allocation are rounded [-]: along the
+  /// jets' common mode (inputs the rod does not feel: jet_common_mode()) the inputs take the least
+  /// common mode plus a smooth maximum of the jets' margins over their lower bounds
+  /// (round_allocation()) of scale σ ‖f‖, σ this and f the step's tip force; by the weight w
+  /// (fast_path_rate), the offset moving at most at max_force_rate. Each
   /// time the tip force turns past a jet the box QP's active set changes and every jet's force rate
   /// steps; through the jets' unequal valve lags and the thrust law's √ that step is a tip-force
   /// transient that kicks the first bending mode (issue 16). Rounded, the jets' forces are smooth
   /// functions of the tip force; with the scale in proportion to ‖f‖, the same function of its
   /// direction at every magnitude (a corner is rounded over the same angle), and nothing at f = 0.
-  /// Held still: nothing (the paper's allocation, no water spent). 0: off. Force actuators: untouched.
+  /// A reference that never moved: nothing (the paper's allocation, no water spent); one that has
+  /// stopped: the offset decays at max_force_rate (fast_path_rate 0: w = 1 at every speed).
+  /// 0: off. Force actuators: untouched.
   double allocation_smoothing = 0.3;
   /// Base of the new wrench command: false = the previous command (default), true = the measured
   /// w_a as printed in Algorithm 1, line 9.

@@ -64,6 +64,8 @@ class Reference {
   const Vec3& advance(double t, double dt, const Mat3& tip_frame);
 
   Source source() const { return source_; }
+  /// On a path and joined to it: the reference moves with time, as the path is written.
+  bool on_path() const { return source_ == Source::kPath && on_path_; }
   const Vec3& direction() const { return reference_; }
   /// The last target was outside the reachable set and moved by clip_angle() [rad].
   bool clipped() const { return clip_angle_ > 0.0; }

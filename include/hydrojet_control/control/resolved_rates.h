@@ -75,9 +75,9 @@ JetVector jet_common_mode(const rod::ActuationJacobian& actuation, const JetVect
 ///   c = scale · log Σ_i exp(−(y_i − y₀)/scale)   [N, at the jet with n_i = 1],
 /// the log-sum-exp smooth maximum of the −y_i less their maximum −y₀: q − y₀ n + c n is a smooth
 /// function of the tip force (at most scale · log m over the least common mode, m jets; c → 0 as
-/// the other jets' margins grow). scale > 0.
+/// the other jets' margins grow). scale ≤ 0 (or NaN): c = 0, the least common mode.
 struct AllocationRounding {
-  double excess = 0.0;  ///< y₀: q's common mode above its least [N]
+  double excess = 0.0;  ///< max(0, y₀): q's common mode above its least [N]
   double amount = 0.0;  ///< c [N]
 };
 AllocationRounding round_allocation(const JetVector& q, const JetVector& lower, const JetVector& mode, double scale);
