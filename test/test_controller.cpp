@@ -683,6 +683,7 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
       {"limits/max_force", f.max_force, d.max_force},
       {"limits/max_force_rate", f.max_force_rate, d.max_force_rate},
       {"limits/min_jet_force", f.min_jet_force, d.min_jet_force},
+      {"limits/max_common_force_rate", f.max_common_force_rate, d.max_common_force_rate},
       {"limits/max_angular_rate", f.max_angular_rate, d.max_angular_rate},
       {"limits/reachable_force_fraction", f.reachable_force_fraction, d.reachable_force_fraction},
       {"allocation_weight", f.allocation_weight, d.allocation_weight},
@@ -924,8 +925,9 @@ TEST(DirectionPd, TheIntegralIsWeightedByTheReferenceSpeedAndLeaksWhenItStops) {
   EXPECT_NEAR(x.y(), g.kp * dt * e + g.ki * dt * before * (1.0 - g.kp * dt), 1e-9);
 }
 
-// A cycle without a correction (the controller held while the model did not converge): the reference's
-// speed is its motion over both cycles, not over the last one (which would double it), and the
+// A cycle without a correction (the controller held while the model did not converge, the reference on
+// a path, which moves with time; Controller::hold skips only then): the reference's speed is its
+// motion over both cycles, not over the last one (which would double it), and the
 // feedforward carries the motion of both.
 TEST(DirectionPd, AHeldCycleCountsInTheReferenceSpeed) {
   auto dir = [](double a) { return Vec3(std::sin(a), 0.0, std::cos(a)); };
@@ -1085,6 +1087,9 @@ TEST(RoundedAllocation, TheLogSumExpAmountAndNoCornerWhereTheForcePassesAJet) {
   EXPECT_NEAR(shifted.excess, d, 1e-15);
   EXPECT_NEAR(shifted.amount, r.amount, 1e-15);
   EXPECT_NEAR(control::round_allocation(zero, zero, ones, s).amount, s * std::log(3.0), 1e-15);
+  const control::AllocationRounding none = control::round_allocation(q + d * ones, zero, ones, 0.0);
+  EXPECT_NEAR(none.excess, d, 1e-15);  // scale 0: no rounding, the least common mode
+  EXPECT_EQ(none.amount, 0.0);
 
   const actuation::JetMap map(test::scene("hydrojet_0deg").jets);
   const Eigen::Matrix<double, 2, 3> P = map.planar();

@@ -46,6 +46,7 @@ void read_controller_options(Tree& p, control::ControllerOptions& c) {
       {"limits/max_force", "max_force", &c.max_force},
       {"limits/max_force_rate", "max_force_rate", &c.max_force_rate},
       {"limits/min_jet_force", "min_jet_force", &c.min_jet_force},
+      {"limits/max_common_force_rate", "max_common_force_rate", &c.max_common_force_rate},
       {"fast_path_rate", "fast_path_rate", &c.fast_path_rate},
       {"limits/max_angular_rate", "max_angular_rate", &c.max_angular_rate},
       {"limits/reachable_force_fraction", "reachable_force_fraction", &c.reachable_force_fraction},

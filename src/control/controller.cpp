@@ -289,10 +289,11 @@ JetVector Controller::running_lower(double dt) {
 // mode n: q + a n. At w = 1 the target of a is c − y₀ (round_allocation: q's least common mode plus
 // the log-sum-exp amount at the scale σ ‖f‖, f the step's tip wrench with moments as forces at the
 // arm L); at speed weight w it is w (c − y₀), so a still reference gets q itself. a moves at most at
-// max_force_rate (also when the option is off or the mode vanishes: it decays along the last
-// mode) and stays within the bounds (−y₀ ≤ a: no jet below its lower bound; at most each jet's
-// room to its upper bound), which come before the rate. The next step's base stays the QP's own q
-// (previous_command_), so the rounding does not accumulate.
+// max_common_force_rate (also when the option is off or the mode vanishes: it decays along the
+// last mode) and stays within the bounds (−y₀ ≤ a: no jet below its lower bound; at most each
+// jet's room to its q_max on a path, to reachable_force_fraction of it otherwise, or 0), which
+// come before the rate. The next step's base stays the QP's own
+// q (previous_command_), so the rounding does not accumulate.
 JetVector Controller::round_corners(const JetVector& q, const ActuatedModel::Linearisation& lin, double dt) {
   double target = 0.0;
   if (params_.allocation_smoothing > 0.0) {
@@ -309,12 +310,15 @@ JetVector Controller::round_corners(const JetVector& q, const ActuatedModel::Lin
     }
   }
   if (common_mode_.size() != q.size()) return q;  // never rounded
-  // The bounds along the mode: down to the least common mode, up to the first jet at q_max.
+  // The bounds along the mode: down to the least common mode; up to the first jet at q_max on a
+  // path, at the operator reserve (reachable_force_fraction q_max) for any other source, as the
+  // reference's own sets (Reference).
   const AllocationRounding least = round_allocation(q, running_lower(0.0), common_mode_, 0.0);
+  const double top = reference_.source() == Source::kPath ? 1.0 : params_.reachable_force_fraction;
   double room = std::numeric_limits<double>::infinity();
   for (int i = 0; i < q.size(); ++i)
-    if (common_mode_[i] > 0.0) room = std::min(room, (model_.upper()[i] - q[i]) / common_mode_[i]);
-  const double step = params_.max_force_rate * dt;
+    if (common_mode_[i] > 0.0) room = std::min(room, (top * model_.upper()[i] - q[i]) / common_mode_[i]);
+  const double step = params_.max_common_force_rate * dt;
   common_force_ = std::clamp(target, common_force_ - step, common_force_ + step);
   common_force_ = std::clamp(common_force_, -least.excess, std::max(room, 0.0));
   if (common_force_ == 0.0) return q;

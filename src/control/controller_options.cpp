@@ -62,6 +62,8 @@ std::string ControllerOptions::validate() const {
   if (!finite_nonneg(allocation_weight)) return bad("allocation_weight", allocation_weight, "must be finite and >= 0");
   if (!(allocation_smoothing >= 0.0 && allocation_smoothing <= 10.0))
     return bad("allocation_smoothing", allocation_smoothing, "must lie in [0, 10]");
+  if (!(max_common_force_rate > 0.0 && max_common_force_rate <= 20.0))
+    return bad("max_common_force_rate", max_common_force_rate, "must lie in (0, 20] N/s");
   if (!finite_pos(max_oscillation)) return bad("max_oscillation", max_oscillation, "must be finite and > 0");
   if (!finite_pos(sample_period)) return bad("sample_period", sample_period, "must be finite and > 0");
   if (stale_periods < 1) return bad("stale_periods", stale_periods, "must be >= 1");

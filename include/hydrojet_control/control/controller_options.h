@@ -72,16 +72,24 @@ struct ControllerOptions {
   /// jets' common mode (inputs the rod does not feel: jet_common_mode()) the inputs take the least
   /// common mode plus a smooth maximum of the jets' margins over their lower bounds
   /// (round_allocation()) of scale σ ‖f‖, σ this and f the step's tip force; by the weight w
-  /// (fast_path_rate), the offset moving at most at max_force_rate. Each
+  /// (fast_path_rate), the offset moving at most at max_common_force_rate. Each
   /// time the tip force turns past a jet the box QP's active set changes and every jet's force rate
   /// steps; through the jets' unequal valve lags and the thrust law's √ that step is a tip-force
   /// transient that kicks the first bending mode (issue 16). Rounded, the jets' forces are smooth
   /// functions of the tip force; with the scale in proportion to ‖f‖, the same function of its
   /// direction at every magnitude (a corner is rounded over the same angle), and nothing at f = 0.
   /// A reference that never moved: nothing (the paper's allocation, no water spent); one that has
-  /// stopped: the offset decays at max_force_rate (fast_path_rate 0: w = 1 at every speed).
+  /// stopped: the offset decays at max_common_force_rate (fast_path_rate 0: w = 1 at every speed).
   /// 0: off. Force actuators: untouched.
   double allocation_smoothing = 0.3;
+  /// The rounding's offset along the common mode changes at most this fast [N/s] (rising, and
+  /// decaying when the reference stops). The jets' valves lag unequally (0.035–0.05 s), so a fast
+  /// change of their common force is a tip-force kick: at 0.1 N/s (and at max_force_rate) the
+  /// offset's removal when an operator target near the reachable set's edge was reached (tip
+  /// force 0.21 N) rang the rod into a growing oscillation and an abort in a simulation of the
+  /// rostest operator_clipped; 0.05 N/s did not there (the rostest itself also needs the operator
+  /// reserve cap of Controller::round_corners). It costs nothing on the 20 s spiral but on A at 30°.
+  double max_common_force_rate = 0.05;
   /// Base of the new wrench command: false = the previous command (default), true = the measured
   /// w_a as printed in Algorithm 1, line 9.
   bool integrate_from_measured = false;
