@@ -295,32 +295,33 @@ JetVector Controller::running_lower(double dt) {
 // come before the rate. The next step's base stays the QP's own
 // q (previous_command_), so the rounding does not accumulate.
 JetVector Controller::round_corners(const JetVector& q, const ActuatedModel::Linearisation& lin, double dt) {
-  double target = 0.0;
+  bool fresh = false;  // a mode found this cycle (else only the excess along the last one)
+  double scale = 0.0;
   if (params_.allocation_smoothing > 0.0) {
     JetVector jets = jets_.zeros();
     for (int i = 0; i < jets_.jet_count(); ++i) jets[i] = jets_.is_jet(i) ? 1.0 : 0.0;
     const JetVector mode = jet_common_mode(lin.actuation, jets);
     if (!mode.isZero()) {
       common_mode_ = mode;
+      fresh = true;
       rod::Vec6 wrench = lin.wrenches * q;  // the mode adds none
       wrench.tail<3>() /= model_.body().length();
-      const double scale = params_.allocation_smoothing * wrench.norm();  // [N]
-      const AllocationRounding r = round_allocation(q, running_lower(0.0), mode, scale);
-      target = (r.amount - r.excess) * fast_path_weight(pd_.speed(), params_.fast_path_rate);
+      scale = params_.allocation_smoothing * wrench.norm();  // [N]
     }
   }
   if (common_mode_.size() != q.size()) return q;  // never rounded
+  const AllocationRounding r = round_allocation(q, running_lower(0.0), common_mode_, scale);
+  const double target = fresh ? (r.amount - r.excess) * fast_path_weight(pd_.speed(), params_.fast_path_rate) : 0.0;
   // The bounds along the mode: down to the least common mode; up to the first jet at q_max on a
   // path, at the operator reserve (reachable_force_fraction q_max) for any other source, as the
   // reference's own sets (Reference).
-  const AllocationRounding least = round_allocation(q, running_lower(0.0), common_mode_, 0.0);
   const double top = reference_.source() == Source::kPath ? 1.0 : params_.reachable_force_fraction;
   double room = std::numeric_limits<double>::infinity();
   for (int i = 0; i < q.size(); ++i)
     if (common_mode_[i] > 0.0) room = std::min(room, (top * model_.upper()[i] - q[i]) / common_mode_[i]);
   const double step = params_.max_common_force_rate * dt;
   common_force_ = std::clamp(target, common_force_ - step, common_force_ + step);
-  common_force_ = std::clamp(common_force_, -least.excess, std::max(room, 0.0));
+  common_force_ = std::clamp(common_force_, -r.excess, std::max(room, 0.0));
   if (common_force_ == 0.0) return q;
   return q + common_force_ * common_mode_;
 }
