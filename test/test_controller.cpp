@@ -806,14 +806,24 @@ TEST(ControllerOptions, RangesOfControllerCfgAreEnforced) {
 
 namespace {
 
+/// The direction a [rad] from +z toward +x.
+Vec3 dir(double a) { return Vec3(std::sin(a), 0.0, std::cos(a)); }
+
+/// DirectionPd's terms alone: K_p, K_i, the feedforward's weight; no derivative.
+control::ControllerOptions pd_terms(double kp, double ki, double feedforward) {
+  control::ControllerOptions g;
+  g.kp = kp;
+  g.kd = 0.0;
+  g.ki = ki;
+  g.feedforward = feedforward;
+  return g;
+}
+
 /// A great circle from +z toward +x at `rate` [rad/s] for `duration` [s].
 class ArcPath : public control::Path {
  public:
   ArcPath(double rate, double duration) : rate_(rate), duration_(duration) {}
-  Vec3 direction_at(double t) const override {
-    const double a = rate_ * std::clamp(t, 0.0, duration_);
-    return Vec3(std::sin(a), 0.0, std::cos(a));
-  }
+  Vec3 direction_at(double t) const override { return dir(rate_ * std::clamp(t, 0.0, duration_)); }
   double duration() const override { return duration_; }
   const char* type() const override { return "arc"; }
 
@@ -858,12 +868,8 @@ TEST(Reference, APathIsFollowedAtItsOwnSpeedOnceJoined) {
 // The lead enters the feedforward once, when it starts; after that the feedforward is the motion
 // ahead; when the lead ends it is not taken back in one step.
 TEST(DirectionPd, TheLeadEntersOnceAndIsNotTakenBackAtOnce) {
-  control::ControllerOptions g;
-  g.kp = 0.0;
-  g.kd = 0.0;
-  g.feedforward = 1.0;
+  const control::ControllerOptions g = pd_terms(0.0, control::ControllerOptions().ki, 1.0);
   control::DirectionPd pd;
-  auto dir = [](double a) { return Vec3(std::sin(a), 0.0, std::cos(a)); };
   // Cycle 1 primes on x_des = dir(0) with x_ff = dir(0.05): the lead (0.05 rad about +y) enters.
   Vec3 x = pd.correction(dir(0.0), dir(0.0), dir(0.05), 0.01, g);
   EXPECT_NEAR((x - Vec3(0.0, 0.05, 0.0)).norm(), 0.0, 1e-12);
@@ -874,10 +880,7 @@ TEST(DirectionPd, TheLeadEntersOnceAndIsNotTakenBackAtOnce) {
   x = pd.correction(dir(0.02), dir(0.02), dir(0.02), 0.01, g);
   EXPECT_NEAR((x - Vec3(0.0, 0.01, 0.0)).norm(), 0.0, 1e-12);
   // K_i: the integral of a constant error e over n steps of dt adds K_i dt (n dt) e, bounded.
-  control::ControllerOptions gi;
-  gi.kp = 0.0;
-  gi.feedforward = 0.0;
-  gi.ki = 2.0;
+  control::ControllerOptions gi = pd_terms(0.0, 2.0, 0.0);
   gi.max_integral = 1.0;
   gi.fast_path_rate = 0.0;  // unscheduled: the still reference below gets the integral too
   control::DirectionPd pi;
@@ -896,12 +899,7 @@ TEST(DirectionPd, TheIntegralIsWeightedByTheReferenceSpeedAndLeaksWhenItStops) {
   EXPECT_DOUBLE_EQ(control::fast_path_weight(0.1, 0.1), 0.5);
   EXPECT_DOUBLE_EQ(control::fast_path_weight(0.3, 0.1), 0.9);
   EXPECT_EQ(control::fast_path_weight(0.0, 0.0), 1.0);
-  auto dir = [](double a) { return Vec3(std::sin(a), 0.0, std::cos(a)); };
-  control::ControllerOptions g;
-  g.kp = 0.0;
-  g.kd = 0.0;
-  g.feedforward = 0.0;
-  g.ki = 2.0;
+  control::ControllerOptions g = pd_terms(0.0, 2.0, 0.0);
   g.max_integral = 1.0;
   g.fast_path_rate = 0.1;
   const double dt = 0.01, e = 0.02;
@@ -930,12 +928,7 @@ TEST(DirectionPd, TheIntegralIsWeightedByTheReferenceSpeedAndLeaksWhenItStops) {
 // motion over both cycles, not over the last one (which would double it), and the
 // feedforward carries the motion of both.
 TEST(DirectionPd, AHeldCycleCountsInTheReferenceSpeed) {
-  auto dir = [](double a) { return Vec3(std::sin(a), 0.0, std::cos(a)); };
-  control::ControllerOptions g;
-  g.kp = 0.0;
-  g.kd = 0.0;
-  g.ki = 0.0;
-  g.feedforward = 1.0;
+  const control::ControllerOptions g = pd_terms(0.0, 0.0, 1.0);
   const double dt = 0.01, v = 0.2;
   control::DirectionPd pd;
   pd.skip(dt);  // before the first correction: nothing to carry
