@@ -9,15 +9,18 @@ set(HJ_TEST_DEFS
   HYDROJET_ROD_FK="${HJ_BIN_DIR}/rod_fk"
   HYDROJET_BIN_DIR="${HJ_BIN_DIR}")
 
-# hydrojet_gtest(name LIBS lib...): test/<name>.cpp linked with the libraries and gtest_main.
+# hydrojet_gtest(name [ROS] LIBS lib...): test/<name>.cpp linked with the libraries and gtest_main;
+# ROS-free (poisoned in every build) unless ROS.
 function(hydrojet_gtest name)
-  cmake_parse_arguments(T "" "" "LIBS" ${ARGN})
+  cmake_parse_arguments(T "ROS" "" "LIBS" ${ARGN})
   if(HYDROJET_WITH_ROS)
     catkin_add_gtest(${name} test/${name}.cpp)
   else()
     add_executable(${name} test/${name}.cpp)
-    target_include_directories(${name} BEFORE PRIVATE ${HJ_ROS_POISON_DIR})
     add_test(NAME ${name} COMMAND ${name} WORKING_DIRECTORY ${PROJECT_SOURCE_DIR})
+  endif()
+  if(NOT T_ROS)
+    hydrojet_ros_free(${name})
   endif()
   target_link_libraries(${name} ${T_LIBS} GTest::gtest_main)
   target_compile_definitions(${name} PRIVATE ${HJ_TEST_DEFS})
@@ -47,11 +50,11 @@ if(NOT HYDROJET_WITH_ROS)
 endif()
 
 # The documentation against the code (docs/rod_model.md symbols, docs/ros_api.md names, links).
-hydrojet_gtest(test_docs)
+hydrojet_gtest(test_docs ROS)
 target_include_directories(test_docs PRIVATE include)
 
 # The calibrate tool as a user runs it (CSV and bag input, exit codes, JSON line, --out read back).
-hydrojet_gtest(test_calibration_cli LIBS hydrojet_calibration_ros)
+hydrojet_gtest(test_calibration_cli ROS LIBS hydrojet_calibration_ros)
 target_include_directories(test_calibration_cli PRIVATE ${catkin_INCLUDE_DIRS})
 target_compile_definitions(test_calibration_cli PRIVATE HYDROJET_CALIBRATE="${HJ_BIN_DIR}/calibrate")
 add_dependencies(test_calibration_cli calibrate)

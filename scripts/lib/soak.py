@@ -54,6 +54,9 @@ RECOVER_S = 3.0        # [s] of running after a restart that count as recovered
 SETTLED_RAD = 0.03     # [rad] the tip counts as at rest when its direction stayed this close ...
 SETTLED_S = 0.5        # [s] ... to the latest for this long (tracker noise is ~0.005 rad per sample)
 WARMUP_S = 60.0        # [s] simulated; memory is compared from here on
+# The self-test's switch (scripts/ci_selftest): the first fault sent to the plant never ends, though it
+# is judged as scheduled, so the controller cannot recover from it; this judge must say so.
+NOT_RECOVERED = os.environ.get("HYDROJET_SELFTEST_INJECT") == "soak_fault_not_recovered"
 
 # Expected abort reason (prefixes of SafetyMonitor's texts) and detection bound per fault kind.
 # The bounds: data older than STALE_AFTER is refused at the next control cycle, so a dropout is seen
@@ -331,7 +334,10 @@ class Soak:
     # --- faults -------------------------------------------------------------------------------------
     def inject(self, kind, p):
         n = len(self.mon.applied)
-        m = PlantFault(kind=kind, actuator=p["jet"], duration=p["duration"], value=p.get("value", 0.0))
+        duration = p["duration"]
+        if NOT_RECOVERED and n == 0:
+            duration = 1e6
+        m = PlantFault(kind=kind, actuator=p["jet"], duration=duration, value=p.get("value", 0.0))
         self.fault_pub.publish(m)
         if not self.wait_until(lambda: len(self.mon.applied) > n, 10.0):
             raise RuntimeError("the plant did not apply %s" % kind)

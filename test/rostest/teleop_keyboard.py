@@ -85,7 +85,16 @@ class TeleopKeyboard(unittest.TestCase):
         rospy.Subscriber("rod/state", RodState, self._on_rod, queue_size=1)
 
     def _on_status(self, m):
+        if m.state == "running":
+            self.ran = True
+        elif getattr(self, "ran", False) and getattr(self, "stopped", None) is None:
+            self.stopped = "%s: %s" % (m.state, m.reason)  # the first time the controller left running
         self.status = m
+
+    def assert_running(self):
+        """The controller has run without a stop since it started: directions of a stopped controller
+        (its resting output) say nothing about teleop."""
+        self.assertIsNone(getattr(self, "stopped", None), "the controller stopped after it ran")
 
     def _on_rod(self, m):
         self.rod = m
@@ -133,6 +142,7 @@ class TeleopKeyboard(unittest.TestCase):
         self.assertIn("tilt up", self.pty.screen())
         # Released: the reference stops within the key's window, the tip follows and settles.
         self.sim_sleep(4.0)
+        self.assert_running()
         d1, m1 = vec(self.status.desired_direction), vec(self.status.measured_direction)
         for name, a, b in (("desired", d0, d1), ("measured", m0, m1)):
             moved = b - a
