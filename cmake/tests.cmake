@@ -26,7 +26,7 @@ function(hydrojet_gtest name)
   target_compile_definitions(${name} PRIVATE ${HJ_TEST_DEFS})
 endfunction()
 
-foreach(t test_rod_closed_form test_rod_compliance test_scene test_rod_fk_cli test_actuation test_controller
+foreach(t test_rod_closed_form test_rod_compliance test_scene test_rod_fk_cli test_actuation test_controller test_util
           test_dynamic_rod test_numerics_models test_numerics_extreme test_general_rod
           test_bounded_allocation)
   hydrojet_gtest(${t} LIBS hydrojet_config)
@@ -84,6 +84,6 @@ hydrojet_rostest_binary(calibration_plant DEPENDS plant_node calibration_recorde
 foreach(f controller_params controller_stale sim_closed_loop sim_tracker_dropout sim_flow_fault sim_stuck_jet
           sim_controller_killed rig_emulated shutdown_signals_sim shutdown_signals_rig view_markers calibration_plant joystick_fifo
           teleop_keyboard operator_target_direction operator_look_at operator_joy operator_follow_path
-          operator_clipped operator_rejected operator_reload_scene)
+          operator_clipped operator_rejected operator_reload_scene hostile_inputs)
   add_rostest(test/rostest/${f}.test)
 endforeach()

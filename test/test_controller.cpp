@@ -216,6 +216,27 @@ TEST(Reference, RatesTurnAboutTheTipAxesAndHoldWhenTheyExpire) {
   }
 }
 
+// Overflowing commands are directions and rates like any other, not infinities: a target of
+// (1e308, 1e308, 1e308) aims along (1, 1, 1), a rate of 1e308 turns at the cap; NaN is refused.
+TEST(Reference, HugeTargetsAndRatesAreNotTakenForSomethingElse) {
+  control::Reference ref(0.2, nullptr, nullptr);
+  ref.hold();
+  ref.start(Vec3::UnitZ(), 0.0);
+  ASSERT_TRUE(ref.aim(Vec3(1e308, 1e308, 1e308), control::Source::kDirection));
+  for (int k = 1; k <= 1000; ++k) ref.advance(k * kDt, kDt, control::Mat3::Identity());
+  EXPECT_LT(control::geodesic_error(ref.direction(), Vec3(1, 1, 1).normalized()), 1e-12);
+  EXPECT_FALSE(ref.aim(Vec3(NAN, 0, 1), control::Source::kDirection));
+  EXPECT_FALSE(ref.aim(Vec3::Zero(), control::Source::kDirection));
+  EXPECT_EQ(ref.source(), control::Source::kDirection);  // the refused commands changed nothing
+
+  control::Reference turning(0.2, nullptr, nullptr);
+  turning.start(Vec3::UnitZ(), 0.0);
+  turning.turn(Eigen::Vector2d(1e308, 0.0), control::Source::kKeyboard, 1.0);
+  for (int k = 1; k <= 50; ++k) turning.advance(k * kDt, kDt, control::Mat3::Identity());
+  // Up at the cap, 0.2 rad/s for 0.5 s: z turned toward −y by 0.1 rad.
+  EXPECT_LT(control::geodesic_error(turning.direction(), Vec3(0, -std::sin(0.1), std::cos(0.1))), 1e-9);
+}
+
 namespace {
 /// A controller holding on the exact-model static plant (path/type none).
 struct OperatorRig {

@@ -5,8 +5,13 @@
 // point on a second, independent model solve; refusals).
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <chrono>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <random>
 #include <stdexcept>
@@ -192,6 +197,145 @@ TEST(PathFiles, BadFilesNameTheFileAndLine) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Hostile input: directions normalised without overflow, goals checked field by field, bounds
+// ---------------------------------------------------------------------------------------------
+
+TEST(Directions, UnitDirectionSurvivesOverflowAndUnderflow) {
+  const double big = std::numeric_limits<double>::max();
+  const struct {
+    Vec3 v, unit;
+  } cases[] = {
+      {Vec3(1e308, 1e308, 1e308), Vec3(1, 1, 1) / std::sqrt(3.0)},  // the plain norm is inf
+      {Vec3(1.5e154, 0, 1.5e154), Vec3(1, 0, 1) / std::sqrt(2.0)},  // the plain norm's square is inf
+      {Vec3(big, -big, 0), Vec3(1, -1, 0) / std::sqrt(2.0)},
+      {Vec3(1e-320, 0, 0), Vec3(1, 0, 0)},  // a denormal: the plain norm is 0
+      {Vec3(0, 3, 4), Vec3(0, 0.6, 0.8)},
+  };
+  for (const auto& c : cases) {
+    Vec3 u;
+    ASSERT_TRUE(control::unit_direction(c.v, &u)) << c.v.transpose();
+    EXPECT_LT((u - c.unit).norm(), 1e-15) << c.v.transpose();
+  }
+  Vec3 untouched(7, 7, 7);
+  for (const Vec3& v : {Vec3(0, 0, 0), Vec3(NAN, 0, 1), Vec3(INFINITY, 0, 0), Vec3(-INFINITY, 1, 1)}) {
+    EXPECT_FALSE(control::unit_direction(v, &untouched)) << v.transpose();
+    EXPECT_EQ(untouched, Vec3(7, 7, 7));
+  }
+}
+
+namespace {
+const auto has = [](const std::string& msg, const std::string& part) {
+  return msg.find(part) != std::string::npos ? ::testing::AssertionSuccess()
+                                             : ::testing::AssertionFailure() << "'" << msg << "'";
+};
+
+/// A goal of `type` with every field finite and in range (a 20 s spiral, a small raster, two waypoints).
+control::PathGoal goal(const std::string& type) {
+  control::PathGoal g;
+  g.type = type;
+  g.spiral = {0.0, 0.0, 0.5, 3.0, 20.0};
+  g.raster = {0.1, 0.4, 3, -0.5, 0.5, 0.1};
+  g.times = {0.0, 5.0};
+  g.directions = {Vec3::UnitZ(), control::direction(0.3, 1.0)};
+  return g;
+}
+
+std::string goal_error(const control::PathGoal& g) {
+  return error_of([&] { control::make_goal_path(g, control::SpiralPath()); });
+}
+}  // namespace
+
+TEST(PathGoals, EveryFieldIsCheckedWhetherItsTypeUsesItOrNot) {
+  for (const char* type : {"spiral", "raster", "waypoints"}) EXPECT_EQ(goal_error(goal(type)), "") << type;
+  // The configured spiral (duration 0) still needs finite fields; so does every type.
+  for (const char* type : {"spiral", "raster", "waypoints"}) {
+    control::PathGoal g = goal(type);
+    g.spiral.duration = 0.0;
+    g.spiral.theta_start = NAN;
+    EXPECT_TRUE(has(goal_error(g), "theta_start: must be finite")) << type;
+    g = goal(type);
+    g.raster.speed = INFINITY;
+    EXPECT_TRUE(has(goal_error(g), "speed: must be finite")) << type;
+    g = goal(type);
+    g.directions[1] = Vec3(0, NAN, 1);
+    EXPECT_TRUE(has(goal_error(g), "directions[1]: must be finite")) << type;
+    g = goal(type);
+    g.times[0] = -INFINITY;
+    EXPECT_TRUE(has(goal_error(g), "times[0]: must be finite")) << type;
+  }
+  EXPECT_TRUE(has(goal_error(goal("lissajous")), "type: must be spiral, raster, waypoints or file"));
+}
+
+TEST(PathGoals, PathsThatNeverEndOrRaceAreRefused) {
+  control::PathGoal g = goal("spiral");
+  g.spiral.theta_end = 1e12;  // beyond [0, pi]
+  EXPECT_TRUE(has(goal_error(g), "theta_end: must lie in [0, pi]"));
+  g = goal("spiral");
+  g.spiral.duration = 1e300;
+  EXPECT_TRUE(has(goal_error(g), "duration: must lie in (0, 3600] s"));
+  g = goal("spiral");
+  g.spiral.phi_end = 1e6;  // 1e6 rad of azimuth in 20 s
+  EXPECT_TRUE(has(goal_error(g), "faster than 2 rad/s"));
+  g = goal("raster");
+  g.raster.rows = 2147483647;
+  EXPECT_TRUE(has(goal_error(g), "rows: must lie in [1, 100000]"));
+  g = goal("raster");
+  g.raster.speed = 1e-300;  // a raster that would last 1e300 s
+  EXPECT_TRUE(has(goal_error(g), "speed:"));
+  g = goal("raster");
+  g.raster.phi_end = 1e300;
+  EXPECT_TRUE(has(goal_error(g), "speed:"));
+  g = goal("raster");
+  g.raster.phi_start = NAN;
+  EXPECT_TRUE(has(goal_error(g), "raster_phi_start: must be finite"));
+  g = goal("waypoints");
+  g.times = {0.0, 1e-6};  // 0.3 rad in a microsecond
+  EXPECT_TRUE(has(goal_error(g), "waypoints[1].t:"));
+  g = goal("waypoints");
+  g.times = {0.0, 5000.0};
+  EXPECT_TRUE(has(goal_error(g), "waypoints[1].t: must be at most 3600 s"));
+  g = goal("waypoints");
+  g.times.assign(100001, 0.0);
+  g.directions.assign(100001, Vec3::UnitZ());
+  EXPECT_TRUE(has(goal_error(g), "more than the limit of 100000"));
+}
+
+TEST(PathGoals, WaypointDirectionsAreNormalisedWithoutOverflow) {
+  control::PathGoal g = goal("waypoints");
+  g.directions = {Vec3(0, 0, 1e308), Vec3(1e308, 0, 1e308)};
+  const auto p = control::make_goal_path(g, control::SpiralPath());
+  for (double t : {0.0, 2.5, 5.0}) {
+    EXPECT_NEAR(p->direction_at(t).norm(), 1.0, 1e-15) << t;
+    EXPECT_NEAR(control::bend_angle(p->direction_at(t)), M_PI / 4 * t / 5.0, 1e-12) << t;
+  }
+  g.directions = {Vec3::UnitZ(), Vec3(0, 0, 0)};
+  EXPECT_TRUE(has(goal_error(g), "waypoints[1].direction: must be finite and non-zero"));
+}
+
+TEST(PathFiles, OnlyBoundedRegularFilesAreRead) {
+  // A FIFO without a writer: opened without blocking, refused (reading it would wait for ever).
+  const std::string fifo = ::testing::TempDir() + "path_fifo.csv";
+  ::unlink(fifo.c_str());
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  control::PathGoal g = goal("file");
+  g.file = fifo;
+  EXPECT_TRUE(has(goal_error(g), "path_fifo.csv: not a regular file"));
+  ::unlink(fifo.c_str());
+  // Larger than the limit: refused from its size, before any parsing.
+  const std::string big = write_file("path_big.csv", "0 0 0\n1 0.1 0\n");
+  control::PathLimits limits;
+  limits.max_file_bytes = 8;
+  EXPECT_TRUE(has(error_of([&] { control::load_path_file(big, limits); }), "more than the limit of 8"));
+  // More rows than the limit.
+  limits = control::PathLimits();
+  limits.max_points = 2;
+  const std::string rows = write_file("path_rows.csv", "0 0 0\n1 0.1 0\n2 0.2 0\n");
+  EXPECT_TRUE(has(error_of([&] { control::load_path_file(rows, limits); }), "path_rows.csv:3: more than the limit"));
+  const std::string yaml = write_file("path_rows.yaml", "- [0, 0, 0]\n- [1, 0.1, 0]\n- [2, 0.2, 0]\n");
+  EXPECT_TRUE(has(error_of([&] { control::load_path_file(yaml, limits); }), "3 entries, more than the limit"));
+}
+
+// ---------------------------------------------------------------------------------------------
 // Reachable set
 // ---------------------------------------------------------------------------------------------
 
@@ -373,6 +517,31 @@ TEST(ReachableSet, OptionsAreValidated) {
   EXPECT_EQ(error_of([&] { control::ReachableSet::compute(model("hydrojet_0deg"), o); }).rfind("min_stability", 0), 0u);
 }
 
+// A sweep is bounded work: beyond max_time it is refused, saying how far it got, instead of running
+// for minutes (a scene with absurd actuator bounds took 90-330 s before).
+TEST(ReachableSet, ASweepBeyondItsTimeBoundIsRefused) {
+  control::ReachableSetOptions o;
+  o.max_time = 0.0;
+  EXPECT_EQ(o.validate().rfind("max_time:", 0), 0u);
+  const auto refusal = [](const control::RobotModel& m, double max_time) {
+    control::ReachableSetOptions options;
+    options.max_time = max_time;
+    try {
+      control::ReachableSet::compute(m, options);
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_EQ(refusal(model("hydrojet_0deg"), 1e-9).rfind("reachable set: the sweep took more than max_time", 0), 0u);
+  control::RobotModel absurd = model("hydrojet_0deg");
+  absurd.max_jet_force.setConstant(1e12);
+  for (rod::Actuator& a : absurd.body.actuators) a.max_force = 1e12;
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_NE(refusal(absurd, 0.5).find("max_time = 0.5 s"), std::string::npos);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 30.0);
+}
+
 TEST(ReachableSet, AMarginAboveEveryEquilibriumLeavesItEmpty) {
   control::ReachableSetOptions o;
   o.min_stability_margin = 100.0;  // N/m, far above the HydroJet's ~3 N/m
@@ -488,6 +657,12 @@ TEST_P(LookAt, RefusesPointsBehindTheCameraOrTooClose) {
   const control::LookAtResult nan = solver.solve(Vec3(NAN, 0.0, 0.1));
   EXPECT_FALSE(nan.ok);
   EXPECT_NE(nan.message.find("not finite"), std::string::npos);
+  for (const Vec3& far : {Vec3(tip + 2000.0 * d0), Vec3(1e308, 1e308, 1e308)}) {
+    const control::LookAtResult r = solver.solve(far);
+    EXPECT_FALSE(r.ok);
+    EXPECT_FALSE(r.out_of_reach);
+    EXPECT_NE(r.message.find("farther from the tip than max_distance"), std::string::npos) << r.message;
+  }
   // A refusal does not move the warm start: the next good point is solved as before.
   expect_aimed(GetParam(), tip + 0.06 * d0, solver.solve(tip + 0.06 * d0));
 }

@@ -402,7 +402,11 @@ class Soak:
             row["zero_ok"] = not any(not zero for stamp, zero in self.mon.zero_changes if det[0] <= stamp <= self.mon.t)
         started = self.mon.t
         self.call("/controller/start")
-        ok = self.wait_until(lambda: self.mon.t >= started + RECOVER_S, 60.0)
+        # Judged on controller/status itself, stamped RECOVER_S after the restart: the clock arrives on
+        # a topic of its own and can run ahead of the status this script has read (a restart was once
+        # judged "not recovered" on a status 4 s of simulated time old).
+        ok = self.wait_until(lambda: self.mon.status is not None
+                             and self.mon.status.header.stamp.to_sec() >= started + RECOVER_S, 60.0)
         again = self.mon.first_transition(started, ("aborted",))
         row["recovered"] = bool(ok and again is None and self.mon.state() in ("running", "finished"))
         if again:

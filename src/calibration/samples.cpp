@@ -1,4 +1,5 @@
 #include "hydrojet_control/calibration/samples.h"
+#include "hydrojet_control/util/files.h"
 
 #include <algorithm>
 #include <cctype>
@@ -121,11 +122,10 @@ std::vector<Sample> parse_csv(const std::string& text, const std::string& name) 
 }
 
 std::vector<Sample> read_csv(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw DataError("cannot read data file '" + path + "'");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return parse_csv(ss.str(), path);
+  std::string text;
+  if (const std::string err = util::read_regular_file(path, &text, 64u << 20); !err.empty())
+    throw DataError("cannot read data file '" + path + "': " + err);
+  return parse_csv(text, path);
 }
 
 void validate_samples(const std::vector<Sample>& samples, int fitted_params) {

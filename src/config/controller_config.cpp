@@ -1,4 +1,5 @@
 #include "hydrojet_control/config/controller_config.h"
+#include "hydrojet_control/util/files.h"
 
 #include <cmath>
 #include <algorithm>
@@ -139,10 +140,11 @@ ControllerNodeOptions parse_controller_options(const YAML::Node& root) {
 
 ControllerNodeOptions load_controller_options(const std::string& path) {
   YAML::Node root;
+  std::string text;
+  if (const std::string err = util::read_regular_file(path, &text); !err.empty())
+    throw ParamError("controller options: cannot read file '" + path + "': " + err);
   try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    throw ParamError("controller options: cannot read file '" + path + "'");
+    root = YAML::Load(text);
   } catch (const YAML::Exception& e) {
     throw ParamError(std::string("controller options: malformed YAML: ") + e.what());
   }

@@ -1,4 +1,5 @@
 #include "hydrojet_control/config/plant_config.h"
+#include "hydrojet_control/util/files.h"
 
 #include <yaml-cpp/yaml.h>
 
@@ -165,11 +166,10 @@ plant::PlantModel make_plant(const Scene& nominal, const std::string& text) {
 
 plant::PlantModel load_plant(const Scene& nominal, const std::string& path) {
   if (path.empty()) return make_plant(nominal, "");
-  std::ifstream f(path);
-  if (!f) throw SceneError("plant", "cannot read file '" + path + "'");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return make_plant(nominal, ss.str());
+  std::string text;
+  if (const std::string err = util::read_regular_file(path, &text); !err.empty())
+    throw SceneError("plant", "cannot read file '" + path + "': " + err);
+  return make_plant(nominal, text);
 }
 
 }  // namespace config

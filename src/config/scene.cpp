@@ -1,4 +1,5 @@
 #include "hydrojet_control/config/scene.h"
+#include "hydrojet_control/util/files.h"
 
 #include <yaml-cpp/yaml.h>
 
@@ -303,11 +304,10 @@ Scene parse_scene(const std::string& text) {
 }
 
 Scene load_scene(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw SceneError("scene", "cannot read file '" + path + "'");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return parse_scene(ss.str());
+  std::string text;
+  if (const std::string err = util::read_regular_file(path, &text); !err.empty())
+    throw SceneError("scene", "cannot read file '" + path + "': " + err);
+  return parse_scene(text);
 }
 
 }  // namespace config

@@ -73,13 +73,14 @@ void Controller::set_params(const ControllerOptions& p) {
 }
 
 void Controller::follow(std::shared_ptr<const Path> path, double t) {
-  reference_.follow(std::move(path), t);
+  reference_.follow(std::move(path), t, /*starts_at_path=*/false, Reference::PathClip::kOperator);
   commanded();
 }
 
-void Controller::aim(const Vec3& target, Source source) {
-  reference_.aim(target, source);
+bool Controller::aim(const Vec3& target, Source source) {
+  if (!reference_.aim(target, source)) return false;
   commanded();
+  return true;
 }
 
 void Controller::turn(const Eigen::Vector2d& up_right, Source source, double until) {

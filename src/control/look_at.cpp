@@ -32,6 +32,8 @@ std::string LookAtOptions::validate() const {
     os << "tolerance: must be finite and > 0, got " << tolerance;
   else if (!std::isfinite(min_distance) || !(min_distance > 0.0))
     os << "min_distance: must be finite and > 0, got " << min_distance;
+  else if (!std::isfinite(max_distance) || !(max_distance > min_distance))
+    os << "max_distance: must be finite and > min_distance, got " << max_distance;
   return os.str();
 }
 
@@ -174,6 +176,8 @@ struct LookAtSolver::Impl {
     if (!start(&s)) return result(s, P, 0, "the model solve failed with the jets off");
     if ((P - s.tip).norm() < options.min_distance)
       return result(s, P, 0, metres("the point is closer to the tip than min_distance", options.min_distance));
+    if (!((P - s.tip).norm() <= options.max_distance))  // inf beyond the doubles: refused too
+      return result(s, P, 0, metres("the point is farther from the tip than max_distance", options.max_distance));
     int it = 0;
     bool stalled = false;
     while (it < options.max_iterations && !aimed(s, P)) {

@@ -52,8 +52,9 @@ class ForceSweep {
     return true;
   }
 
-  /// The accepted directions: converged, σ_c ≥ min_stability_margin and eig_min > 0.
-  std::vector<Vec3> accepted_directions() {
+  /// The accepted directions: converged, σ_c ≥ min_stability_margin and eig_min > 0. Stops with
+  /// std::runtime_error once `deadline` has passed.
+  std::vector<Vec3> accepted_directions(std::chrono::steady_clock::time_point deadline) {
     std::vector<Vec3> out;
     const int rays = kRaysPerBin * options_.azimuth_bins, rings = options_.force_samples;
     const Eigen::Vector2d o = polygon_->origin();
@@ -64,6 +65,13 @@ class ForceSweep {
       const Eigen::Vector2d u(std::cos(kTwoPi * j / rays), std::sin(kTwoPi * j / rays));
       const double extent = polygon_->extent(u);
       for (int kk = 1; kk <= rings; ++kk) {
+        if (std::chrono::steady_clock::now() > deadline) {
+          std::ostringstream os;
+          os << "reachable set: the sweep took more than max_time = " << options_.max_time << " s and had solved "
+             << j * rings + kk - 1 << " of " << rays * rings << " points (do the solves converge? are the actuator "
+             << "bounds sane?)";
+          throw std::runtime_error(os.str());
+        }
         const int k = j % 2 == 0 ? kk : rings + 1 - kk;
         if (accepted(o + extent * k / rings * u, &q, &d)) out.push_back(d);
       }
@@ -119,6 +127,8 @@ std::string ReachableSetOptions::validate() const {
     os << "force_samples: must be >= 4, got " << force_samples;
   else if (azimuth_bins < 8)
     os << "azimuth_bins: must be >= 8, got " << azimuth_bins;
+  else if (!(max_time > 0.0) || !std::isfinite(max_time))
+    os << "max_time: must be finite and > 0, got " << max_time;
   return os.str();
 }
 
@@ -128,7 +138,8 @@ ReachableSet ReachableSet::compute(const RobotModel& model, const ReachableSetOp
   ReachableSet set;
   ForceSweep sweep(model, options);
   if (sweep.zero_force_direction(&set.center_)) {
-    set.samples_ = sweep.accepted_directions();
+    set.samples_ = sweep.accepted_directions(t0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                      std::chrono::duration<double>(options.max_time)));
     set.build_boundary(options.azimuth_bins);
   }
   set.compute_time_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -23,25 +23,32 @@ Reference::Reference(double max_angular_rate, std::shared_ptr<const ReachableSet
                      std::shared_ptr<const ReachableSet> path_set)
     : max_rate_(max_angular_rate), target_set_(std::move(target_set)), path_set_(std::move(path_set)) {}
 
-void Reference::follow(std::shared_ptr<const Path> path, double t, bool starts_at_path) {
+void Reference::follow(std::shared_ptr<const Path> path, double t, bool starts_at_path, PathClip clip) {
   source_ = Source::kPath;
   path_ = std::move(path);
+  path_clip_ = clip == PathClip::kOperator ? target_set_.get() : path_set_.get();
   path_start_ = t;
   jump_to_path_ = starts_at_path;
   on_path_ = false;
   path_advanced_ = false;
 }
 
-void Reference::aim(const Vec3& target, Source source) {
+bool Reference::aim(const Vec3& target, Source source) {
+  Vec3 unit;
+  if (!unit_direction(target, &unit)) return false;
   source_ = source;
-  set_target(target.normalized(), target_set_.get());
+  set_target(unit, target_set_.get());
+  return true;
 }
 
 void Reference::turn(const Eigen::Vector2d& up_right, Source source, double until) {
   if (source_ != source) target_ = reference_;  // a rate source turns the reference from where it is
   source_ = source;
-  const double norm = up_right.norm();
-  rate_ = norm > max_rate_ ? Eigen::Vector2d(up_right * (max_rate_ / norm)) : up_right;
+  // Capped at max_angular_rate along its own direction; scaled first, so that a rate of 1e308 is
+  // capped, not taken for an infinity (whose cap would be zero).
+  const double scale = up_right.cwiseAbs().maxCoeff();
+  const Eigen::Vector2d along = scale > 0.0 ? Eigen::Vector2d(up_right / scale) : Eigen::Vector2d::Zero();
+  rate_ = scale * along.norm() > max_rate_ ? Eigen::Vector2d(along.normalized() * max_rate_) : up_right;
   rate_until_ = until;
 }
 
@@ -61,7 +68,7 @@ void Reference::start(const Vec3& direction, double t) {
 const Vec3& Reference::advance(double t, double dt, const Mat3& tip_frame) {
   if (source_ == Source::kPath) {
     const Vec3 before = target_;
-    set_target(path_->direction_at(t - path_start_), path_set_.get());
+    set_target(path_->direction_at(t - path_start_), path_clip_);
     // On the path (jumped there at start, or reached it): follow it as written, whatever its speed.
     // Reached: within this step's max_angular_rate·dt plus the path's own motion over the step (a
     // path faster than the rate would otherwise be crossed and never caught).
@@ -87,7 +94,7 @@ const Vec3& Reference::advance(double t, double dt, const Mat3& tip_frame) {
 Vec3 Reference::preview(double t, double lead) const {
   if (source_ != Source::kPath || !on_path_ || !(lead > 0.0)) return reference_;
   const Vec3 ahead = path_->direction_at(t - path_start_ + lead);
-  return path_set_ ? path_set_->clip(ahead) : ahead.normalized();
+  return path_clip_ ? path_clip_->clip(ahead) : ahead.normalized();
 }
 
 // The commanded direction (unit) clipped to `set` (none: not clipped).

@@ -4,7 +4,6 @@
 // and the follow_path action. One source drives at a time, the latest command wins.
 #include <actionlib/server/simple_action_server.h>
 #include <diagnostic_updater/diagnostic_updater.h>
-#include <dynamic_reconfigure/server.h>
 #include <geometry_msgs/PointStamped.h>
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TwistStamped.h>
@@ -18,8 +17,11 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <future>
 #include <iostream>
+#include <optional>
 
 #include "hydrojet_control/ControllerConfig.h"
 #include "hydrojet_control/ControllerStatus.h"
@@ -36,6 +38,9 @@
 #include "hydrojet_control/ros/params.h"
 #include "hydrojet_control/ros/names.h"
 #include "hydrojet_control/ros/shutdown.h"
+#include "hydrojet_control/util/text.h"
+#include "background.h"
+#include "reconfigure_server.h"
 
 namespace names = hydrojet::names;
 
@@ -69,53 +74,46 @@ std::vector<double> copy_jets(const control::JetVector& from) {
 Eigen::Vector3d from_msg(const geometry_msgs::Vector3& v) { return Eigen::Vector3d(v.x, v.y, v.z); }
 Eigen::Vector3d from_msg(const geometry_msgs::Point& p) { return Eigen::Vector3d(p.x, p.y, p.z); }
 
-/// The path a follow_path goal names. @throws std::invalid_argument naming what is wrong.
-std::shared_ptr<const control::Path> make_goal_path(const hydrojet_control::FollowPathGoal& g,
-                                                    const control::SpiralPath& configured) {
-  if (g.type == "spiral") {
-    if (g.duration <= 0.0) return control::make_spiral(configured);
-    control::SpiralPath s;
-    s.theta_start = g.theta_start, s.theta_end = g.theta_end, s.phi_start = g.phi_start, s.phi_end = g.phi_end;
-    s.duration = g.duration;
-    if (!std::isfinite(s.duration + s.theta_start + s.theta_end + s.phi_start + s.phi_end))
-      throw std::invalid_argument("spiral: parameters must be finite");
-    return control::make_spiral(s);
-  }
-  if (g.type == "raster") {
-    control::RasterOptions r;
-    r.theta_min = g.theta_min, r.theta_max = g.theta_max, r.rows = g.rows;
-    r.phi_start = g.raster_phi_start, r.phi_end = g.raster_phi_end, r.speed = g.speed;
-    if (const std::string err = r.validate(); !err.empty()) throw std::invalid_argument("raster: " + err);
-    return control::make_raster(r);
-  }
-  if (g.type == "waypoints") {
-    if (g.times.size() != g.directions.size() || g.times.empty())
-      throw std::invalid_argument("waypoints: need as many times as directions, at least one");
-    std::vector<control::Waypoint> w(g.times.size());
-    for (size_t i = 0; i < w.size(); ++i) w[i].t = g.times[i], w[i].direction = from_msg(g.directions[i]);
-    return control::make_waypoints(w);
-  }
-  if (g.type == "file") return control::load_path_file(g.file);
-  throw std::invalid_argument("type must be spiral, raster, waypoints or file, got '" + g.type + "'");
+/// The goal as the core's PathGoal (every field, used or not: make_goal_path checks them all).
+control::PathGoal to_path_goal(const hydrojet_control::FollowPathGoal& g) {
+  control::PathGoal p;
+  p.type = g.type;
+  p.spiral.theta_start = g.theta_start, p.spiral.theta_end = g.theta_end;
+  p.spiral.phi_start = g.phi_start, p.spiral.phi_end = g.phi_end, p.spiral.duration = g.duration;
+  p.raster.theta_min = g.theta_min, p.raster.theta_max = g.theta_max, p.raster.rows = g.rows;
+  p.raster.phi_start = g.raster_phi_start, p.raster.phi_end = g.raster_phi_end, p.raster.speed = g.speed;
+  p.times.assign(g.times.begin(), g.times.end());
+  for (const geometry_msgs::Vector3& d : g.directions) p.directions.push_back(from_msg(d));
+  p.file = g.file;
+  return p;
 }
 
-/// The follow_path action (action/FollowPath.action). A goal's path drives the controller until it
-/// ends (succeeded), another source takes over or the controller aborts (aborted), a new goal
-/// arrives or the client cancels (preempted; a cancel holds the current direction). Callbacks and
-/// cycle() run on the node's single spinner thread, between control cycles.
+/// The follow_path action (action/FollowPath.action). A goal's path is built off the control loop
+/// (control::make_goal_path on the Background thread: reading a file, checking every field against
+/// control::PathLimits) and drives the controller from the first cycle after it is ready, until it
+/// ends (succeeded), another source takes over or the controller aborts (aborted), a new goal arrives
+/// or the client cancels (preempted; a cancel holds the current direction). Its points are clipped to
+/// the reachable set as operator targets are; feedback and result say when (`clipped`). Callbacks and
+/// cycle() run on the node's spinner thread, between control cycles.
 class FollowPathServer {
  public:
   using Server = actionlib::SimpleActionServer<hydrojet_control::FollowPathAction>;
 
-  FollowPathServer(ros::NodeHandle& nh, control::Controller& controller, std::string& message)
-      : server_(nh, names::kFollowPathAction, false), controller_(controller), message_(message) {
+  FollowPathServer(ros::NodeHandle& nh, control::Controller& controller, std::string& message,
+                   ros_bridge::Background& background)
+      : server_(nh, names::kFollowPathAction, false),
+        controller_(controller),
+        message_(message),
+        background_(background) {
     server_.registerGoalCallback([this] { on_goal(); });
     server_.registerPreemptCallback([this] { on_preempt(); });
     server_.start();
   }
 
-  /// After each control cycle: the error statistics, feedback at 10 Hz and the end of the goal.
+  /// After each control cycle: a path built since, the error statistics, feedback at 10 Hz and the end
+  /// of the goal.
   void cycle(const ros::Time& now, const control::ControllerOutput& out) {
+    if (std::optional<Built> built = built_.take()) adopt(*built, now);
     if (!server_.isActive() || !path_) return;
     if (out.state == control::ControllerState::kAborted) return finish(false, "controller aborted: " + out.reason);
     if (out.state == control::ControllerState::kIdle) return finish(false, "controller stopped");
@@ -124,12 +122,15 @@ class FollowPathServer {
       return finish(false, std::string("superseded by the source '") + control::to_string(ref.source()) + "'");
     sum_sq_ += out.error_geodesic * out.error_geodesic;
     max_error_ = std::max(max_error_, out.error_geodesic);
+    max_clip_ = std::max(max_clip_, out.clip_angle);
     ++samples_;
     if (now - last_feedback_ >= ros::Duration(0.1)) {
       hydrojet_control::FollowPathFeedback f;
       f.path_time = ref.path_time(now.toSec());
       f.progress = std::min(1.0, std::max(0.0, f.path_time / path_->duration()));
       f.error = out.error_geodesic;
+      f.clipped = out.clipped;
+      f.clip_angle = out.clip_angle;
       server_.publishFeedback(f);
       last_feedback_ = now;
     }
@@ -137,26 +138,50 @@ class FollowPathServer {
   }
 
  private:
+  /// A goal's path, or why there is none, from the background thread.
+  struct Built {
+    uint64_t goal = 0;  ///< the goal it was built for (only the latest counts)
+    std::shared_ptr<const control::Path> path;
+    std::string error;
+  };
+
   void on_goal() {
     const auto goal = server_.acceptNewGoal();
     path_.reset();
-    sum_sq_ = max_error_ = 0.0;
+    sum_sq_ = max_error_ = max_clip_ = 0.0;
     samples_ = 0;
+    building_ = ++goals_;
     if (controller_.state() == control::ControllerState::kAborted)
       return finish(false, "controller aborted: " + controller_.abort_reason());
-    try {
-      path_ = make_goal_path(*goal, controller_.params().path);
-    } catch (const std::exception& e) {
-      return finish(false, std::string("bad goal: ") + e.what());
-    }
-    const double now = ros::Time::now().toSec();
-    controller_.follow(path_, now);
-    if (controller_.state() == control::ControllerState::kIdle) controller_.start(now);
-    message_ = "follow_path: " + goal->type + " path of " + std::to_string(path_->duration()) + " s";
+    message_ = "follow_path: building the " + goal->type + " path";
+    // The goal's copy for the path (its lists may be long) is made there too.
+    background_.post([this, id = building_, goal, configured = controller_.params().path] {
+      Built b;
+      b.goal = id;
+      try {
+        b.path = control::make_goal_path(to_path_goal(*goal), configured);
+      } catch (const std::exception& e) {
+        b.error = e.what();
+      }
+      built_.put(std::move(b));
+    });
+  }
+
+  void adopt(const Built& b, const ros::Time& now) {
+    if (b.goal != building_ || !server_.isActive()) return;  // cancelled or preempted meanwhile
+    building_ = 0;
+    if (!b.path) return finish(false, "bad goal: " + b.error);
+    if (controller_.state() == control::ControllerState::kAborted)
+      return finish(false, "controller aborted: " + controller_.abort_reason());
+    path_ = b.path;
+    controller_.follow(path_, now.toSec());
+    if (controller_.state() == control::ControllerState::kIdle) controller_.start(now.toSec());
+    message_ = std::string("follow_path: ") + path_->type() + " path of " + std::to_string(path_->duration()) + " s";
   }
 
   void on_preempt() {
     if (!server_.isActive()) return;
+    building_ = 0;
     if (!server_.isNewGoalAvailable()) controller_.hold();  // a cancel holds the current direction
     server_.setPreempted(
         result(false, server_.isNewGoalAvailable() ? "preempted by a new goal" : "cancelled: holding"));
@@ -167,25 +192,33 @@ class FollowPathServer {
     if (completed)
       server_.setSucceeded(result(true, ""));
     else
-      server_.setAborted(result(false, reason), reason);
+      server_.setAborted(result(false, reason), util::printable(reason));
     if (!completed) message_ = "follow_path: " + reason;
     path_.reset();
+    building_ = 0;
   }
 
   hydrojet_control::FollowPathResult result(bool completed, const std::string& reason) const {
     hydrojet_control::FollowPathResult r;
     r.completed = completed;
-    r.reason = reason;
+    r.reason = util::printable(reason);
     r.rms_error = samples_ > 0 ? std::sqrt(sum_sq_ / samples_) : 0.0;
     r.max_error = max_error_;
+    r.clipped = max_clip_ > 0.0;
+    r.max_clip_angle = max_clip_;
     return r;
   }
 
   Server server_;
   control::Controller& controller_;
   std::string& message_;  ///< the node's status message
+  ros_bridge::Background& background_;
+  ros_bridge::Mailbox<Built> built_;
+  uint64_t goals_ = 0;     ///< goals received
+  uint64_t building_ = 0;  ///< the goal whose path is being built (0: none)
   std::shared_ptr<const control::Path> path_;
   double sum_sq_ = 0.0, max_error_ = 0.0;  ///< [rad^2], [rad] over the goal's cycles
+  double max_clip_ = 0.0;                  ///< [rad] the most a point of the path was clipped
   int samples_ = 0;
   ros::Time last_feedback_;
 };
@@ -198,7 +231,9 @@ class ControllerNode {
     const control::RobotModel model = config::make_controller_model(scene, opts_.flow_regulator);
     controller_.reset(new control::Controller(model, opts_.controller));
     look_at_.reset(new control::LookAtSolver(model));
-    follow_path_.reset(new FollowPathServer(nh, *controller_, message_));
+    follow_path_.reset(new FollowPathServer(nh, *controller_, message_, background_));
+    initial_params_ = opts_.controller;
+    scene_in_force_ = opts_.scene;
     reachable_pub_ = nh.advertise<hydrojet_control::ReachableSet>(names::kReachableSet, 1, /*latch=*/true);
     publish_reachable_set();
     subscribe_operator(nh);
@@ -213,7 +248,13 @@ class ControllerNode {
     start_srv_ = nh.advertiseService(names::kStartService, &ControllerNode::on_start, this);
     stop_srv_ = nh.advertiseService(names::kStopService, &ControllerNode::on_stop, this);
     mode_srv_ = nh.advertiseService(names::kClosedLoopService, &ControllerNode::on_closed_loop, this);
-    reload_srv_ = nh.advertiseService(names::kReloadSceneService, &ControllerNode::on_reload_scene, this);
+    // Loading a scene and sweeping its reachable set take long: on the background thread, whose
+    // handler may wait; the control loop adopts the result between two cycles.
+    ros::AdvertiseServiceOptions reload = ros::AdvertiseServiceOptions::create<std_srvs::Trigger>(
+        names::kReloadSceneService,
+        [this](std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res) { return on_reload_scene(req, res); },
+        ros::VoidConstPtr(), background_.queue());
+    reload_srv_ = nh.advertiseService(reload);
     start_reconfigure();
 
     diagnostics_.setHardwareID("hydrojet_controller");
@@ -251,13 +292,15 @@ class ControllerNode {
   }
 
   void on_target_direction(const geometry_msgs::Vector3Stamped::ConstPtr& m) {
-    const Eigen::Vector3d v = from_msg(m->vector);
-    if (!v.allFinite()) return reject("target_direction: not finite");
-    if (v.norm() < 1e-9) return reject("target_direction: zero vector");
+    const Eigen::Vector3d raw = from_msg(m->vector);
+    if (!raw.allFinite()) return reject("target_direction: not finite");
+    Eigen::Vector3d v;
+    if (!control::unit_direction(raw, &v)) return reject("target_direction: zero vector");
     Eigen::Matrix3d rotation;
     Eigen::Vector3d translation;
     if (!to_base(m->header.frame_id, rotation, translation)) return;
-    controller_->aim((rotation * v).normalized(), control::Source::kDirection);
+    if (!controller_->aim(rotation * v, control::Source::kDirection))
+      return reject("target_direction: not a direction in the base frame");
     commanded("target_direction");
   }
 
@@ -293,6 +336,7 @@ class ControllerNode {
     if (!rates.allFinite()) return reject("joy: axes not finite");
     controller_->turn(rates, control::Source::kJoy, ros::Time::now().toSec() + t.timeout);
     commanded("joy");
+    note_capped(rates);
   }
 
   // Keyboard rates (scripts/teleop): a zero twist holds.
@@ -304,6 +348,14 @@ class ControllerNode {
     else
       controller_->turn(rates, control::Source::kKeyboard, ros::Time::now().toSec() + opts_.teleop.timeout);
     commanded("view_rate");
+    note_capped(rates);
+  }
+
+  // A rate faster than max_angular_rate turns at that rate (Reference::turn); the status says so.
+  void note_capped(const Eigen::Vector2d& rates) {
+    const double cap = controller_->params().max_angular_rate;
+    if (rates.cwiseAbs().maxCoeff() > cap || rates.norm() > cap)
+      message_ += " (rate capped at " + std::to_string(cap) + " rad/s)";
   }
 
   /// The transform from `frame` to the base frame ("" or the base frame: identity). An unknown
@@ -318,14 +370,15 @@ class ControllerNode {
       translation = from_msg(tf.transform.translation);
       return true;
     } catch (const tf2::TransformException& e) {
-      reject("unknown frame '" + frame + "': " + e.what());
+      reject("unknown frame '" + frame + "': no transform from it to the base frame '" + opts_.base_frame +
+             "' on tf2 (plant_node and view_node publish the lab's frames): " + e.what());
       return false;
     }
   }
 
   void reject(const std::string& why) {
     ++rejected_targets_;
-    message_ = "rejected: " + why;
+    message_ = util::printable("rejected: " + why);
     ROS_WARN_THROTTLE(1.0, "controller: %s", message_.c_str());
   }
 
@@ -370,29 +423,25 @@ class ControllerNode {
     return keys;
   }
 
-  // Gains through dynamic_reconfigure, starting from the options read. Callbacks run on the single
-  // spinner thread, so a new configuration never lands in the middle of a control cycle.
+  // Gains through dynamic_reconfigure (cfg/Controller.cfg), starting from the options read. The
+  // server runs on the spinner thread, so a new configuration never lands in the middle of a control
+  // cycle; it refuses values outside the .cfg's safe ranges and what ControllerOptions refuses, and
+  // always reports the configuration in force (ros_bridge::ReconfigureServer).
   void start_reconfigure() {
-    reconfigure_.reset(new dynamic_reconfigure::Server<hydrojet_control::ControllerConfig>(reconfigure_mutex_, pnh_));
-    hydrojet_control::ControllerConfig initial;
+    hydrojet_control::ControllerConfig initial = hydrojet_control::ControllerConfig::__getDefault__();
     const control::ControllerOptions& c = opts_.controller;
     initial.kp = c.kp, initial.kd = c.kd, initial.feedforward = c.feedforward, initial.damping = c.damping;
     initial.max_force = c.max_force, initial.max_force_rate = c.max_force_rate;
-    reconfigure_->updateConfig(initial);
-    reconfigure_->setCallback(
-        [this](hydrojet_control::ControllerConfig& cfg, uint32_t level) { reconfigure(cfg, level); });
-  }
-
-  void reconfigure(hydrojet_control::ControllerConfig& cfg, uint32_t) {
-    control::ControllerOptions p = controller_->params();
-    p.kp = cfg.kp, p.kd = cfg.kd, p.feedforward = cfg.feedforward, p.damping = cfg.damping;
-    p.max_force = cfg.max_force, p.max_force_rate = cfg.max_force_rate;
-    const std::string err = p.validate();
-    if (!err.empty()) {
-      ROS_WARN("controller: rejected reconfiguration: %s", err.c_str());
-      return;
-    }
-    controller_->set_params(p);
+    if (const std::string err = Reconfigure::out_of_bounds(initial); !err.empty())
+      throw std::invalid_argument("gains and limits: " + err + " (cfg/Controller.cfg, docs/ros_api.md)");
+    reconfigure_.reset(new Reconfigure(pnh_, initial, [this](const hydrojet_control::ControllerConfig& cfg) {
+      control::ControllerOptions p = controller_->params();
+      p.kp = cfg.kp, p.kd = cfg.kd, p.feedforward = cfg.feedforward, p.damping = cfg.damping;
+      p.max_force = cfg.max_force, p.max_force_rate = cfg.max_force_rate;
+      std::string err = p.validate();
+      if (err.empty()) controller_->set_params(p);
+      return err;
+    }));
   }
 
   bool on_start(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
@@ -417,36 +466,65 @@ class ControllerNode {
     return true;
   }
 
-  // A new scene (e.g. after a calibration): ~scene read again, the model rebuilt with the gains in
-  // force, the reachable set swept and published again. Refused while running (the jets would
-  // change model mid-motion) and when the scene does not load (the old one stays).
+  // A new scene (e.g. after a calibration): ~scene read again, the model rebuilt and its reachable set
+  // swept here, on the background thread (the set in force serves meanwhile; a sweep longer than
+  // ReachableSetOptions::max_time is refused); the control loop adopts it between two cycles with the
+  // gains in force and publishes the new set. Refused while running (the jets would change model
+  // mid-motion) and when the scene does not load (the old one stays).
   bool on_reload_scene(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
     res.success = false;
-    if (controller_->state() == control::ControllerState::kRunning) {
-      res.message = "refused: the controller is running (call controller/stop first)";
+    const auto refuse = [&](const std::string& why) {
+      res.message = util::printable("refused: " + why + " (the scene " + scene_in_force_ + " stays)");
+      ROS_WARN("controller: reload_scene %s", res.message.c_str());
       return true;
-    }
-    std::string path = opts_.scene;
-    pnh_.getParam("scene", path);
+    };
+    if (running_.load()) return refuse("the controller is running (call controller/stop first)");
+    std::string path;
+    if (!pnh_.getParam("scene", path) || path.empty())
+      return refuse(std::string("~scene ") + (pnh_.hasParam("scene") ? "is not a file name" : "is not set"));
+    SceneSwap swap;
     try {
       const control::RobotModel model = config::make_controller_model(config::load_scene(path), opts_.flow_regulator);
-      *controller_ = control::Controller(model, controller_->params());
-      look_at_.reset(new control::LookAtSolver(model));
+      swap.controller = std::make_unique<control::Controller>(model, initial_params_);
+      swap.look_at = std::make_unique<control::LookAtSolver>(model);
     } catch (const std::exception& e) {
-      res.message = std::string("refused: ") + e.what() + " (the scene " + opts_.scene + " stays)";
-      return true;
+      return refuse(e.what());
     }
-    opts_.scene = path;
-    publish_reachable_set();
+    std::future<std::string> verdict = swap.verdict.get_future();
+    scene_box_.put(std::move(swap));
+    if (verdict.wait_for(std::chrono::seconds(5)) != std::future_status::ready) {
+      scene_box_.take();  // not adopted: withdrawn (or already taken: then it is in force)
+      return refuse("the control loop did not take it within 5 s");
+    }
+    if (const std::string why = verdict.get(); !why.empty()) return refuse(why);
+    scene_in_force_ = path;
     res.success = true;
-    res.message = "scene " + path + " loaded; reachable set swept in " +
-                  std::to_string(controller_->reachable_set().compute_time()) + " s";
+    res.message =
+        util::printable("scene " + path + " loaded; reachable set swept in " + std::to_string(sweep_time_) + " s");
     ROS_INFO("controller: %s", res.message.c_str());
     return true;
   }
 
+  /// Between two cycles: a scene loaded by reload_scene replaces the model (unless the controller
+  /// runs: then it is refused).
+  void adopt_scene() {
+    std::optional<SceneSwap> swap = scene_box_.take();
+    if (!swap) return;
+    if (controller_->state() == control::ControllerState::kRunning) {
+      swap->verdict.set_value("the controller is running (call controller/stop first)");
+      return;
+    }
+    swap->controller->set_params(controller_->params());  // the gains in force
+    *controller_ = std::move(*swap->controller);
+    look_at_ = std::move(swap->look_at);
+    sweep_time_ = controller_->reachable_set().compute_time();
+    publish_reachable_set();
+    swap->verdict.set_value("");
+  }
+
   // One control cycle: latest samples in, Algorithm 1, command and status out.
   void tick(const ros::TimerEvent&) {
+    adopt_scene();
     const ros::Time now = ros::Time::now();
     control::ControllerInputs in;
     in.t = now.toSec();
@@ -462,6 +540,7 @@ class ControllerNode {
     if (out.state == control::ControllerState::kAborted && last_state_ != control::ControllerState::kAborted)
       ROS_ERROR("controller: ABORT, jets off: %s", out.reason.c_str());
     last_state_ = out.state;
+    running_.store(out.state == control::ControllerState::kRunning);
     last_ = out;
     follow_path_->cycle(now, out);
 
@@ -521,7 +600,7 @@ class ControllerNode {
     st.header.frame_id = opts_.base_frame;
     st.state = control::to_string(out.state);
     st.mode = control::to_string(controller_->params().mode);
-    st.reason = out.reason;
+    st.reason = util::printable(out.reason);
     st.path_time = out.path_time;
     st.desired_direction = to_msg(out.desired_direction);
     st.measured_direction = to_msg(out.measured_direction);
@@ -532,7 +611,7 @@ class ControllerNode {
     st.jet_force_observed = copy_jets(out.jet_force_observed);
     st.force_reachable = out.force_reachable;
     st.solver_converged = out.solver_converged;
-    st.message = message_;
+    st.message = util::printable(message_);
     st.source = control::to_string(controller_->reference().source());
     st.clipped = out.clipped;
     st.clip_angle = out.clip_angle;
@@ -601,14 +680,28 @@ class ControllerNode {
   ros::Publisher cmd_pub_, status_pub_, rod_pub_, target_pub_, reachable_pub_;
   ros::ServiceServer start_srv_, stop_srv_, mode_srv_, reload_srv_;
   ros::Timer timer_;
-  boost::recursive_mutex reconfigure_mutex_;
-  std::unique_ptr<dynamic_reconfigure::Server<hydrojet_control::ControllerConfig>> reconfigure_;
+  using Reconfigure = ros_bridge::ReconfigureServer<hydrojet_control::ControllerConfig>;
+  std::unique_ptr<Reconfigure> reconfigure_;
   diagnostic_updater::Updater diagnostics_;
   geometry_msgs::PoseStamped tip_, base_;
   hydrojet_control::JetState jets_;
   bool have_tip_ = false, have_base_ = false, have_jets_ = false, autostarted_ = false;
   control::ControllerState last_state_ = control::ControllerState::kIdle;
   control::ControllerOutput last_;
+
+  /// A scene loaded off the loop, and the loop's answer ("" adopted, else why not).
+  struct SceneSwap {
+    std::unique_ptr<control::Controller> controller;
+    std::unique_ptr<control::LookAtSolver> look_at;
+    std::promise<std::string> verdict;
+  };
+  control::ControllerOptions initial_params_;  ///< as read at start: a reloaded scene's sets are swept with them
+  std::string scene_in_force_;                 ///< reload_scene's (background thread) record of the scene
+  double sweep_time_ = 0.0;                    ///< [s] the adopted scene's sweep, for reload_scene's reply
+  std::atomic<bool> running_{false};           ///< the loop's state, for reload_scene's early refusal
+  ros_bridge::Mailbox<SceneSwap> scene_box_;
+  // Last: destroyed first, so that no background job outlives what it uses.
+  ros_bridge::Background background_;
 };
 
 }  // namespace

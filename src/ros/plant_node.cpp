@@ -6,6 +6,7 @@
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
+#include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
 
 #include <cmath>
@@ -35,6 +36,7 @@ struct PlantNodeOptions {
   double command_wait = 0.2;  ///< lockstep: wall time to wait for a command [s]
   double duration = 0.0;      ///< stop after this much simulated time [s] (0 = forever)
   std::string tracker_frame = "tracker";
+  std::string world_frame = "world";  ///< the lab; the tracker is fixed in it
   // Fault injection (simulated time [s]; < 0 = off)
   double tracker_dropout_at = -1.0, tracker_dropout_duration = 1.0;
   double flow_fault_at = -1.0;  ///< from then on jet 1 reads NaN and jet 2 negative
@@ -56,7 +58,7 @@ PlantNodeOptions read_options(const ros::NodeHandle& pnh) {
   const YAML::Node y = ros_bridge::private_params_as_yaml(pnh);
   PlantNodeOptions o;
   config::YamlTree<config::ParamError> t(y, '/', "~");
-  t.keys("", {"scene", "plant", "seed", "rate", "lockstep", "command_wait", "duration", "tracker_frame",
+  t.keys("", {"scene", "plant", "seed", "rate", "lockstep", "command_wait", "duration", "tracker_frame", "world_frame",
               "tracker_dropout_at", "tracker_dropout_duration", "flow_fault_at", "stuck_open_at", "stuck_open_jet",
               "stuck_duty", "start_time"});
   o.scene = t.text("scene", "");
@@ -68,6 +70,7 @@ PlantNodeOptions read_options(const ros::NodeHandle& pnh) {
   o.command_wait = t.number("command_wait", o.command_wait);
   o.duration = t.number("duration", o.duration);
   o.tracker_frame = t.text("tracker_frame", o.tracker_frame);
+  o.world_frame = t.text("world_frame", o.world_frame);
   o.tracker_dropout_at = t.number("tracker_dropout_at", o.tracker_dropout_at);
   o.tracker_dropout_duration = t.number("tracker_dropout_duration", o.tracker_dropout_duration);
   o.flow_fault_at = t.number("flow_fault_at", o.flow_fault_at);
@@ -104,6 +107,7 @@ class PlantNode {
     cmd_sub_ = nh.subscribe(names::kJetCommand, 10, &PlantNode::command, this, ros::TransportHints().tcpNoDelay());
     fault_sub_ = nh.subscribe(names::kPlantFault, 10, &PlantNode::on_fault, this);
     fault_pub_ = nh.advertise<hydrojet_control::PlantFault>(names::kPlantFaultApplied, 10);
+    publish_static_frames();
     ROS_INFO("plant: scene %s, base tilt %.1f deg, seed %d, %s", o_.scene.c_str(), model_.base_tilt * 180 / M_PI,
              o_.seed, o_.lockstep ? "lockstep (owns /clock)" : "real time");
   }
@@ -304,6 +308,21 @@ class PlantNode {
     }
   }
 
+  // The simulated lab's fixed frames, so that a point clicked in rviz (fixed frame world) reaches the
+  // controller without view_node: world → tracker (the tracker is fixed in the lab) and base_sensor →
+  // base (the sensor is aligned with the base). view_node sends the same when it runs.
+  void publish_static_frames() {
+    geometry_msgs::TransformStamped a, b;
+    a.header.stamp = b.header.stamp = ros::Time::now();
+    a.header.frame_id = o_.world_frame;
+    a.child_frame_id = o_.tracker_frame;
+    a.transform.rotation.w = 1.0;
+    b.header.frame_id = "base_sensor";
+    b.child_frame_id = "base";
+    b.transform.rotation.w = 1.0;
+    static_tf_.sendTransform(std::vector<geometry_msgs::TransformStamped>{a, b});
+  }
+
   void broadcast(const geometry_msgs::PoseStamped& p, const std::string& child) {
     geometry_msgs::TransformStamped t;
     t.header = p.header;
@@ -323,6 +342,7 @@ class PlantNode {
   ros::Publisher fault_pub_;
   std::vector<ActiveFault> faults_;
   tf2_ros::TransformBroadcaster tf_;
+  tf2_ros::StaticTransformBroadcaster static_tf_;
   double last_command_stamp_ = -1.0;
 };
 

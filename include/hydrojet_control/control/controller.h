@@ -46,10 +46,12 @@ class Controller {
 
   // Operator commands (the latest wins; see Reference). Running: they take effect on the next
   // update() (a finished path goes back to running). Idle or aborted: kept for the next start().
-  /// Follow `path` from time t [s].
+  /// Follow the operator's `path` from time t [s], clipped to the reachable set as operator targets
+  /// are (Reference::PathClip::kOperator).
   void follow(std::shared_ptr<const Path> path, double t);
-  /// Move to the fixed direction `target` (unit, base frame); kDirection or kLookAt.
-  void aim(const Vec3& target, Source source);
+  /// Move to the fixed direction `target` (base frame, any length); kDirection or kLookAt. False,
+  /// and nothing changes, when `target` is not finite or is zero (Reference::aim).
+  bool aim(const Vec3& target, Source source);
   /// View rates (up, right) [rad/s] about the tip frame's +x, +y axes until time `until` [s]; kJoy or kKeyboard.
   void turn(const Eigen::Vector2d& up_right, Source source, double until);
   /// Hold the reference where it is.

@@ -23,9 +23,10 @@ namespace hydrojet {
 namespace control {
 
 struct LookAtOptions {
-  int max_iterations = 20;      ///< Gauss–Newton iterations (each one model solve + C^b), ≥ 1
-  double tolerance = 1e-6;      ///< [m]: distance of P from the tip's line that counts as aimed
-  double min_distance = 0.005;  ///< P closer to the tip than this [m] is refused (> 0)
+  int max_iterations = 20;       ///< Gauss–Newton iterations (each one model solve + C^b), ≥ 1
+  double tolerance = 1e-6;       ///< [m]: distance of P from the tip's line that counts as aimed
+  double min_distance = 0.005;   ///< P closer to the tip than this [m] is refused (> 0)
+  double max_distance = 1000.0;  ///< P farther than this [m] is refused (> min_distance): aim a direction instead
   std::string validate() const;
 };
 

@@ -24,12 +24,17 @@ struct ReachableSetOptions {
   double min_stability_margin = 0.5;  ///< σ_c bound [N/m] (the controller passes safety/min_stability_margin)
   int force_samples = 40;             ///< force magnitudes per ray of the sweep (≥ 4)
   int azimuth_bins = 72;              ///< resolution of the boundary about the centre (≥ 8)
+  /// Wall time the sweep may take [s] (> 0): a model whose solves do not converge (absurd bounds,
+  /// a broken scene) is refused rather than swept for minutes. The HydroJet's takes about 0.1 s.
+  double max_time = 10.0;
   std::string validate() const;
 };
 
 class ReachableSet {
  public:
   /// Sweeps the inputs of `model` (the HydroJet's jets: bounds [0, max_jet_force]).
+  /// @throws std::invalid_argument on bad options, std::runtime_error when the sweep would take longer
+  /// than options.max_time (the message says how far it got).
   static ReachableSet compute(const RobotModel& model, const ReachableSetOptions& options);
 
   /// No stable, converged point was found (then clip() returns the centre).

@@ -8,7 +8,8 @@
 // operator targets (direction, look_at, rates) are clipped to the set swept with a force reserve,
 // so that the closed loop keeps authority where a person may park the tip; a path (designed, as the
 // paper's §7 spiral, which the paper ran on hardware) is clipped only to what the jets can reach at
-// all, so that a path inside that set runs exactly as written.
+// all, so that a path inside that set runs exactly as written; an operator's path (a follow_path
+// goal) is clipped as operator targets are.
 // Sources:
 //   path       a Path from its start time (the configured §7 spiral, or a follow_path goal)
 //   direction  a fixed target direction (controller/target_direction)
@@ -43,11 +44,16 @@ class Reference {
   void set_max_angular_rate(double rate) { max_rate_ = rate; }
 
   // Commands: each replaces the one before (the latest wins).
+  /// Which set a path's points are clipped to: a designed path (the configured §7 spiral) only to
+  /// what the jets reach at all; an operator's path (a follow_path goal) as operator targets are.
+  enum class PathClip { kDesigned, kOperator };
   /// Follow `path` from time t [s]; `starts_at_path`: the reference jumps onto the path at its
   /// first step (the configured path at start, as the paper's experiment does) instead of moving there.
-  void follow(std::shared_ptr<const Path> path, double t, bool starts_at_path = false);
-  /// Move to the fixed `target` (unit, base frame); source kDirection or kLookAt.
-  void aim(const Vec3& target, Source source);
+  void follow(std::shared_ptr<const Path> path, double t, bool starts_at_path = false,
+              PathClip clip = PathClip::kDesigned);
+  /// Move to the fixed `target` (base frame, any length: normalised without overflow); source
+  /// kDirection or kLookAt. False, and nothing changes, when `target` is not finite or is zero.
+  bool aim(const Vec3& target, Source source);
   /// Turn the target at `up_right` [rad/s] (about the tip frame's +x, +y axes) until time `until` [s],
   /// then hold; source kJoy or kKeyboard. The rate is capped at max_angular_rate.
   void turn(const Eigen::Vector2d& up_right, Source source, double until);
@@ -92,6 +98,7 @@ class Reference {
   Vec3 target_ = Vec3::UnitZ();     ///< where the reference is going (clipped)
   double clip_angle_ = 0.0;         ///< how far the last target was moved by the clip [rad]
   std::shared_ptr<const Path> path_;
+  const ReachableSet* path_clip_ = nullptr;         ///< the set path_'s points are clipped to (null: none)
   double path_start_ = 0.0;                         ///< [s]
   bool jump_to_path_ = false;                       ///< the next advance() puts the reference on the path
   bool on_path_ = false;                            ///< the reference has joined the path: it follows it as written

@@ -21,6 +21,19 @@ inline Vec3 direction(double theta, double phi) {
   return Vec3(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
 }
 
+/// The unit vector along v, without overflow or underflow on the way: v is scaled by its largest
+/// component first, so (1e308, 1e308, 1e308) is a direction like any other, not an infinity that
+/// normalises to zero. False (unit untouched) when v is not finite or is zero.
+inline bool unit_direction(const Vec3& v, Vec3* unit) {
+  if (!v.allFinite()) return false;
+  const double scale = v.cwiseAbs().maxCoeff();
+  if (!(scale > 0.0)) return false;
+  const Vec3 u = (v / scale).normalized();
+  if (!u.allFinite()) return false;
+  *unit = u;
+  return true;
+}
+
 /// Bend angle ϑ [rad] of a unit tip direction d.
 inline double bend_angle(const Vec3& d) { return std::atan2(d.head<2>().norm(), d.z()); }
 
