@@ -454,6 +454,7 @@ class ControllerNode {
   }
   bool on_stop(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
     controller_->stop();
+    running_.store(false);  // now: a reload_scene right after this reply must not see the last cycle's state
     res.success = true;
     res.message = "stopped, jets off";
     ROS_INFO("controller: %s", res.message.c_str());
@@ -698,7 +699,9 @@ class ControllerNode {
   control::ControllerOptions initial_params_;  ///< as read at start: a reloaded scene's sets are swept with them
   std::string scene_in_force_;                 ///< reload_scene's (background thread) record of the scene
   double sweep_time_ = 0.0;                    ///< [s] the adopted scene's sweep, for reload_scene's reply
-  std::atomic<bool> running_{false};           ///< the loop's state, for reload_scene's early refusal
+  /// The controller runs, for reload_scene's early refusal (the loop's verdict at adoption is final):
+  /// set by each cycle and by controller/stop.
+  std::atomic<bool> running_{false};
   ros_bridge::Mailbox<SceneSwap> scene_box_;
   // Last: destroyed first, so that no background job outlives what it uses.
   ros_bridge::Background background_;
