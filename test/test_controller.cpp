@@ -367,6 +367,29 @@ TEST(ControllerSources, FollowedPathFinishesAndANewCommandRunsAgain) {
   EXPECT_EQ(out.source, control::Source::kHold);
 }
 
+// An operator's path (follow()) is clipped as operator targets are, to the set with the force reserve:
+// a raster of theta_max 3.0 (accepted: within [0, pi]) used to run to the edge of what the jets reach
+// at all, and abort on oscillation there. The configured spiral keeps the full set (the test above).
+TEST(ControllerSources, AnOperatorsPathIsClippedToTheOperatorSet) {
+  OperatorRig rig;
+  rig.c.start(0.0);
+  rig.run_for(0.5);
+  control::RasterOptions r;
+  r.theta_min = 0.1, r.theta_max = 3.0, r.rows = 3, r.phi_start = -0.5, r.phi_end = 0.5, r.speed = 0.2;
+  rig.c.follow(control::make_raster(r), rig.t);
+  double most = 0.0;
+  for (int k = 0; k < 1000; ++k) {
+    const ControllerOutput out = rig.run_for(kDt);
+    ASSERT_EQ(out.state, ControllerState::kRunning) << k << ": " << out.reason;
+    most = std::max(most, out.clip_angle);
+    // On the operator set's boundary at most (its polyline is inscribed: inside up to 1e-9).
+    const Vec3 d = out.desired_direction;
+    EXPECT_TRUE(rig.c.reachable_set().contains(d) || control::geodesic_error(rig.c.reachable_set().clip(d), d) < 1e-9)
+        << k;
+  }
+  EXPECT_GT(most, 0.1);  // within these 10 s the raster climbs well past the set's edge
+}
+
 // --- Safety -------------------------------------------------------------------------------------
 
 namespace {
