@@ -41,6 +41,12 @@ std::string error_of(F f) {
   return "";
 }
 
+/// Whether `msg` contains `part` (the message shown when not).
+const auto has = [](const std::string& msg, const std::string& part) {
+  return msg.find(part) != std::string::npos ? ::testing::AssertionSuccess()
+                                             : ::testing::AssertionFailure() << "'" << msg << "'";
+};
+
 std::string write_file(const std::string& name, const std::string& text) {
   const std::string path = ::testing::TempDir() + name;
   std::ofstream(path) << text;
@@ -173,10 +179,6 @@ TEST(PathFiles, BadFilesNameTheFileAndLine) {
     const std::string f = write_file(name, text);
     return error_of([&] { control::load_path_file(f); });
   };
-  const auto has = [](const std::string& msg, const std::string& part) {
-    return msg.find(part) != std::string::npos ? ::testing::AssertionSuccess()
-                                               : ::testing::AssertionFailure() << "'" << msg << "'";
-  };
   EXPECT_TRUE(has(err("bad_word.csv", "t,theta,phi\n0,0,0\n1,0.2,0\n2,zero,0\n"), "bad_word.csv:4: expected three"));
   EXPECT_TRUE(has(err("bad_count.csv", "0 0 0\n1 0.2\n"), "bad_count.csv:2: expected three"));
   EXPECT_TRUE(has(err("bad_time.csv", "0,0,0\n1,0.2,0\n1,0.3,0\n"), "bad_time.csv:3: t: must be greater"));
@@ -224,10 +226,6 @@ TEST(Directions, UnitDirectionSurvivesOverflowAndUnderflow) {
 }
 
 namespace {
-const auto has = [](const std::string& msg, const std::string& part) {
-  return msg.find(part) != std::string::npos ? ::testing::AssertionSuccess()
-                                             : ::testing::AssertionFailure() << "'" << msg << "'";
-};
 
 /// A goal of `type` with every field finite and in range (a 20 s spiral, a small raster, two waypoints).
 control::PathGoal goal(const std::string& type) {

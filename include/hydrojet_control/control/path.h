@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "hydrojet_control/control/task_space.h"
+#include "hydrojet_control/util/files.h"
 
 namespace hydrojet {
 namespace control {
@@ -18,10 +19,10 @@ namespace control {
 /// is bounded work, it ends, and it asks no motion faster than the robot can follow. Beyond them a
 /// path is refused with std::invalid_argument naming the field (docs/operating.md lists them).
 struct PathLimits {
-  double max_duration = 3600.0;            ///< [s] a path ends within an hour
-  double max_speed = 2.0;                  ///< [rad/s] of arc on the sphere, anywhere along the path
-  std::size_t max_points = 100000;         ///< waypoints, rows of a file, rows of a raster
-  std::size_t max_file_bytes = 16u << 20;  ///< a path file is at most 16 MiB, and a regular file
+  double max_duration = 3600.0;                      ///< [s] a path ends within an hour
+  double max_speed = 2.0;                            ///< [rad/s] of arc on the sphere, anywhere along the path
+  std::size_t max_points = 100000;                   ///< waypoints, rows of a file, rows of a raster
+  std::size_t max_file_bytes = util::kMaxFileBytes;  ///< a path file is at most 16 MiB, and a regular file
 };
 
 /// A path of tip directions over time. Before 0 it is at its start, after duration() at its end.
