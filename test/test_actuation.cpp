@@ -421,7 +421,7 @@ TEST(FlowRegulator, StepConvergesWithZeroSteadyStateError) {
   }
 }
 
-// Issue 16: with lead_time = the valve's time constant and the exact feedforward (no PI), the
+// The flow lead: with lead_time = the valve's time constant and the exact feedforward (no PI), the
 // first-order valve meets a ramp of desired flow on time; without the lead it lags by τ·slope (the
 // closed form of a first-order lag's ramp response, reached after t ≫ τ). The PI alone removes the
 // lag only after its integrator has caught up (half of it at worst with the test gains); the lead

@@ -1,4 +1,4 @@
-// Eq. (20) over N actuators (issue 14): the active-set solver against an independent exact solver
+// Eq. (20) over N actuators: the active-set solver against an independent exact solver
 // (enumeration of all 3^N active sets, each a QR least-squares solve) on random cases for N = 3…8,
 // against the 27-set solver of allocation.h for N = 3, and its errors.
 #include <gtest/gtest.h>

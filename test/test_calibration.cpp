@@ -1,4 +1,4 @@
-// The ROS-free calibration core (issue 7): synthetic recovery of ζ with its covariance, validation
+// The ROS-free calibration core: synthetic recovery of ζ with its covariance, validation
 // at the noise level, identifiability warnings, robust loss, data checks, CSV, the scene writer's
 // round trip through load_scene, and the quasistatic extraction from time series.
 //

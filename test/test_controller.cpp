@@ -846,7 +846,7 @@ TEST(ControllerOptions, RangesOfControllerCfgAreEnforced) {
   }
 }
 
-// --- Fast paths (issue 16) ------------------------------------------------------------------------
+// --- Fast paths -----------------------------------------------------------------------------------
 
 namespace {
 

@@ -1,4 +1,4 @@
-// Operator control's core pieces (issue 13), each against an independent truth: paths (slerp
+// Operator control's core pieces, each against an independent truth: paths (slerp
 // waypoints vs the closed form, raster rows and speed, the spiral bit for bit, the file loaders), the
 // reachable set (contains() vs the sweep samples, clip() vs a brute-force nearest point of the
 // boundary, the §7 spiral inside at 0° and 30°) and the look-at solver (the aimed line through the
@@ -695,7 +695,7 @@ TEST(LookAtOptions, AreValidated) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Any robot (issue 14): the second robot's reachable set and look-at, checked with an independent
+// Any robot: the second robot's reachable set and look-at, checked with an independent
 // solve of its model (GeneralRodSolver at the returned inputs).
 
 namespace {

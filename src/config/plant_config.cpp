@@ -118,7 +118,7 @@ plant::PlantModel nominal_plant(const Scene& nominal) {
     throw SceneError("jets", "missing (the plant needs the jets, or an actuators section)");
   plant::PlantModel p;
   p.rod.model = nominal.model;
-  if (!nominal.has_jets || !nominal.uniform()) p.rod.body = nominal.body;  // a general robot (issue 14)
+  if (!nominal.has_jets || !nominal.uniform()) p.rod.body = nominal.body;  // a general robot
   p.jets = nominal.jets;
   p.nozzle = nominal.nozzle;
   const Eigen::Vector3d g = nominal.model.gravity;

@@ -193,7 +193,7 @@ bool Controller::predicting() const {
   return params_.observer && params_.observer_prediction && params_.mode == LoopMode::kClosed && !first_cycle_;
 }
 
-// Issue 16: the observer compares the model at the measured inputs (with its estimate) with the
+// The disturbance observer compares the model at the measured inputs (with its estimate) with the
 // tracker, in closed loop.
 void Controller::observe_model_error(const ControllerInputs& in, const rod::RodSolution& sol,
                                      const ActuatedModel::Linearisation& lin, double dt) {
@@ -286,7 +286,7 @@ JetVector Controller::running_lower(double dt) {
   return lower;
 }
 
-// Issue 16 (allocation_smoothing): the step's inputs with their corners rounded along the jets' common
+// allocation_smoothing: the step's inputs with their corners rounded along the jets' common
 // mode n: q + a n. At w = 1 the target of a is c − y₀ (round_allocation: q's least common mode plus
 // the log-sum-exp amount at the scale σ ‖f‖, f the step's tip wrench with moments as forces at the
 // arm L); at speed weight w it is w (c − y₀), so a still reference gets q itself. a moves at most at

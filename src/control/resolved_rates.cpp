@@ -30,7 +30,7 @@ Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, const Ve
     integral_.setZero();
     primed_ = true;
   }
-  // The integral of the error (issue 16: on a ramp, a fast path, it leaves nearly no steady error),
+  // The integral of the error (on a ramp, a fast path, it leaves nearly no steady error),
   // bounded, weighted by the reference's speed and leaking as it slows (ControllerOptions::ki,
   // fast_path_rate).
   const Vec3 own_motion = rotation_between(prev_desired_, desired);  // x_des's own motion since the last step

@@ -1,4 +1,4 @@
-// Operator control on the simulated plant in lockstep (issue 13), one behaviour per .test file,
+// Operator control on the simulated plant in lockstep, one behaviour per .test file,
 // selected by ~scenario. The controller starts with path/type none (holding) and autostart:
 //   target_direction  0.4 rad away: error ≤ 0.02 rad within 0.4 / max_angular_rate + 3 s, then RMS
 //                     ≤ 0.015 rad over 5 s of hold

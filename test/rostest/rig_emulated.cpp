@@ -95,7 +95,7 @@ TEST(RigEmulated, PoseToControllerCommandToBoardTrackerLossClosesValves) {
   std::string tracker_error, valves_error;
   ros::Subscriber s1 = nh.subscribe<hydrojet_control::ControllerStatus>(
       names::kControllerStatus, 100, [&](const hydrojet_control::ControllerStatus::ConstPtr& m) { status = *m; });
-  // Tip pose stamps and the device frame numbers (issue 15).
+  // Tip pose stamps and the device frame numbers.
   std::vector<ros::Time> tip_stamps, frame_stamps;
   std::vector<uint32_t> frames;
   bool tip_stamps_increase = true;
@@ -118,7 +118,7 @@ TEST(RigEmulated, PoseToControllerCommandToBoardTrackerLossClosesValves) {
         ++jet_msgs;
         jets_all_valid += m->flow_valid.size() == 3 && m->flow_valid[0] && m->flow_valid[1] && m->flow_valid[2];
       });
-  // The device's frame number of each tip pose, on its own topic with the pose's stamp (issue 15).
+  // The device's frame number of each tip pose, on its own topic with the pose's stamp.
   ros::Subscriber s6 =
       nh.subscribe<std_msgs::Header>(names::kTipFrameNumber, 100, [&](const std_msgs::Header::ConstPtr& m) {
         frames.push_back(m->seq);

@@ -1,4 +1,4 @@
-// Eq. (20) for any actuator set (issue 14): N ≤ 8 inputs with lower and upper bounds, any set of
+// Eq. (20) for any actuator set: N ≤ 8 inputs with lower and upper bounds, any set of
 // actuated wrench components (1..6 rows). ROS-free (Eigen only).
 //
 //   minimise   ‖A q − w_des‖² + λ ‖q‖²     subject to   q_min ≤ q ≤ q_max

@@ -5,7 +5,7 @@
 //   e = Q_des − Q_meas
 //   I ← I + k_i e dt      (unless frozen, see below)
 //   u = clamp(k_ff (Q_des + T_lead dQ_des/dt) + k_p e + I,  output_min, output_max)
-// T_lead (issue 16): the feedforward inverts a first-order valve lag of that time constant, so that
+// T_lead (for fast paths): the feedforward inverts a first-order valve lag of that time constant, so that
 // a fast-changing desired flow is met on time, not one valve time constant late (0 = off). The rate
 // is the backward difference of Q_des over dt (the desired flow is the controller's smooth command).
 // Anti-windup by conditional integration (clamping): the integration step is skipped when the output

@@ -7,7 +7,7 @@
 //   clipped to the reachable set; x_obs) → oscillation check → command_inputs (lines 5, 7, 9/12:
 //   DirectionPd, then input_step: eq. 19 on J_q and eq. 20's bounds in one box QP, rate and magnitude
 //   limits) → actuate (eq. 26, flow regulators: JetActuation) → finish_cycle.
-// Any robot of issue 14 (segments, point loads, N actuators anywhere); the HydroJet's results are
+// Any follower-actuated robot (segments, point loads, N actuators anywhere); the HydroJet's results are
 // those of the tip-force formulation (resolved_rates.h).
 // ROS-free (Eigen, the rod and actuation libraries). Time is passed in; nothing reads a clock.
 #pragma once
@@ -81,7 +81,7 @@ class Controller {
   /// Backbone of the model at the last converged solve: segments+1 points [m], base frame.
   std::vector<Vec3> model_shape(int segments) const { return model_.shape(segments); }
 
-  /// The disturbance observer's estimate of the model error (issue 16; zero when it is off).
+  /// The disturbance observer's estimate of the model error (zero when it is off).
   const DisturbanceObserver& observer() const { return observer_; }
 
   /// The model's forward kinematics at inputs q [N] (for open-loop prediction and tests).

@@ -23,7 +23,7 @@ struct ControllerOptions {
   LoopMode mode = LoopMode::kClosed;
   double kp = 3.0;  ///< K_p of eq. (17) [1/s]: fraction of the direction error corrected per second
   double kd = 0.0;  ///< K_d of eq. (17) [-]: weight of the error change per step
-  /// K_i [1/s²]: the integral of the direction error (issue 16): the law of eq. (17) integrates the
+  /// K_i [1/s²]: the integral of the direction error (for fast paths): the law of eq. (17) integrates the
   /// tip force, so it is type 1 and a path at speed v leaves an error ≈ (1 − gain ratio)·v/K_p when
   /// the model's gain differs from the plant's; K_i makes it type 2 (no steady error on a ramp).
   /// Weighted by the reference's speed (fast_path_rate), with its leak the law is nearly type 2: the
@@ -33,9 +33,9 @@ struct ControllerOptions {
   double max_integral = 0.1;  ///< |∫x_err dt| is kept below this [rad s] (anti-windup)
   double feedforward = 1.0;   ///< weight of the path's own motion per step [-] (0 = pure PD)
   /// The feedforward follows the path this far ahead [s]: the loop's lag (flow loop, the rod's
-  /// first mode) that a fast path would otherwise leave as error (issue 16). 0: no lead.
+  /// first mode) that a fast path would otherwise leave as error. 0: no lead.
   double lead_time = 0.0;
-  /// Issue 16: the disturbance observer (disturbance_observer.h) in closed loop: the model is
+  /// The disturbance observer (disturbance_observer.h) in closed loop: the model is
   /// loaded with its estimate of the model error as a tip force (so J_q and C^b are taken nearer the
   /// plant's equilibrium). observer_time_constant: τ [s] of the estimate.
   bool observer = false;
@@ -50,8 +50,8 @@ struct ControllerOptions {
   /// While the reference moves, each jet's force is at least w · min_jet_force [N] (w: fast_path_rate;
   /// force actuators: unaffected; at most half a jet's q_max). The jets idle instead of closing, so
   /// that their flows do not cross the valves' dead zone, nor the thrust law's √ at zero, each time the
-  /// tip force turns past a jet: on a fast path every such switch kicked the first bending mode
-  /// (issue 16). Held still, the jets close as before (no water spent on idling). 0: jets close.
+  /// tip force turns past a jet: on a fast path every such switch kicked the first bending mode.
+  /// Held still, the jets close as before (no water spent on idling). 0: jets close.
   /// The idle force rises and falls at most at max_force_rate; the jets' common force can take the
   /// command's magnitude up to about min_jet_force over max_force, and path points on the edge of the
   /// reachable set (swept without idling) out of reach by as much.
@@ -75,7 +75,7 @@ struct ControllerOptions {
   /// (fast_path_rate), the offset moving at most at max_common_force_rate. Each
   /// time the tip force turns past a jet the box QP's active set changes and every jet's force rate
   /// steps; through the jets' unequal valve lags and the thrust law's √ that step is a tip-force
-  /// transient that kicks the first bending mode (issue 16). Rounded, the jets' forces are smooth
+  /// transient that kicks the first bending mode. Rounded, the jets' forces are smooth
   /// functions of the tip force; with the scale in proportion to ‖f‖, the same function of its
   /// direction at every magnitude (a corner is rounded over the same angle), and nothing at f = 0.
   /// A reference that never moved: nothing (the paper's allocation, no water spent); one that has

@@ -1,4 +1,4 @@
-// Online estimate of the model's error as a tip force (issue 16; after the HydroJet group's
+// Online estimate of the model's error as a tip force (after the HydroJet group's
 // follow-up, which estimated a disturbance wrench from orientation feedback). The quasi-static model
 // at the measured inputs, loaded in addition with the estimate f_d (a force at the tip, tip frame),
 // is driven to point where the tracker says:

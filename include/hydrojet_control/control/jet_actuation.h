@@ -1,5 +1,5 @@
 // The actuators' side of a control cycle, one entry per actuator of the model (the HydroJet's three
-// jets of eq. 24, or any follower actuators of issue 14):
+// jets of eq. 24, or any follower actuators a scene describes):
 //   observation: jets: measured flows → jet forces q_obs by the thrust equation (26); actuators of
 //                type force: their measured force (Algorithm 1, line 4);
 //   command:     inputs q → jets: flows by eq. (26) → valve duties by the per-jet PI flow

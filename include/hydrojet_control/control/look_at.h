@@ -1,4 +1,4 @@
-// Aim the camera at a point (issue 13): the camera looks along the tip z-axis, so the tip direction d
+// Aim the camera at a point: the camera looks along the tip z-axis, so the tip direction d
 // must make the line through the tip p_tip along d pass through the point P, with P in front. The tip
 // position moves with the direction, so d is found on the model as the fixed point d = u(d),
 // u = (P − p_tip)/|P − p_tip|, solved by a damped Gauss–Newton iteration on the actuator inputs q of

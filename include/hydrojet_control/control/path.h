@@ -1,4 +1,4 @@
-// Tip-direction paths an operator or a script can ask the controller to follow (issue 13): the §7.1
+// Tip-direction paths an operator or a script can ask the controller to follow: the §7.1
 // spiral of eq. (28), a raster (a gastric survey: rows of constant ϑ), waypoints (linear on the sphere
 // between them) and a table from a file (t, ϑ, φ rows). Directions are unit tip z-axes in the base frame.
 // ROS-free (Eigen, yaml-cpp for the file loader).

@@ -1,4 +1,4 @@
-// The tip directions the robot can reach (issue 13): actuator inputs within their bounds and the
+// The tip directions the robot can reach: actuator inputs within their bounds and the
 // model's equilibrium elastically stable with σ_c (eq. 23) ≥ min_stability_margin and eig_min > 0.
 // Computed once per model by a sweep like bench/stability_map.cpp (solve + C^b + stability per point,
 // warm-started along a serpentine) over the steering plane: the tip direction's change per input at

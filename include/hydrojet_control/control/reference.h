@@ -1,7 +1,7 @@
-// The reference x_des the controller tracks (issue 13): who commands it (one source at a time, the
+// The reference x_des the controller tracks: who commands it (one source at a time, the
 // latest command wins) and how it moves. A new target is not a step: the reference moves toward it
 // along the great circle at most max_angular_rate [rad/s]; a path, once the reference is on it,
-// is followed as written at its own speed (issue 16: the paper's printed rates). Its own motion per
+// is followed as written at its own speed (the paper's printed rates). Its own motion per
 // step is the PD's feedforward (DirectionPd takes the change of x_des, eq. 17; preview() gives the
 // path ahead for a lead). Every commanded direction goes
 // through ReachableSet::clip first, so the reference never leaves the reachable set. Two sets:

@@ -61,7 +61,7 @@ class DirectionPd {
   double skipped_ = 0.0;          ///< time since the last correction, before this step [s] (skip)
 };
 
-/// Issue 16 (allocation_smoothing): the jets' common mode of the linearised rod: inputs on the jets
+/// For allocation_smoothing: the jets' common mode of the linearised rod: inputs on the jets
 /// alone that move the tip by nothing to first order (the null space of J_q's jet columns; J_q:
 /// tip twist per unit input), the one nearest to every jet equal, scaled to a largest entry of 1.
 /// Zero when there is none that raises every jet (fewer jets than the rank of their tip motion, or
@@ -100,7 +100,7 @@ struct InputStep {
   std::string message;  ///< why not ok (the inputs are then the base, clamped into the bounds)
 };
 
-/// eq. (19) on the actuation Jacobian (issue 14), Algorithm 1 lines 7 to 12 in input space: the tip
+/// eq. (19) on the actuation Jacobian, Algorithm 1 lines 7 to 12 in input space: the tip
 /// direction d turns by δd = ω × d = −d̂ R J_q,ω δq per input change δq, so with M = −d̂ R(L) J_q,ω
 /// (3×N, rank ≤ 2: only the task, the tip direction, is resolved) the new inputs are
 ///   q = argmin_{lower ≤ q ≤ upper} ‖M (q − base) − x_cntr × d‖² + μ² ‖W̃ (q − base)‖² + λ ‖q‖²,

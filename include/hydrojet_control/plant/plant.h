@@ -33,7 +33,7 @@ struct ModelMismatch {
 
 /// The simulated HydroJet (or any robot a scene describes) as it truly is.
 struct PlantModel {
-  /// The true rod (its model.gravity is set from base_tilt). A general robot (issue 14) in rod.body:
+  /// The true rod (its model.gravity is set from base_tilt). A general robot in rod.body:
   /// its segments, point loads and actuators; its jets then each have a valve (valves in turn), its
   /// force actuators a drive. Empty rod.body: the HydroJet's uniform rod with the three jets below.
   DynamicRodModel rod;
@@ -46,7 +46,7 @@ struct PlantModel {
   /// Force actuators (type force): first-order lag of the force behind its drive [s].
   double thruster_time_constant = 0.02;
   /// An external follower wrench at the tip, tip frame [N] and [N m] (a disturbance: tissue contact,
-  /// a tether; issue 16's observer test). Zero by default.
+  /// a tether; the disturbance observer's test). Zero by default.
   Eigen::Vector3d external_tip_force = Eigen::Vector3d::Zero();
   Eigen::Vector3d external_tip_moment = Eigen::Vector3d::Zero();
   double base_tilt = 0.0;  ///< base turned about its own x-axis [rad] (§7: 0 or 30°)
