@@ -5,9 +5,9 @@
 //   BM_WarmSolveGeneral, BM_WarmSolveComplianceGeneral
 //                            the same with the general right-hand side (every term, Cosserat form)
 //                            instead of the one compiled for the scene's terms: the specialization gain
-//   BM_GeneralWarmSolveJacobian  the second robot (config/scenes/two_segment_thrusters.yaml, GeneralRodSolver):
+//   BM_GeneralWarmSolveJacobian  the second robot (config/scenes/two_segment_thrusters.yaml, RodSolver):
 //                            warm solve + C^b and J_q along a 200-point input path
-//   BM_GeneralWarmSolveJacobianHydroJet  the HydroJet's 30° scene on GeneralRodSolver (its three jets
+//   BM_GeneralWarmSolveJacobianHydroJet  the HydroJet's 30° scene on RodSolver (its three jets
 //                            as actuators), for the cost of the general path against BM_WarmSolveCompliance
 //   BM_StabilityMap3000/0, /30
 //                            σ_c over 3000 jet-force combinations (paper Figs. 12–13), 0° and 30°
@@ -37,8 +37,8 @@
 #include "hydrojet_control/control/controller.h"
 #include "hydrojet_control/control/look_at.h"
 #include "hydrojet_control/control/reachable_set.h"
-#include "hydrojet_control/rod/general_rod_solver.h"
-#include "hydrojet_control/rod/shooting_solver.h"
+#include "hydrojet_control/rod/rod_solver.h"
+#include "hydrojet_control/rod/rod_solver.h"
 #include "hydrojet_control/rod/stability.h"
 
 namespace {
@@ -78,7 +78,7 @@ double path_tip_error(const hydrojet::config::Scene& sc) {
   ref.integrator.type = hydrojet::rod::IntegratorType::kRk8;
   ref.integrator.steps = 256;
   ref.residual_tolerance = 1e-13;
-  hydrojet::rod::ShootingSolver a(sc.model, sc.solver), b(sc.model, ref);
+  hydrojet::rod::RodSolver a(sc.model, sc.solver), b(sc.model, ref);
   double worst = 0.0;
   for (const auto& w : path()) {
     const auto sa = a.solve(w), sb = b.solve(w);
@@ -90,7 +90,7 @@ double path_tip_error(const hydrojet::config::Scene& sc) {
 
 void BM_ColdSolve(benchmark::State& state) {
   const auto sc = scene();
-  hydrojet::rod::ShootingSolver s(sc.model, sc.solver);
+  hydrojet::rod::RodSolver s(sc.model, sc.solver);
   size_t i = 0;
   for (auto _ : state) {
     s.reset();
@@ -101,7 +101,7 @@ void BM_ColdSolve(benchmark::State& state) {
 
 void BM_WarmSolve(benchmark::State& state) {
   const auto sc = scene();
-  hydrojet::rod::ShootingSolver s(sc.model, sc.solver);
+  hydrojet::rod::RodSolver s(sc.model, sc.solver);
   size_t i = 0;
   for (auto _ : state) benchmark::DoNotOptimize(s.solve(path()[i++ % path().size()]));
   state.counters["tip_error_m"] = path_tip_error(sc);
@@ -109,7 +109,7 @@ void BM_WarmSolve(benchmark::State& state) {
 
 void BM_WarmSolveCompliance(benchmark::State& state) {
   const auto sc = scene();
-  hydrojet::rod::ShootingSolver s(sc.model, sc.solver);
+  hydrojet::rod::RodSolver s(sc.model, sc.solver);
   size_t i = 0;
   for (auto _ : state) {
     benchmark::DoNotOptimize(s.solve(path()[i++ % path().size()]));
@@ -125,7 +125,7 @@ hydrojet::rod::ShootingOptions general(hydrojet::rod::ShootingOptions s) {
 
 void BM_WarmSolveGeneral(benchmark::State& state) {
   const auto sc = scene();
-  hydrojet::rod::ShootingSolver s(sc.model, general(sc.solver));
+  hydrojet::rod::RodSolver s(sc.model, general(sc.solver));
   size_t i = 0;
   for (auto _ : state) benchmark::DoNotOptimize(s.solve(path()[i++ % path().size()]));
   state.SetLabel(s.variant_name());
@@ -133,7 +133,7 @@ void BM_WarmSolveGeneral(benchmark::State& state) {
 
 void BM_WarmSolveComplianceGeneral(benchmark::State& state) {
   const auto sc = scene();
-  hydrojet::rod::ShootingSolver s(sc.model, general(sc.solver));
+  hydrojet::rod::RodSolver s(sc.model, general(sc.solver));
   size_t i = 0;
   for (auto _ : state) {
     benchmark::DoNotOptimize(s.solve(path()[i++ % path().size()]));
@@ -146,11 +146,11 @@ void BM_WarmSolveComplianceGeneral(benchmark::State& state) {
 /// 90 % of its range with its own phase.
 void general_path_benchmark(benchmark::State& state, const std::string& name) {
   const auto sc = hydrojet::config::load_scene(std::string(HYDROJET_SOURCE_DIR) + "/config/scenes/" + name + ".yaml");
-  hydrojet::rod::GeneralRodSolver s(sc.body, sc.solver);
+  hydrojet::rod::RodSolver s(sc.body, sc.solver);
   const int N = s.actuator_count();
-  std::vector<hydrojet::rod::ActuatorInputs> qs;
+  std::vector<hydrojet::rod::InputVector> qs;
   for (int i = 0; i < 200; ++i) {
-    hydrojet::rod::ActuatorInputs q(N);
+    hydrojet::rod::InputVector q(N);
     for (int j = 0; j < N; ++j) {
       const auto& a = sc.body.actuators[j];
       q[j] = a.min_force + (a.max_force - a.min_force) * (0.5 + 0.4 * std::sin(2.0 * M_PI * i / 200.0 + 1.7 * j));
@@ -182,7 +182,7 @@ void BM_StabilityMap3000(benchmark::State& state) {
   double min_eig = 0.0;
   int failures = 0;
   for (auto _ : state) {
-    hydrojet::rod::ShootingSolver s(sc.model, sc.solver);
+    hydrojet::rod::RodSolver s(sc.model, sc.solver);
     min_eig = 1e300;
     failures = 0;
     for (const TipWrench& x : w) {
@@ -206,7 +206,7 @@ hydrojet::control::RobotModel robot_model() {
 void BM_LookAt(benchmark::State& state) {
   using hydrojet::control::Vec3;
   hydrojet::control::LookAtSolver solver(robot_model());
-  hydrojet::rod::ShootingSolver rest(scene().model, scene().solver);
+  hydrojet::rod::RodSolver rest(scene().model, scene().solver);
   const hydrojet::rod::RodSolution s = rest.solve(TipWrench());
   const Vec3 d = s.tip_rotation.col(2), side = d.cross(Vec3::UnitX()).normalized(), up = d.cross(side);
   int i = 0, failures = 0, iterations = 0;
@@ -260,11 +260,11 @@ void control_cycle(benchmark::State& state, bool papers_law) {
   if (papers_law) c.ki = c.min_jet_force = c.allocation_smoothing = 0.0;
   const hydrojet::config::Scene sc = scene();
   hc::Controller ctl(hydrojet::config::make_controller_model(sc, o.flow_regulator), c);
-  hydrojet::rod::ShootingSolver plant(sc.model, sc.solver);
+  hydrojet::rod::RodSolver plant(sc.model, sc.solver);
   const hydrojet::actuation::JetMap jets(sc.jets);
   hc::ControllerInputs in;
   in.tip_valid = in.flow_valid = true;
-  in.flows = hc::JetVector::Zero(3);
+  in.flows = hc::InputVector::Zero(3);
   std::vector<double> cycle_us;
   int aborts = 0;
   double t = 0.0;
@@ -280,7 +280,7 @@ void control_cycle(benchmark::State& state, bool papers_law) {
     if (out.state != hc::ControllerState::kRunning) ctl.start(t);  // the path ended: again
     hydrojet::rod::TipWrench w;
     for (int i = 0; i < 3; ++i) in.flows[i] = std::clamp(out.valve_command[i], 0.0, 1.0) * 1.6e-5;
-    hc::JetVector q(3);
+    hc::InputVector q(3);
     for (int i = 0; i < 3; ++i) q[i] = hydrojet::actuation::force_from_flow(in.flows[i], sc.nozzle);
     w.force = jets.wrench(Eigen::Vector3d(q)).head<3>();
     in.tip_rotation = plant.solve(w).tip_rotation;

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "hydrojet_control/config/scene.h"
-#include "hydrojet_control/rod/shooting_solver.h"
+#include "hydrojet_control/rod/rod_solver.h"
 #include "hydrojet_control/rod/so3.h"
 
 namespace hydrojet {
@@ -156,7 +156,7 @@ inline rod::ShootingOptions reference_settings(const Case& c, bool rk8) {
 
 inline Reference reference(const Case& c) {
   Reference r;
-  rod::ShootingSolver a(c.model, reference_settings(c, true)), b(c.model, reference_settings(c, false));
+  rod::RodSolver a(c.model, reference_settings(c, true)), b(c.model, reference_settings(c, false));
   const rod::RodSolution sa = a.solve(c.wrench), sb = b.solve(c.wrench);
   if (!sa.converged || !sb.converged) {
     r.message = "reference did not converge: rk8 " + (sa.converged ? std::string("ok") : sa.message) + ", dopri5 " +

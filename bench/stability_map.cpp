@@ -70,7 +70,7 @@ int main(int argc, char** argv) {
     int folds;
   };
   std::vector<Row> rows(grid.size());
-  rod::ShootingSolver solver(sc.model, sc.solver);
+  rod::RodSolver solver(sc.model, sc.solver);
   int failures = 0, folds = 0;
   double min_sigma = 1e300, min_eig = 1e300;
   const auto t0 = std::chrono::steady_clock::now();

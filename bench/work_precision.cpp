@@ -156,7 +156,7 @@ int stiffness() {
   for (const Case& c : all) {
     rod::ShootingOptions st = reference_settings(c, false);
     st.integrator.tolerance = 1e-10;
-    rod::ShootingSolver solver(c.model, st);
+    rod::RodSolver solver(c.model, st);
     const rod::RodSolution sol = solver.solve(c.wrench);
     if (!sol.converged) {
       std::printf("| %s | not converged: %s | | | |\n", c.name.c_str(), sol.message.c_str());
@@ -224,7 +224,7 @@ int extreme(const std::string& out) {
     const double t0 = now_us();
     const Reference ref = reference(c);
     const double tref = (now_us() - t0) / 1e6;
-    rod::ShootingSolver probe(c.model, rod::ShootingOptions());
+    rod::RodSolver probe(c.model, rod::ShootingOptions());
     char agree[32] = "none";
     if (ref.ok) std::snprintf(agree, sizeof agree, "%.0e", ref.agreement);
     char head[200];
@@ -242,7 +242,7 @@ int extreme(const std::string& out) {
       st.integrator.type = k.type;
       if (k.steps) st.integrator.steps = k.steps;
       if (k.tol > 0.0) st.integrator.tolerance = k.tol;
-      rod::ShootingSolver s(c.model, st);
+      rod::RodSolver s(c.model, st);
       const double t1 = now_us();
       const rod::RodSolution sol = s.solve(c.wrench);
       const double ms = (now_us() - t1) / 1e3;
@@ -330,7 +330,7 @@ int main(int argc, char** argv) {
       path.push_back(w);
     }
     for (const Method& m : methods(quick)) {
-      rod::ShootingSolver s(c.model, m.settings);
+      rod::RodSolver s(c.model, m.settings);
       const double tc0 = now_us();
       const rod::RodSolution sol = s.solve(c.wrench);
       const double cold = now_us() - tc0;

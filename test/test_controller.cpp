@@ -42,7 +42,7 @@ actuation::FlowRegulatorOptions flow_gains() {
 /// Quasi-static plant: valves set flows instantly, flows set jet forces by eq. (26), the rod
 /// settles at once. Its rod may differ from the controller's model.
 struct StaticPlant {
-  rod::ShootingSolver rod;
+  rod::RodSolver rod;
   actuation::JetMap jets;
   actuation::Nozzle nozzle;
   Vec3 flows = Vec3::Zero();
@@ -602,7 +602,7 @@ namespace {
 struct HydroJetLinearisation {
   control::Mat3 R;
   control::ActuatedModel::Linearisation lin;
-  control::JetVector lower, upper;
+  rod::InputVector lower, upper;
 };
 
 HydroJetLinearisation hydrojet_linearisation(const Eigen::Vector3d& q) {
@@ -1093,8 +1093,8 @@ TEST(Controller, IdlingJetsStayOpenAndTheTargetIsStillReached) {
 // J_q = C^b W has that null space and no other; two jets have none; a jet left out gets 0.
 TEST(RoundedAllocation, TheJetsCommonModeMovesTheTipByNothing) {
   const HydroJetLinearisation h = hydrojet_linearisation(Eigen::Vector3d(0.05, 0.02, 0.0));
-  const control::JetVector jets = control::JetVector::Ones(3);
-  const control::JetVector n = control::jet_common_mode(h.lin.actuation, jets);
+  const rod::InputVector jets = rod::InputVector::Ones(3);
+  const rod::InputVector n = control::jet_common_mode(h.lin.actuation, jets);
   ASSERT_EQ(n.size(), 3);
   const actuation::JetMap map(test::scene("hydrojet_0deg").jets);
   Eigen::Vector3d closed = map.planar().row(0).transpose().cross(map.planar().row(1).transpose());
@@ -1103,7 +1103,7 @@ TEST(RoundedAllocation, TheJetsCommonModeMovesTheTipByNothing) {
   EXPECT_LT((n - closed).norm(), 1e-9) << n.transpose() << " vs " << closed.transpose();
   EXPECT_GT(n.minCoeff(), 0.5);  // misaligned by 0.06–0.12 rad: near, not at, all equal
   EXPECT_LT((h.lin.actuation * n).norm(), 1e-9 * h.lin.actuation.norm());
-  control::JetVector two = jets;
+  rod::InputVector two = jets;
   two[2] = 0.0;
   EXPECT_TRUE(control::jet_common_mode(h.lin.actuation, two).isZero());
 }
@@ -1115,8 +1115,8 @@ TEST(RoundedAllocation, TheJetsCommonModeMovesTheTipByNothing) {
 // h; rounded, none (O(h²)), and the tip force is the same.
 TEST(RoundedAllocation, TheLogSumExpAmountAndNoCornerWhereTheForcePassesAJet) {
   const double s = 0.035, a = 0.02, b = 0.07, d = 0.01;
-  const control::JetVector ones = control::JetVector::Ones(3), zero = control::JetVector::Zero(3);
-  const control::JetVector q = (control::JetVector(3) << 0.0, a, b).finished();
+  const rod::InputVector ones = rod::InputVector::Ones(3), zero = rod::InputVector::Zero(3);
+  const rod::InputVector q = (rod::InputVector(3) << 0.0, a, b).finished();
   const control::AllocationRounding r = control::round_allocation(q, zero, ones, s);
   EXPECT_EQ(r.excess, 0.0);
   EXPECT_NEAR(r.amount, s * std::log(1.0 + std::exp(-a / s) + std::exp(-b / s)), 1e-15);
@@ -1138,7 +1138,7 @@ TEST(RoundedAllocation, TheLogSumExpAmountAndNoCornerWhereTheForcePassesAJet) {
     const Eigen::Vector2d F = 0.1 * Eigen::Vector2d(std::cos(phi), std::sin(phi));
     Eigen::Vector3d x = pinv * F;
     x -= (x.array() / n.array()).minCoeff() * n;  // least water: one jet at 0
-    control::JetVector q = x;
+    rod::InputVector q = x;
     if (round) q += control::round_allocation(q, zero, n, s).amount * n;
     EXPECT_LT((P * q - F).norm(), 1e-12);
     EXPECT_GE(q.minCoeff(), -1e-15);
@@ -1186,10 +1186,10 @@ TEST(Controller, TheRoundedAllocationSmoothsTheJetsAndLeavesTheTip) {
     StaticPlant plant(sc, sc.model);
     c.start(0.0);
     c.follow(std::make_shared<ConePath>(), 0.0);
-    std::vector<control::JetVector> q;
+    std::vector<rod::InputVector> q;
     double e2 = 0.0;
     int n = 0;
-    const control::JetVector upper = control::ActuatedModel(config::make_controller_model(sc, flow_gains())).upper();
+    const rod::InputVector upper = control::ActuatedModel(config::make_controller_model(sc, flow_gains())).upper();
     for (int k = 0; k < 1200; ++k) {
       const double t = k * kDt;
       const ControllerOutput out = c.update(plant.inputs(t));

@@ -1,5 +1,5 @@
 // Dynamic Cosserat rod (plant/dynamic_rod.h): static limit against the quasi-static Kirchhoff
-// ShootingSolver, free vibration against the cantilever-with-tip-mass estimate, Kelvin–Voigt
+// RodSolver, free vibration against the cantilever-with-tip-mass estimate, Kelvin–Voigt
 // damping, the HydroJet's response to a jet-force step, and input validation.
 #include <gtest/gtest.h>
 
@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "hydrojet_control/plant/dynamic_rod.h"
-#include "hydrojet_control/rod/general_rod_solver.h"
-#include "hydrojet_control/rod/shooting_solver.h"
+#include "hydrojet_control/rod/rod_solver.h"
+#include "hydrojet_control/rod/rod_solver.h"
 #include "hydrojet_control/rod/so3.h"
 
 using namespace hydrojet;
@@ -64,7 +64,7 @@ rod::RodSolution kirchhoff(const rod::RodModel& model, const rod::TipWrench& w) 
   st.integrator.type = rod::IntegratorType::kRk8;
   st.integrator.steps = 16;
   st.residual_tolerance = 1e-13;
-  rod::ShootingSolver solver(model, st);
+  rod::RodSolver solver(model, st);
   return solver.solve(w);
 }
 
@@ -128,7 +128,7 @@ TEST(DynamicRodStatic, ResetToStaticMatchesKirchhoffAndStaysPut) {
   ASSERT_TRUE(ref.converged) << ref.message;
   const double dp = (rod.tip_position() - ref.tip_position).norm();
   const double dr = rotation_error(rod.tip_rotation(), ref.tip_rotation);
-  std::printf("[ static ] reset_to_static vs ShootingSolver: |dp| = %.3e m, |dR| = %.3e rad\n", dp, dr);
+  std::printf("[ static ] reset_to_static vs RodSolver: |dp| = %.3e m, |dR| = %.3e rad\n", dp, dr);
   EXPECT_LT(dp, position_tolerance(p, rod.base_force().norm()));
   EXPECT_LT(dr, kRotationTolerance);
   EXPECT_EQ(rod.backbone().size(), static_cast<size_t>(p.nodes));
@@ -165,7 +165,7 @@ TEST(DynamicRodStatic, SettlesToKirchhoffSolutionUnderConstantForce) {
   ASSERT_TRUE(ref.converged) << ref.message;
   const double dp = (rod.tip_position() - ref.tip_position).norm();
   const double dr = rotation_error(rod.tip_rotation(), ref.tip_rotation);
-  std::printf("[ static ] settled after %d steps vs ShootingSolver: |dp| = %.3e m, |dR| = %.3e rad\n", steps, dp, dr);
+  std::printf("[ static ] settled after %d steps vs RodSolver: |dp| = %.3e m, |dR| = %.3e rad\n", steps, dp, dr);
   EXPECT_LT(dp, position_tolerance(p, rod.base_force().norm()));
   EXPECT_LT(dr, kRotationTolerance);
 
@@ -187,8 +187,8 @@ TEST(DynamicRodStatic, SettlesToKirchhoffSolutionUnderConstantForce) {
 // (reset_to_static) and after settling from a step of them (the jump conditions with their inertia),
 // the dynamic rod sits where the static general solver puts it (a second, independent method: its
 // stations, pieces and Kirchhoff kinematics), up to shear/extension and the grid.
-rod::GeneralRodModel two_segment_body() {
-  rod::GeneralRodModel b;
+rod::RodModel two_segment_body() {
+  rod::RodModel b;
   b.segments.resize(2);
   b.segments[0].length = 0.05;
   b.segments[0].stiffness = Vec3(1.5e-3, 1.5e-3, 5.6e-4);
@@ -226,15 +226,15 @@ TEST(DynamicRodGeneral, RestsAndSettlesWhereTheStaticGeneralSolverPutsIt) {
   p.tip_drag = 0.05;
   p.nodes = 31;
   DynamicRod rod(p);
-  rod::GeneralRodModel ref_model = p.body;
+  rod::RodModel ref_model = p.body;
   ref_model.tip_mass = p.model.tip_mass;
   ref_model.gravity = p.model.gravity;
   rod::ShootingOptions st;
   st.integrator.type = rod::IntegratorType::kRk8;
   st.integrator.steps = 16;
   st.residual_tolerance = 1e-13;
-  rod::GeneralRodSolver ref(ref_model, st);
-  rod::ActuatorInputs q(4);
+  rod::RodSolver ref(ref_model, st);
+  rod::InputVector q(4);
   q << 0.04, 0.03, 0.05, 0.02;
   ASSERT_TRUE(rod.set_inputs(q));
   ASSERT_TRUE(rod.reset_to_static(rod::TipWrench())) << rod.last_error();
@@ -243,7 +243,7 @@ TEST(DynamicRodGeneral, RestsAndSettlesWhereTheStaticGeneralSolverPutsIt) {
   const double tol = position_tolerance(p, rod.base_force().norm());
   std::printf("[ general ] at rest: |dp| = %.2e m, |dR| = %.2e rad (tolerance %.1e m); tip moved %.1f mm by q\n",
               (rod.tip_position() - a.tip_position).norm(), rotation_error(rod.tip_rotation(), a.tip_rotation), tol,
-              1e3 * (a.tip_position - ref.solve(rod::ActuatorInputs::Zero(4)).tip_position).norm());
+              1e3 * (a.tip_position - ref.solve(rod::InputVector::Zero(4)).tip_position).norm());
   EXPECT_LT((rod.tip_position() - a.tip_position).norm(), tol);
   EXPECT_LT(rotation_error(rod.tip_rotation(), a.tip_rotation), kRotationTolerance);
   // A step of the inputs: the rod moves (inertia of the masses at the nodes) and settles there.
@@ -266,7 +266,7 @@ TEST(DynamicRodGeneral, RestsAndSettlesWhereTheStaticGeneralSolverPutsIt) {
   EXPECT_LT(rotation_error(rod.tip_rotation(), b.tip_rotation), kRotationTolerance);
   EXPECT_GT((b.tip_position - a.tip_position).norm(), 5e-3) << "the inputs did move the tip";
   // A wrong input count is refused, naming both counts.
-  EXPECT_FALSE(rod.set_inputs(rod::ActuatorInputs::Zero(3)));
+  EXPECT_FALSE(rod.set_inputs(rod::InputVector::Zero(3)));
   EXPECT_NE(rod.last_error().find("3 inputs for 4 actuators"), std::string::npos) << rod.last_error();
 }
 

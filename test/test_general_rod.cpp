@@ -1,11 +1,11 @@
-// GeneralRodSolver (issue 14): segments, point loads and actuators along the body, checked against
-// closed forms of beam theory, against ShootingSolver where both apply (a uniform rod with its
+// RodSolver (issue 14): segments, point loads and actuators along the body, checked against
+// closed forms of beam theory, against RodSolver where both apply (a uniform rod with its
 // actuation at the tip), and C^b / J_q against central differences of full solves.
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "hydrojet_control/rod/general_rod_solver.h"
+#include "hydrojet_control/rod/rod_solver.h"
 #include "hydrojet_control/rod/so3.h"
 #include "test_helpers.h"
 
@@ -35,8 +35,8 @@ rod::Actuator actuator(double at, const Vec3& direction, const Vec3& position = 
   return a;
 }
 
-rod::ActuatorInputs inputs(std::initializer_list<double> q) {
-  rod::ActuatorInputs v(static_cast<int>(q.size()));
+rod::InputVector inputs(std::initializer_list<double> q) {
+  rod::InputVector v(static_cast<int>(q.size()));
   int i = 0;
   for (double x : q) v[i++] = x;
   return v;
@@ -63,8 +63,8 @@ Vec3 arc_chord(const Vec3& u, double l) {
 
 /// A scene-like model with every kind of station: two segments (the distal precurved, with weight),
 /// a follower and a dead point load, a point mass, actuators at the tip and mid-body with moment arms.
-rod::GeneralRodModel busy_model(rod::RodKind kind) {
-  rod::GeneralRodModel m;
+rod::RodModel busy_model(rod::RodKind kind) {
+  rod::RodModel m;
   m.kind = kind;
   m.segments = {segment(0.05, 1.5e-3, 5.6e-4, Vec3(0.0, 0.0, 0.0), 0.02),
                 segment(0.04, 4.0e-4, 1.5e-4, Vec3(0.3, 2.0, 0.0), 0.015)};
@@ -99,12 +99,12 @@ rod::GeneralRodModel busy_model(rod::RodKind kind) {
 TEST(GeneralRodClosedForm, CantileverWithAForceAtA) {
   const double L = 0.09, EI = 6.01e-4, GJ = 2.23e-4;
   for (double a : {0.02, 0.045, 0.07, 0.09}) {
-    rod::GeneralRodModel m;
+    rod::RodModel m;
     m.segments = {segment(L, EI, GJ)};
     m.actuators = {actuator(a, Vec3::UnitX())};
-    rod::GeneralRodSolver solver(m, test::rk8(8));
+    rod::RodSolver solver(m, test::rk8(8));
     ASSERT_TRUE(solver.solve(inputs({0.0})).converged);
-    const rod::GeneralCompliance c = solver.compliance();
+    const rod::Compliance c = solver.compliance();
     ASSERT_TRUE(c.ok);
     const double d = a * a * (3 * L - a) / (6 * EI), slope = a * a / (2 * EI);
     EXPECT_NEAR(c.actuation(0, 0), d, 1e-9 * d) << "a = " << a;
@@ -121,11 +121,11 @@ TEST(GeneralRodClosedForm, CantileverWithAForceAtA) {
 // b = L − a (∫ M(s)(L − s)/EI(s) ds with M = P(L − s)).
 TEST(GeneralRodClosedForm, TwoSegmentCantileverComposite) {
   const double a = 0.05, b = 0.04, L = a + b, EI1 = 1.5e-3, EI2 = 4.0e-4;
-  rod::GeneralRodModel m;
+  rod::RodModel m;
   m.segments = {segment(a, EI1, 5.6e-4), segment(b, EI2, 1.5e-4)};
-  rod::GeneralRodSolver solver(m, test::rk8(8));
-  ASSERT_TRUE(solver.solve(rod::ActuatorInputs(0)).converged);
-  const rod::GeneralCompliance c = solver.compliance();
+  rod::RodSolver solver(m, test::rk8(8));
+  ASSERT_TRUE(solver.solve(rod::InputVector(0)).converged);
+  const rod::Compliance c = solver.compliance();
   ASSERT_TRUE(c.ok);
   const double d = (L * L * L - b * b * b) / (3 * EI1) + b * b * b / (3 * EI2);
   const double slope = (L * L - b * b) / (2 * EI1) + b * b / (2 * EI2);
@@ -139,11 +139,11 @@ TEST(GeneralRodClosedForm, TwoSegmentCantileverComposite) {
 // Precurved unloaded segments are piecewise arcs: tip frame Π exp(l_k ũ_k), tip position the chain of
 // the arcs' chords, and the shape passes through each segment's end.
 TEST(GeneralRodClosedForm, PrecurvedSegmentsArePiecewiseArcs) {
-  rod::GeneralRodModel m;
+  rod::RodModel m;
   m.segments = {segment(0.03, 1e-3, 4e-4, Vec3(0.0, 4.0, 0.0)), segment(0.025, 5e-4, 2e-4, Vec3(-6.0, 0.0, 3.0)),
                 segment(0.035, 8e-4, 3e-4, Vec3(2.0, 5.0, -1.0))};
-  rod::GeneralRodSolver solver(m, test::rk8(12));
-  const rod::RodSolution s = solver.solve(rod::ActuatorInputs(0));
+  rod::RodSolver solver(m, test::rk8(12));
+  const rod::RodSolution s = solver.solve(rod::InputVector(0));
   ASSERT_TRUE(s.converged) << s.message;
   Mat3 R = Mat3::Identity();
   Vec3 p = Vec3::Zero();
@@ -169,7 +169,7 @@ TEST(GeneralRodClosedForm, PrecurvedSegmentsArePiecewiseArcs) {
 }
 
 // Two identical segments are one rod; actuators at the tip are the tip follower wrench B q; both give
-// ShootingSolver's solution, C^b, and J_q = C^b B. Kirchhoff and Cosserat, with weight and precurvature.
+// RodSolver's solution, C^b, and J_q = C^b B. Kirchhoff and Cosserat, with weight and precurvature.
 TEST(GeneralRodEquivalence, IdenticalSegmentsAndTipActuatorsAreTheUniformRod) {
   for (rod::RodKind kind : {rod::RodKind::kKirchhoff, rod::RodKind::kCosserat}) {
     rod::RodModel u;
@@ -182,28 +182,28 @@ TEST(GeneralRodEquivalence, IdenticalSegmentsAndTipActuatorsAreTheUniformRod) {
     u.rod.axial_stiffness = 150.0;
     u.tip_mass = 0.00258;
     u.gravity = Vec3(0.0, 4.9, 8.5);
-    rod::GeneralRodModel g = rod::general_model(u);
+    rod::RodModel g = rod::general_model(u);
     rod::RodSegment half = g.segments[0];
     half.length = 0.045;
     g.segments = {half, half};
     g.actuators = {actuator(0.09, Vec3(1, 0, 0)), actuator(0.09, Vec3(-0.5, 0.8, 0.1), Vec3(0, 0, 0.003)),
                    actuator(0.09, Vec3(0, -1, 0), Vec3(0.004, 0, 0))};
-    const rod::ActuatorInputs q = inputs({0.12, 0.05, 0.09});
+    const rod::InputVector q = inputs({0.12, 0.05, 0.09});
     Eigen::Matrix<double, 6, 3> B;
     for (int j = 0; j < 3; ++j) B.col(j) = g.actuators[j].unit_wrench();
     const Vec6 w = B * q;
-    rod::ShootingSolver ref(u, test::rk8(8));
+    rod::RodSolver ref(u, test::rk8(8));
     rod::TipWrench tw;
     tw.force = w.head<3>();
     tw.moment = w.tail<3>();
     const rod::RodSolution a = ref.solve(tw);
-    rod::GeneralRodSolver gen(g, test::rk8(8));
+    rod::RodSolver gen(g, test::rk8(8));
     const rod::RodSolution b = gen.solve(q);
     ASSERT_TRUE(a.converged && b.converged) << a.message << " / " << b.message;
     EXPECT_LT((a.tip_position - b.tip_position).norm(), 1e-11);
     EXPECT_LT(so3::log(a.tip_rotation.transpose() * b.tip_rotation).norm(), 1e-10);
     const rod::Compliance ca = ref.compliance();
-    const rod::GeneralCompliance cb = gen.compliance();
+    const rod::Compliance cb = gen.compliance();
     ASSERT_TRUE(ca.ok && cb.ok);
     EXPECT_LT((ca.body - cb.body).norm(), 1e-8 * ca.body.norm());
     EXPECT_LT((cb.actuation - ca.body * B).norm(), 1e-8 * (ca.body * B).norm());
@@ -216,8 +216,8 @@ TEST(GeneralRodEquivalence, JetsSceneIsItsThreeActuators) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const config::Scene sc = test::scene(name);
     ASSERT_EQ(sc.body.actuators.size(), 3u);
-    rod::ShootingSolver ref(sc.model, sc.solver);
-    rod::GeneralRodSolver gen(sc.body, sc.solver);
+    rod::RodSolver ref(sc.model, sc.solver);
+    rod::RodSolver gen(sc.body, sc.solver);
     for (const Vec3& jets : {Vec3(0.2, 0.05, 0.0), Vec3(0.0, 0.15, 0.21), Vec3(0.1, 0.1, 0.1)}) {
       rod::TipWrench w;
       w.force = test::jet_force(jets[0], jets[1], jets[2]);
@@ -235,18 +235,18 @@ TEST(GeneralRodEquivalence, JetsSceneIsItsThreeActuators) {
 // arms mid-body and at the tip), Kirchhoff and Cosserat.
 TEST(GeneralRodSensitivities, ComplianceAndActuationJacobianMatchCentralDifferences) {
   for (rod::RodKind kind : {rod::RodKind::kKirchhoff, rod::RodKind::kCosserat}) {
-    const rod::GeneralRodModel m = busy_model(kind);
+    const rod::RodModel m = busy_model(kind);
     rod::ShootingOptions opt = test::rk8(16, 1e-13);
-    rod::GeneralRodSolver solver(m, opt);
-    const rod::ActuatorInputs q = inputs({0.06, 0.03, 0.05, 0.04});
+    rod::RodSolver solver(m, opt);
+    const rod::InputVector q = inputs({0.06, 0.03, 0.05, 0.04});
     const rod::RodSolution s0 = solver.solve(q);
     ASSERT_TRUE(s0.converged) << s0.message;
-    const rod::GeneralCompliance c = solver.compliance();
+    const rod::Compliance c = solver.compliance();
     ASSERT_TRUE(c.ok);
     const double h = 1e-5;
-    rod::GeneralRodSolver probe(m, opt);
+    rod::RodSolver probe(m, opt);
     for (int j = 0; j < 4; ++j) {
-      rod::ActuatorInputs qp = q, qm = q;
+      rod::InputVector qp = q, qm = q;
       qp[j] += h;
       qm[j] -= h;
       probe.solve(q);
@@ -277,15 +277,15 @@ TEST(GeneralRodSensitivities, ComplianceAndActuationJacobianMatchCentralDifferen
 // M a/EI, tip deflection M a(2L − a)/(2EI) (small M: linear).
 TEST(GeneralRodClosedForm, PointMomentAtABendsOnlyTheProximalPart) {
   const double L = 0.09, EI = 6.01e-4, a = 0.04, M = 1e-6;
-  rod::GeneralRodModel m;
+  rod::RodModel m;
   m.segments = {segment(L, EI, 2.23e-4)};
   rod::PointLoad l;
   l.at = a;
   l.moment = Vec3(0.0, M, 0.0);
   l.frame = rod::LoadFrame::kBase;
   m.loads = {l};
-  rod::GeneralRodSolver solver(m, test::rk8(8));
-  const rod::RodSolution s = solver.solve(rod::ActuatorInputs(0));
+  rod::RodSolver solver(m, test::rk8(8));
+  const rod::RodSolution s = solver.solve(rod::InputVector(0));
   ASSERT_TRUE(s.converged) << s.message;
   const double slope = M * a / EI, d = M * a * (2 * L - a) / (2 * EI);
   EXPECT_NEAR(so3::log(s.tip_rotation).y(), slope, 1e-6 * slope);
@@ -293,13 +293,13 @@ TEST(GeneralRodClosedForm, PointMomentAtABendsOnlyTheProximalPart) {
 }
 
 TEST(GeneralRodErrors, BadModelsAndInputsAreNamed) {
-  rod::GeneralRodModel m;
+  rod::RodModel m;
   m.segments = {segment(0.09, 6e-4, 2e-4)};
   m.actuators = {actuator(0.09, Vec3::UnitX())};
-  rod::GeneralRodModel bad = m;
+  rod::RodModel bad = m;
   bad.segments[0].length = -1.0;
   try {
-    rod::GeneralRodSolver s(bad, test::rk8(4));
+    rod::RodSolver s(bad, test::rk8(4));
     FAIL() << "a negative length must be refused";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("segments[0].length"), std::string::npos) << e.what();
@@ -310,7 +310,7 @@ TEST(GeneralRodErrors, BadModelsAndInputsAreNamed) {
   bad = m;
   bad.actuators[0].direction = Vec3(1.0, 0.1, 0.0);
   EXPECT_NE(bad.validate().find("actuators[0].direction"), std::string::npos);
-  rod::GeneralRodSolver solver(m, test::rk8(4));
+  rod::RodSolver solver(m, test::rk8(4));
   const rod::RodSolution wrong = solver.solve(inputs({0.1, 0.2}));
   EXPECT_FALSE(wrong.converged);
   EXPECT_NE(wrong.message.find("expected 1 actuator input"), std::string::npos) << wrong.message;
@@ -324,13 +324,13 @@ TEST(GeneralRodErrors, BadModelsAndInputsAreNamed) {
 // (1e-6 m against a 64-step reference).
 TEST(GeneralRodScenes, TwoSegmentThrustersSolvesWithinTheAccuracyContract) {
   const config::Scene sc = test::scene("two_segment_thrusters");
-  rod::GeneralRodSolver solver(sc.body, sc.solver);
+  rod::RodSolver solver(sc.body, sc.solver);
   rod::ShootingOptions fine = sc.solver;
   fine.integrator.steps = 64;
-  rod::GeneralRodSolver ref(sc.body, fine);
+  rod::RodSolver ref(sc.body, fine);
   const int N = static_cast<int>(sc.body.actuators.size());
   for (int k = 0; k < 6; ++k) {
-    rod::ActuatorInputs q(N);
+    rod::InputVector q(N);
     for (int j = 0; j < N; ++j) q[j] = sc.body.actuators[j].max_force * (0.5 + 0.5 * std::sin(1.3 * k + 2.1 * j));
     const rod::RodSolution s = solver.solve(q), r = ref.solve(q);
     ASSERT_TRUE(s.converged && r.converged) << s.message << " / " << r.message;
@@ -344,10 +344,10 @@ TEST(GeneralRodScenes, TwoSegmentThrustersSolvesWithinTheAccuracyContract) {
 TEST(GeneralRodStability, ReducesToTheLateralForceBlockOnTheHydroJet) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const config::Scene sc = test::scene(name);
-    rod::GeneralRodSolver gen(sc.body, sc.solver);
+    rod::RodSolver gen(sc.body, sc.solver);
     for (const Vec3& jets : {Vec3(0.2, 0.05, 0.0), Vec3(0.0, 0.15, 0.21), Vec3(0.02, 0.01, 0.03)}) {
       ASSERT_TRUE(gen.solve(inputs({jets[0], jets[1], jets[2]})).converged);
-      const rod::GeneralCompliance c = gen.compliance();
+      const rod::Compliance c = gen.compliance();
       ASSERT_TRUE(c.ok);
       const rod::StabilityReport today = rod::stability(c.body, rod::lateral_force_actuation());
       const rod::StabilityReport general = rod::stability(c.body, rod::equivalent_tip_wrenches(c.body, c.actuation));
@@ -357,9 +357,9 @@ TEST(GeneralRodStability, ReducesToTheLateralForceBlockOnTheHydroJet) {
     }
   }
   const config::Scene sc = test::scene("two_segment_thrusters");
-  rod::GeneralRodSolver gen(sc.body, sc.solver);
-  ASSERT_TRUE(gen.solve(rod::ActuatorInputs::Constant(6, 0.03)).converged);
-  const rod::GeneralCompliance c = gen.compliance();
+  rod::RodSolver gen(sc.body, sc.solver);
+  ASSERT_TRUE(gen.solve(rod::InputVector::Constant(6, 0.03)).converged);
+  const rod::Compliance c = gen.compliance();
   ASSERT_TRUE(c.ok);
   const Eigen::Matrix<double, 6, Eigen::Dynamic> W = rod::equivalent_tip_wrenches(c.body, c.actuation);
   EXPECT_LT((c.body * W - c.actuation).norm(), 1e-6 * c.actuation.norm());
@@ -370,7 +370,7 @@ TEST(GeneralRodStability, ReducesToTheLateralForceBlockOnTheHydroJet) {
 
 // A column past buckling (tip weight 1.1 P_cr, upright, EIy = 1.2 EIx) cut into two identical
 // segments: a cold solve leaves the straight, unstable branch (which it reaches with the check off)
-// for the buckled one, as ShootingSolver does on the same rod: the same deflection about the weaker
+// for the buckled one, as RodSolver does on the same rod: the same deflection about the weaker
 // axis, stable.
 TEST(GeneralRodStability, ColdSolvePastBucklingReachesTheBuckledBranchAsTheUniformRod) {
   const double EI = 6.01e-4, L = 0.09, g = 9.81;
@@ -379,29 +379,29 @@ TEST(GeneralRodStability, ColdSolvePastBucklingReachesTheBuckledBranchAsTheUnifo
   u.rod.stiffness.y() = 1.2 * EI;
   u.gravity = Vec3(0, 0, -g);
   u.tip_mass = 1.1 * Pcr / g;
-  rod::GeneralRodModel m = rod::general_model(u);
+  rod::RodModel m = rod::general_model(u);
   rod::RodSegment half = m.segments[0];
   half.length = L / 2;
   m.segments = {half, half};
   const rod::ShootingOptions opt = test::rk8(16);
-  rod::ShootingSolver uniform(u, opt);
-  rod::GeneralRodSolver general(m, opt);
+  rod::RodSolver uniform(u, opt);
+  rod::RodSolver general(m, opt);
   const rod::RodSolution a = uniform.solve(rod::TipWrench());
-  const rod::RodSolution b = general.solve(rod::ActuatorInputs(0));
+  const rod::RodSolution b = general.solve(rod::InputVector(0));
   ASSERT_TRUE(a.converged && b.converged) << a.message << " / " << b.message;
   EXPECT_TRUE(b.warning.find("unstable") == std::string::npos) << b.warning;
   EXPECT_GT(std::abs(b.tip_position.y()), 0.01);  // buckled, about the weaker (x) axis
   EXPECT_LT(std::abs(b.tip_position.x()), 1e-9);
   EXPECT_NEAR(std::abs(b.tip_position.y()), std::abs(a.tip_position.y()), 1e-9);
   EXPECT_NEAR(b.tip_position.z(), a.tip_position.z(), 1e-9);
-  const rod::GeneralCompliance c = general.compliance();
+  const rod::Compliance c = general.compliance();
   ASSERT_TRUE(c.ok);
   EXPECT_GT(rod::stability(c.body, rod::lateral_force_actuation()).eig_min, 0.0);
   // With the check off the cold solve stays on the straight branch, which is unstable.
   rod::ShootingOptions off = opt;
   off.cold_stability_check.fill(false);
-  rod::GeneralRodSolver straight(m, off);
-  const rod::RodSolution s = straight.solve(rod::ActuatorInputs(0));
+  rod::RodSolver straight(m, off);
+  const rod::RodSolution s = straight.solve(rod::InputVector(0));
   ASSERT_TRUE(s.converged);
   EXPECT_LT(std::hypot(s.tip_position.x(), s.tip_position.y()), 1e-9);
   EXPECT_LE(rod::stability(straight.compliance().body, rod::lateral_force_actuation()).eig_min, 0.0);
@@ -409,7 +409,7 @@ TEST(GeneralRodStability, ColdSolvePastBucklingReachesTheBuckledBranchAsTheUnifo
 
 // Multiple shooting (beyond single shooting's reach, λL > 12): a long soft rod as two identical
 // segments under a large tip follower force from actuators is the uniform rod under that force, which
-// ShootingSolver's own multiple shooting solves (a second implementation, its node unknowns R and u
+// RodSolver's own multiple shooting solves (a second implementation, its node unknowns R and u
 // with n in closed form; here R, n and u). Then forced multiple shooting on the busy model equals
 // single shooting there, and a load with mid-body actuators at λL ≈ 20 converges with 8 and 16
 // segments to the same equilibrium.
@@ -420,18 +420,18 @@ TEST(GeneralRodMultipleShooting, BeyondSingleShootingAsTheUniformRodsMultipleSho
   u.rod.precurvature = Vec3(0.2, 1.0, 0.0);
   u.gravity = Vec3(0.0, 2.0, 9.6);
   u.tip_mass = 0.002;
-  rod::GeneralRodModel g = rod::general_model(u);
+  rod::RodModel g = rod::general_model(u);
   rod::RodSegment half = g.segments[0];
   half.length = 0.15;
   g.segments = {half, half};
   g.actuators = {actuator(0.3, Vec3(1, 0, 0)), actuator(0.3, Vec3(0, 1, 0), Vec3(0.003, 0, 0))};
-  const rod::ActuatorInputs q = inputs({0.4, 0.25});
-  rod::GeneralRodSolver gen(g, test::rk8(64));
+  const rod::InputVector q = inputs({0.4, 0.25});
+  rod::RodSolver gen(g, test::rk8(64));
   ASSERT_GT(gen.growth_estimate(q, rod::TipWrench()), 12.0) << "the case must be beyond single shooting";
   const rod::RodSolution b = gen.solve(q);
   ASSERT_TRUE(b.converged) << b.message;
   EXPECT_GE(b.segments, 4);
-  rod::ShootingSolver ref(u, test::rk8(64));
+  rod::RodSolver ref(u, test::rk8(64));
   rod::TipWrench tw;
   tw.force = Vec3(0.4, 0.25, 0.0);
   tw.moment = Vec3(0.003, 0.0, 0.0).cross(Vec3(0, 1, 0)) * 0.25;
@@ -444,31 +444,31 @@ TEST(GeneralRodMultipleShooting, BeyondSingleShootingAsTheUniformRodsMultipleSho
   EXPECT_LT(so3::log(a.tip_rotation.transpose() * b.tip_rotation).norm(), 1e-7);
   // C^b and J_q at the multiple-shooting solution: as the uniform rod's (J_q = C^b B).
   const rod::Compliance ca = ref.compliance();
-  const rod::GeneralCompliance cb = gen.compliance();
+  const rod::Compliance cb = gen.compliance();
   ASSERT_TRUE(ca.ok && cb.ok);
   EXPECT_LT((ca.body - cb.body).norm(), 1e-5 * ca.body.norm());
 }
 
 TEST(GeneralRodMultipleShooting, ForcedEqualsSingleShootingAndSegmentCountsAgree) {
-  const rod::GeneralRodModel m = busy_model(rod::RodKind::kKirchhoff);
-  const rod::ActuatorInputs q = inputs({0.05, 0.03, 0.04, 0.02});
-  rod::GeneralRodSolver single(m, test::rk8(8));
+  const rod::RodModel m = busy_model(rod::RodKind::kKirchhoff);
+  const rod::InputVector q = inputs({0.05, 0.03, 0.04, 0.02});
+  rod::RodSolver single(m, test::rk8(8));
   rod::ShootingOptions forced = test::rk8(8);
   forced.shooting_segments = 6;
-  rod::GeneralRodSolver ms(m, forced);
+  rod::RodSolver ms(m, forced);
   const rod::RodSolution a = single.solve(q), b = ms.solve(q);
   ASSERT_TRUE(a.converged && b.converged) << a.message << " / " << b.message;
   EXPECT_EQ(b.segments, 6);
   EXPECT_LT((a.tip_position - b.tip_position).norm(), 1e-10);
   EXPECT_LT(so3::log(a.tip_rotation.transpose() * b.tip_rotation).norm(), 1e-9);
   // The busy model softened ten times and loaded: λL ≈ 20; 8 and 16 segments, one equilibrium.
-  rod::GeneralRodModel soft = m;
+  rod::RodModel soft = m;
   for (auto& s : soft.segments) s.stiffness /= 10.0;
-  const rod::ActuatorInputs big = inputs({0.3, 0.2, 0.3, 0.2});
+  const rod::InputVector big = inputs({0.3, 0.2, 0.3, 0.2});
   rod::ShootingOptions o8 = test::rk8(16), o16 = test::rk8(16);
   o8.shooting_segments = 8;
   o16.shooting_segments = 16;
-  rod::GeneralRodSolver s8(soft, o8), s16(soft, o16);
+  rod::RodSolver s8(soft, o8), s16(soft, o16);
   const rod::RodSolution c = s8.solve(big), d = s16.solve(big);
   std::printf("soft busy model: λL = %.1f\n", s8.growth_estimate(big, rod::TipWrench()));
   ASSERT_TRUE(c.converged && d.converged) << c.message << " / " << d.message;

@@ -4,7 +4,7 @@
 #include <string>
 
 #include "hydrojet_control/config/scene.h"
-#include "hydrojet_control/rod/shooting_solver.h"
+#include "hydrojet_control/rod/rod_solver.h"
 
 namespace hydrojet {
 namespace test {

@@ -61,7 +61,7 @@ int check_case(const std::string& name, bool cvode = true) {
     s.integrator.type = k.type;
     if (k.steps) s.integrator.steps = k.steps;
     if (k.tol > 0.0) s.integrator.tolerance = k.tol;
-    rod::ShootingSolver solver(c.model, s);
+    rod::RodSolver solver(c.model, s);
     const rod::RodSolution sol = solver.solve(c.wrench);
     if (!sol.converged) {
       EXPECT_FALSE(sol.message.empty()) << name << " / " << k.name << ": not converged without a reason";
@@ -99,7 +99,7 @@ TEST(Extreme, LongRodColdStartsAcrossWorkspace) {
   m.rod.length *= 10.0;
   rod::ShootingOptions s;
   s.integrator.steps = 64;
-  rod::ShootingSolver solver(m, s);
+  rod::RodSolver solver(m, s);
   int multiple = 0;
   for (double q1 : {0.0, 0.012, 0.0243})
     for (double q3 : {0.0, 0.0122, 0.0244}) {
@@ -127,7 +127,7 @@ TEST(Extreme, NearInstabilityIsDetectedAndReported) {
   m.gravity = Vec3(0, 0, -g);
   rod::ShootingOptions options = test::rk8(16);
   options.cold_stability_check.fill(false);
-  rod::ShootingSolver solver(m, options);
+  rod::RodSolver solver(m, options);
   double last_eig = 1e300;
   for (double ratio : {0.5, 0.8, 0.9, 0.95, 0.99}) {
     m.tip_mass = ratio * Pcr / g;
@@ -186,7 +186,7 @@ TEST(Extreme, ColdSolvePastBucklingReachesTheBuckledBranch) {
       m.rod.precurvature.x() = imperfection;  // bends about x (the weaker axis): toward −y
       m.gravity = Vec3(0, 0, -g);
       m.tip_mass = ratio * Pcr / g;
-      rod::ShootingSolver solver(m, test::rk8(32));
+      rod::RodSolver solver(m, test::rk8(32));
       const rod::RodSolution s = solver.solve(rod::TipWrench{});
       ASSERT_TRUE(s.converged) << ratio << ": " << s.message;
       EXPECT_TRUE(s.warning.empty()) << s.warning;
@@ -210,7 +210,7 @@ TEST(Extreme, ColdSolveWithNoStableEquilibriumWarns) {
   const double EI = 6.01e-4, L = 0.09;
   rod::RodModel m = test::plain_rod(L, EI);
   m.rod.stiffness.y() = 1.2 * EI;
-  rod::ShootingSolver solver(m, test::rk8(16));
+  rod::RodSolver solver(m, test::rk8(16));
   rod::TipWrench w;
   w.force.z() = -10.0 * M_PI * M_PI * EI / (4 * L * L);
   const rod::RodSolution s = solver.solve(w);
@@ -224,7 +224,7 @@ TEST(Extreme, ColdSolveWithNoStableEquilibriumWarns) {
 TEST(Extreme, ColdStartsAcrossHydroJetWorkspace) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const config::Scene sc = numerics::scene(name);
-    rod::ShootingSolver solver(sc.model, sc.solver);
+    rod::RodSolver solver(sc.model, sc.solver);
     Case c;
     c.model = sc.model;
     for (double q1 = 0; q1 <= 0.2431; q1 += 0.0486)
@@ -245,13 +245,13 @@ TEST(Extreme, ColdStartsAcrossHydroJetWorkspace) {
 TEST(Extreme, UnderResolvedFixedStepSolveIsRefused) {
   const Case& c = find_case("follower_10x");
   rod::ShootingOptions s;  // rk8, 4 steps: ~4e-5 m off at 10× the jet force
-  rod::ShootingSolver solver(c.model, s);
+  rod::RodSolver solver(c.model, s);
   const rod::RodSolution sol = solver.solve(c.wrench);
   EXPECT_FALSE(sol.converged);
   EXPECT_NE(sol.message.find("estimated tip error"), std::string::npos) << sol.message;
   EXPECT_GT(sol.error_estimate, 1e-5 * c.model.rod.length);
   s.integrator.steps = 16;
-  rod::ShootingSolver finer(c.model, s);
+  rod::RodSolver finer(c.model, s);
   const rod::RodSolution ok = finer.solve(c.wrench);
   ASSERT_TRUE(ok.converged) << ok.message;
   EXPECT_LT(ok.error_estimate, 1e-8);

@@ -48,7 +48,7 @@ rod::TipWrench force(const Vec3& f) {
 // lateral force deflects it by F L³/(3EI) + F L/GA (Timoshenko cantilever).
 TEST(Cosserat, StraightRodMatchesExtensionAndTimoshenko) {
   const double EI = 6.01e-4, L = 0.09, GA = 0.4, EA = 1.3;  // soft-silicone ratios (EA/EI ≈ 2e3 m⁻²)
-  rod::ShootingSolver solver(cosserat(test::plain_rod(L, EI), GA, EA), test::rk8(32));
+  rod::RodSolver solver(cosserat(test::plain_rod(L, EI), GA, EA), test::rk8(32));
   const rod::RodSolution ax = solver.solve(force(Vec3(0, 0, 0.13)));
   ASSERT_TRUE(ax.converged) << ax.message;
   EXPECT_NEAR(ax.tip_position.z(), L * (1.0 + 0.13 / EA), 1e-12);
@@ -71,12 +71,12 @@ TEST(Cosserat, StraightRodMatchesExtensionAndTimoshenko) {
 TEST(Cosserat, ConvergesToKirchhoffAsStiffnessGrows) {
   const config::Scene sc = test::scene("hydrojet_30deg");
   const rod::TipWrench w = force(test::jet_force(0.2, 0.05, 0.1));
-  rod::ShootingSolver kirchhoff(sc.model, test::rk8(32));
+  rod::RodSolver kirchhoff(sc.model, test::rk8(32));
   const rod::RodSolution k = kirchhoff.solve(w);
   ASSERT_TRUE(k.converged);
   double last = 1.0;
   for (double EA : {1e1, 1e2, 1e3, 1e4, 1e5, 1e6}) {
-    rod::ShootingSolver c(cosserat(sc.model, EA, EA), test::rk8(32));
+    rod::RodSolver c(cosserat(sc.model, EA, EA), test::rk8(32));
     const rod::RodSolution s = c.solve(w);
     ASSERT_TRUE(s.converged) << "EA " << EA << ": " << s.message;
     const double gap = (s.tip_position - k.tip_position).norm();
@@ -86,14 +86,14 @@ TEST(Cosserat, ConvergesToKirchhoffAsStiffnessGrows) {
     }
     last = gap;
   }
-  rod::ShootingSolver stiff(cosserat(sc.model, 1e12, 1e12), test::rk8(32));
+  rod::RodSolver stiff(cosserat(sc.model, 1e12, 1e12), test::rk8(32));
   EXPECT_LT((stiff.solve(w).tip_position - k.tip_position).norm(), 1e-12);
 }
 
 // C^b of a soft Cosserat rod from sensitivities against central differences of full solves.
 TEST(Cosserat, ComplianceMatchesCentralDifferences) {
   config::Scene sc = test::scene("hydrojet_0deg");
-  rod::ShootingSolver solver(cosserat(sc.model, 0.4, 1.3), test::rk8(16, 1e-14));
+  rod::RodSolver solver(cosserat(sc.model, 0.4, 1.3), test::rk8(16, 1e-14));
   rod::TipWrench w = force(test::jet_force(0.1, 0.05, 0.0));
   w.moment = Vec3(1e-4, -2e-4, 5e-5);
   ASSERT_TRUE(solver.solve(w).converged);
@@ -135,9 +135,9 @@ TEST(Specialization, VariantsMatchTheGeneralRightHandSide) {
                {cosserat(weight, 2.0, 5.0), "cosserat+weight+precurved"}};
   for (const Case& c : cases) {
     rod::ShootingOptions s = test::rk8(8);
-    rod::ShootingSolver special(c.m, s);
+    rod::RodSolver special(c.m, s);
     s.specialize_model = false;
-    rod::ShootingSolver general(c.m, s);
+    rod::RodSolver general(c.m, s);
     EXPECT_STREQ(special.variant_name(), c.variant);
     EXPECT_STREQ(general.variant_name(), "general");
     const rod::TipWrench w = force(test::jet_force(0.2, 0.0, 0.1));
@@ -154,7 +154,7 @@ TEST(Specialization, VariantsMatchTheGeneralRightHandSide) {
 TEST(Cvode, AdamsAndBdfMatchTheReference) {
   const config::Scene sc = test::scene("hydrojet_30deg");
   const rod::TipWrench w = force(test::jet_force(0.2, 0.05, 0.1));
-  rod::ShootingSolver ref(sc.model, test::rk8(128, 1e-13));
+  rod::RodSolver ref(sc.model, test::rk8(128, 1e-13));
   const rod::RodSolution r = ref.solve(w);
   ASSERT_TRUE(r.converged);
   const Mat6 Cref = ref.compliance().body;
@@ -162,7 +162,7 @@ TEST(Cvode, AdamsAndBdfMatchTheReference) {
     for (bool cvodes : {false, true}) {
       rod::ShootingOptions s = with(t, 1e-10);
       s.integrator.cvodes_sensitivities = cvodes;
-      rod::ShootingSolver solver(sc.model, s);
+      rod::RodSolver solver(sc.model, s);
       const std::string what = std::string(rod::integrator_name(t)) + (cvodes ? " (CVODES sensitivities)" : "");
       const rod::RodSolution a = solver.solve(w);
       ASSERT_TRUE(a.converged) << what << ": " << a.message;
@@ -179,10 +179,10 @@ TEST(Cvode, AdamsAndBdfMatchTheReference) {
   rod::ShootingOptions k = sc.solver;
   k.newton = rod::NewtonBackend::kKinsol;
   k.residual_tolerance = 1e-12;
-  rod::ShootingSolver kin(sc.model, k);
+  rod::RodSolver kin(sc.model, k);
   rod::ShootingOptions e = sc.solver;
   e.residual_tolerance = 1e-12;
-  rod::ShootingSolver eig(sc.model, e);
+  rod::RodSolver eig(sc.model, e);
   const rod::RodSolution a = kin.solve(w), b = eig.solve(w);
   ASSERT_TRUE(a.converged) << a.message;
   ASSERT_TRUE(b.converged);
@@ -193,10 +193,10 @@ TEST(Cvode, AdamsAndBdfMatchTheReference) {
 TEST(MultipleShooting, AgreesWithSingleShooting) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const config::Scene sc = test::scene(name);
-    rod::ShootingSolver single(sc.model, test::rk8(16, 1e-12));
+    rod::RodSolver single(sc.model, test::rk8(16, 1e-12));
     rod::ShootingOptions ms = test::rk8(16, 1e-12);
     ms.shooting_segments = 4;
-    rod::ShootingSolver multi(sc.model, ms);
+    rod::RodSolver multi(sc.model, ms);
     for (const Vec3& f : {Vec3(0, 0, 0), test::jet_force(0.243, 0.0, 0.1), test::jet_force(0.0, 0.224, 0.0)}) {
       rod::TipWrench w = force(f);
       w.moment = Vec3(2e-4, 0, -1e-4);
@@ -218,10 +218,10 @@ TEST(MultipleShooting, AgreesWithSingleShooting) {
 // A copied solver is independent (its CVODE memory is its own) and gives the same answers.
 TEST(Cvode, CopiedSolverIsIndependent) {
   const config::Scene sc = test::scene("hydrojet_0deg");
-  rod::ShootingSolver a(sc.model, with(rod::IntegratorType::kCvodeBdf, 1e-9));
+  rod::RodSolver a(sc.model, with(rod::IntegratorType::kCvodeBdf, 1e-9));
   const rod::TipWrench w = force(test::jet_force(0.1, 0.1, 0.0));
   ASSERT_TRUE(a.solve(w).converged);
-  rod::ShootingSolver b = a;
+  rod::RodSolver b = a;
   const rod::RodSolution sa = a.solve(w), sb = b.solve(w);
   ASSERT_TRUE(sa.converged && sb.converged);
   EXPECT_LT((sa.tip_position - sb.tip_position).norm(), 1e-14);

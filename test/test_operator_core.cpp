@@ -20,7 +20,7 @@
 #include "hydrojet_control/control/look_at.h"
 #include "hydrojet_control/control/path.h"
 #include "hydrojet_control/control/reachable_set.h"
-#include "hydrojet_control/rod/general_rod_solver.h"
+#include "hydrojet_control/rod/rod_solver.h"
 #include "test_helpers.h"
 
 using namespace hydrojet;
@@ -386,7 +386,7 @@ TEST_P(Reachable, ComputedQuicklyWithEveryBinFilled) {
   EXPECT_GT(set.samples().size(), 1000u);
   EXPECT_LT(set.compute_time(), 2.0);
   // The zero-force direction is the model's tip z-axis with the jets off.
-  rod::ShootingSolver s(test::scene(GetParam()).model, test::scene(GetParam()).solver);
+  rod::RodSolver s(test::scene(GetParam()).model, test::scene(GetParam()).solver);
   EXPECT_NEAR(angle(set.center(), s.solve(rod::TipWrench()).tip_rotation.col(2)), 0.0, 1e-12);
   std::printf("%s: %zu samples, compute %.3f s\n", GetParam().c_str(), set.samples().size(), set.compute_time());
   double lo = 10, hi = 0;
@@ -569,7 +569,7 @@ rod::RodSolution independent_fk(const std::string& scene, const control::LookAtR
   rod::TipWrench w;
   w.force = jets.wrench(q.q).head<3>();
   w.moment = jets.wrench(q.q).tail<3>();
-  rod::ShootingSolver s(sc.model, sc.solver);
+  rod::RodSolver s(sc.model, sc.solver);
   const rod::RodSolution sol = s.solve(w);
   EXPECT_TRUE(sol.converged);
   return sol;
@@ -584,7 +584,7 @@ double line_distance(const rod::RodSolution& s, const Vec3& P, bool* in_front) {
 
 /// The jets-off tip position and direction.
 std::pair<Vec3, Vec3> rest_pose(const std::string& scene) {
-  rod::ShootingSolver s(test::scene(scene).model, test::scene(scene).solver);
+  rod::RodSolver s(test::scene(scene).model, test::scene(scene).solver);
   const rod::RodSolution sol = s.solve(rod::TipWrench());
   return {sol.tip_position, sol.tip_rotation.col(2)};
 }
@@ -696,12 +696,12 @@ TEST(LookAtOptions, AreValidated) {
 
 // ---------------------------------------------------------------------------------------------
 // Any robot: the second robot's reachable set and look-at, checked with an independent
-// solve of its model (GeneralRodSolver at the returned inputs).
+// solve of its model (RodSolver at the returned inputs).
 
 namespace {
 
-rod::RodSolution general_fk(const config::Scene& sc, const control::JetVector& q) {
-  rod::GeneralRodSolver s(sc.body, sc.solver);
+rod::RodSolution general_fk(const config::Scene& sc, const rod::InputVector& q) {
+  rod::RodSolver s(sc.body, sc.solver);
   const rod::RodSolution sol = s.solve(q);
   EXPECT_TRUE(sol.converged) << sol.message;
   return sol;
@@ -713,7 +713,7 @@ TEST(GeneralRobot, ReachableSetAroundItsRestDirection) {
   const config::Scene sc = test::scene("two_segment_thrusters");
   const control::ReachableSet set = control::ReachableSet::compute(model("two_segment_thrusters"), {});
   ASSERT_FALSE(set.empty());
-  const rod::RodSolution rest = general_fk(sc, control::JetVector::Zero(6));
+  const rod::RodSolution rest = general_fk(sc, rod::InputVector::Zero(6));
   EXPECT_NEAR(angle(set.center(), rest.tip_rotation.col(2)), 0.0, 1e-9);
   EXPECT_GT(set.samples().size(), 1000u);
   double lo = 10.0;
@@ -725,7 +725,7 @@ TEST(GeneralRobot, ReachableSetAroundItsRestDirection) {
 
 TEST(GeneralRobot, LookAtAimsThroughThePointWithInputsInTheirBounds) {
   const config::Scene sc = test::scene("two_segment_thrusters");
-  const rod::RodSolution rest = general_fk(sc, control::JetVector::Zero(6));
+  const rod::RodSolution rest = general_fk(sc, rod::InputVector::Zero(6));
   const Vec3 tip = rest.tip_position, d0 = rest.tip_rotation.col(2);
   const Vec3 side = d0.cross(Vec3::UnitX()).normalized(), up = d0.cross(side);
   control::LookAtSolver solver(model("two_segment_thrusters"));

@@ -7,7 +7,7 @@
 
 #include "hydrojet_control/config/controller_config.h"
 #include "hydrojet_control/config/plant_config.h"
-#include "hydrojet_control/rod/general_rod_solver.h"
+#include "hydrojet_control/rod/rod_solver.h"
 #include "hydrojet_control/sim/closed_loop_run.h"
 #include "test_helpers.h"
 
@@ -199,7 +199,7 @@ TEST(Plant, SettlesToTheQuasiStaticModel) {
     pl.command(duty, (k - 1) * 0.01);
     ASSERT_TRUE(pl.advance_to(k * 0.01)) << pl.error();
   }
-  rod::ShootingSolver qs(p.rod.model, sc.solver);
+  rod::RodSolver qs(p.rod.model, sc.solver);
   rod::TipWrench w;
   w.force = actuation::JetMap(p.jets).wrench(pl.jet_forces()).head<3>();
   const rod::RodSolution s = qs.solve(w);
@@ -250,17 +250,17 @@ TEST(PlantGeneral, SettlesToTheGeneralStaticModel) {
   const plant::PlantModel p = exact_plant(sc);
   plant::Plant pl(p, 1);
   ASSERT_EQ(pl.actuator_count(), 6);
-  plant::Plant::Vector duty(6);
+  rod::InputVector duty(6);
   duty << 0.4, 0.0, 0.3, 0.1, 0.5, 0.2;
   for (int k = 1; k <= 600; ++k) {
     pl.command(duty, (k - 1) * 0.01);
     ASSERT_TRUE(pl.advance_to(k * 0.01)) << pl.error();
   }
-  plant::Plant::Vector q(6);
+  rod::InputVector q(6);
   for (int i = 0; i < 6; ++i) q[i] = duty[i] * sc.body.actuators[i].max_force;
   EXPECT_LT((pl.jet_forces() - q).norm(), 1e-9) << "the drives' forces after their lag";
-  EXPECT_EQ(pl.flow_sample(), plant::Plant::Vector::Zero(6)) << "thrusters have no flow";
-  rod::GeneralRodSolver qs(sc.body, sc.solver);
+  EXPECT_EQ(pl.flow_sample(), rod::InputVector::Zero(6)) << "thrusters have no flow";
+  rod::RodSolver qs(sc.body, sc.solver);
   const rod::RodSolution s = qs.solve(q);
   ASSERT_TRUE(s.converged) << s.message;
   std::printf("second robot: plant vs static model: %.2e m, %.2e rad\n", (pl.tip_position() - s.tip_position).norm(),
@@ -268,8 +268,8 @@ TEST(PlantGeneral, SettlesToTheGeneralStaticModel) {
   EXPECT_LT((pl.tip_position() - s.tip_position).norm(), 2e-6);
   EXPECT_LT(so3::log(pl.tip_rotation().transpose() * s.tip_rotation).norm(), 2e-5);
   // A command of the wrong size closes the valves (drives at zero).
-  pl.command(plant::Plant::Vector::Constant(3, 0.5), 6.0);
-  EXPECT_EQ(pl.valve_command(), plant::Plant::Vector::Zero(6));
+  pl.command(rod::InputVector::Constant(3, 0.5), 6.0);
+  EXPECT_EQ(pl.valve_command(), rod::InputVector::Zero(6));
 }
 
 // The controller steers the second robot on its plant (model mismatch, sensor noise): closed loop

@@ -22,7 +22,7 @@ TEST(RodClosedForm, PureTipMomentGivesCircularArc) {
   const double EI = 6.01e-4, L = 0.09;
   for (double bend : {0.3, 1.5, 3.0}) {  // total bend angle κL [rad]
     const double kappa = bend / L, M = kappa * EI;
-    rod::ShootingSolver solver(test::plain_rod(L, EI), test::rk8(32));
+    rod::RodSolver solver(test::plain_rod(L, EI), test::rk8(32));
     rod::TipWrench w;
     w.moment = Vec3(M, 0, 0);
     const rod::RodSolution sol = solver.solve(w);
@@ -41,7 +41,7 @@ TEST(RodClosedForm, PureTipMomentGivesCircularArc) {
 TEST(RodClosedForm, PrecurvatureOnlyGivesUnloadedArc) {
   rod::RodModel m = test::plain_rod();
   m.rod.precurvature = Vec3(0.034, 0.88, 0.0) * 10.0;  // a visible bend (0.8 rad)
-  rod::ShootingSolver solver(m, test::rk8(32));
+  rod::RodSolver solver(m, test::rk8(32));
   rod::TipWrench loaded;
   loaded.force = Vec3(0.15, -0.1, 0.0);
   ASSERT_TRUE(solver.solve(loaded).converged);
@@ -62,7 +62,7 @@ TEST(RodClosedForm, PrecurvatureOnlyGivesUnloadedArc) {
 TEST(RodClosedForm, SmallTipForceMatchesLinearBeam) {
   const double EI = 6.01e-4, L = 0.09;
   const double F = 1e-4 * EI / (L * L);
-  rod::ShootingSolver solver(test::plain_rod(L, EI), test::rk8(16, 1e-14));
+  rod::RodSolver solver(test::plain_rod(L, EI), test::rk8(16, 1e-14));
   for (int axis : {0, 1}) {
     rod::TipWrench w;
     w.force[axis] = F;
@@ -82,7 +82,7 @@ double tip_error(rod::IntegratorType type, int steps, const rod::RodModel& m, co
                  const Vec3& ref) {
   rod::ShootingOptions s = test::rk8(steps, 1e-13);
   s.integrator.type = type;
-  rod::ShootingSolver solver(m, s);
+  rod::RodSolver solver(m, s);
   const rod::RodSolution sol = solver.solve(w);
   EXPECT_TRUE(sol.converged) << sol.message;
   return (sol.tip_position - ref).norm();
@@ -94,7 +94,7 @@ TEST(RodConvergenceOrder, Rk4AndRk8OnHydroJet) {
   const rod::RodModel m = test::scene("hydrojet_30deg").model;
   rod::TipWrench w;
   w.force = test::jet_force(0.2, 0.05, 0.1);
-  rod::ShootingSolver ref(m, test::rk8(256, 1e-14));
+  rod::RodSolver ref(m, test::rk8(256, 1e-14));
   const rod::RodSolution r = ref.solve(w);
   ASSERT_TRUE(r.converged);
   ASSERT_GT(r.tip_position.head<2>().norm(), 0.02);  // a large deflection, not a near-linear case
@@ -118,12 +118,12 @@ TEST(RodConvergenceOrder, Rk4AndRk8OnHydroJet) {
 TEST(RodAccuracy, DefaultsWithinOneMicronOnHydroJetScenes) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const config::Scene sc = test::scene(name);
-    rod::ShootingSolver def(sc.model, sc.solver);
-    rod::ShootingSolver ref8(sc.model, test::rk8(256, 1e-13));
+    rod::RodSolver def(sc.model, sc.solver);
+    rod::RodSolver ref8(sc.model, test::rk8(256, 1e-13));
     rod::ShootingOptions d5 = test::rk8(1, 1e-13);
     d5.integrator.type = rod::IntegratorType::kDopri5;
     d5.integrator.tolerance = 1e-13;
-    rod::ShootingSolver ref5(sc.model, d5);
+    rod::RodSolver ref5(sc.model, d5);
     for (double q1 : {0.0, 0.243})
       for (double q2 : {0.0, 0.112, 0.224})
         for (double q3 : {0.0, 0.244}) {
@@ -141,7 +141,7 @@ TEST(RodAccuracy, DefaultsWithinOneMicronOnHydroJetScenes) {
 TEST(RodRobustness, ColdStartsConvergeAcrossWorkspace) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const config::Scene sc = test::scene(name);
-    rod::ShootingSolver solver(sc.model, sc.solver);
+    rod::RodSolver solver(sc.model, sc.solver);
     for (double q1 = 0; q1 <= 0.2431; q1 += 0.0810)
       for (double q2 = 0; q2 <= 0.2241; q2 += 0.0747)
         for (double q3 = 0; q3 <= 0.2441; q3 += 0.0813) {
@@ -158,7 +158,7 @@ TEST(RodRobustness, ColdStartsConvergeAcrossWorkspace) {
 // A solve that cannot converge says so: a NaN wrench, and an iteration budget too small to finish.
 TEST(RodRobustness, NonConvergenceIsReported) {
   const config::Scene sc = test::scene("hydrojet_0deg");
-  rod::ShootingSolver solver(sc.model, sc.solver);
+  rod::RodSolver solver(sc.model, sc.solver);
   rod::TipWrench bad;
   bad.force = Vec3(std::nan(""), 0, 0);
   const rod::RodSolution s = solver.solve(bad);
@@ -168,7 +168,7 @@ TEST(RodRobustness, NonConvergenceIsReported) {
   rod::ShootingOptions tight = sc.solver;
   tight.max_iterations = 1;
   tight.max_continuation_steps = 0;
-  rod::ShootingSolver limited(sc.model, tight);
+  rod::RodSolver limited(sc.model, tight);
   rod::TipWrench big;
   big.force = test::jet_force(0.243, 0.0, 0.0);
   const rod::RodSolution t = limited.solve(big);

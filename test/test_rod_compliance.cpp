@@ -17,7 +17,7 @@ namespace {
 
 // Column i of C^b by central differences: (g⁻¹ ∂g/∂w_i)^∨ with g the tip pose, each side a full
 // warm-started BVP solve.
-Mat6 finite_difference_compliance(rod::ShootingSolver& solver, const rod::TipWrench& w) {
+Mat6 finite_difference_compliance(rod::RodSolver& solver, const rod::TipWrench& w) {
   const rod::RodSolution c = solver.solve(w);
   EXPECT_TRUE(c.converged);
   Mat6 C;
@@ -46,7 +46,7 @@ TEST(Compliance, MatchesCentralDifferencesOnHydroJet) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     config::Scene sc = test::scene(name);
     sc.solver.residual_tolerance = 1e-14;
-    rod::ShootingSolver solver(sc.model, sc.solver);
+    rod::RodSolver solver(sc.model, sc.solver);
     for (const Vec3& f : {Vec3(0, 0, 0), test::jet_force(0.2, 0.05, 0.1), test::jet_force(0.0, 0.22, 0.0)}) {
       rod::TipWrench w;
       w.force = f;
@@ -68,7 +68,7 @@ TEST(Compliance, MatchesCentralDifferencesOnHydroJet) {
 // diag(L³/3EI) with coupling L²/2EI to the tip rotation — a closed-form check of the assembly.
 TEST(Compliance, StraightRodMatchesBeamTheoryAndFollowerLoadBreaksSymmetry) {
   const double EI = 6.01e-4, GJ = 2.23e-4, L = 0.09;
-  rod::ShootingSolver solver(test::plain_rod(L, EI, GJ), test::rk8(16));
+  rod::RodSolver solver(test::plain_rod(L, EI, GJ), test::rk8(16));
   ASSERT_TRUE(solver.solve(rod::TipWrench{}).converged);
   const Mat6 C = solver.compliance().body;
   EXPECT_NEAR(C(0, 0), L * L * L / (3 * EI), 1e-9);
@@ -79,7 +79,7 @@ TEST(Compliance, StraightRodMatchesBeamTheoryAndFollowerLoadBreaksSymmetry) {
   EXPECT_NEAR(C(2, 2), 0.0, 1e-12);  // inextensible
 
   const config::Scene sc = test::scene("hydrojet_0deg");
-  rod::ShootingSolver hj(sc.model, sc.solver);
+  rod::RodSolver hj(sc.model, sc.solver);
   rod::TipWrench w;
   w.force = test::jet_force(0.2, 0.0, 0.1);
   ASSERT_TRUE(hj.solve(w).converged);
@@ -101,7 +101,7 @@ TEST(Stability, EulerColumnBucklesAtCriticalLoad) {
     // leave it for the buckled one (Extreme.ColdSolvePastBucklingReachesTheBuckledBranch).
     rod::ShootingOptions options = test::rk8(16);
     options.cold_stability_check.fill(false);
-    rod::ShootingSolver solver(m, options);
+    rod::RodSolver solver(m, options);
     const rod::RodSolution sol = solver.solve(rod::TipWrench{});
     ASSERT_TRUE(sol.converged);
     const rod::Compliance c = solver.compliance();
@@ -125,7 +125,7 @@ TEST(Stability, EulerColumnBucklesAtCriticalLoad) {
 TEST(Stability, HydroJetWorkspaceIsStableAtBothBaseAngles) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const config::Scene sc = test::scene(name);
-    rod::ShootingSolver solver(sc.model, sc.solver);
+    rod::RodSolver solver(sc.model, sc.solver);
     double lowest = 1e300;
     const double qmax[3] = {0.243, 0.224, 0.244};
     const int n = 7;

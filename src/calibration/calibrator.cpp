@@ -115,7 +115,7 @@ class SampleCost : public ceres::SizedCostFunction<3, 1, 1, 1, 1, 1, 1, 1> {
     tw.force = w.head<3>();
     tw.moment = w.tail<3>();
     // Same rod as the last solve (only the misalignments moved): keep the warm start. Otherwise
-    // set_model() resets it (ShootingSolver cannot keep a warm start across a model change), and
+    // set_model() resets it (RodSolver cannot keep a warm start across a model change), and
     // the solve starts from the unloaded precurved shape with load continuation as fallback: the
     // branch reached by loading the rod from rest, as the rig does.
     const rod::RodModel& cur = solver_.model();
@@ -135,7 +135,7 @@ class SampleCost : public ceres::SizedCostFunction<3, 1, 1, 1, 1, 1, 1, 1> {
   const FitContext* ctx_;
   Eigen::Vector3d q_;
   Eigen::Matrix3d R_meas_;
-  mutable rod::ShootingSolver solver_;
+  mutable rod::RodSolver solver_;
 };
 
 ceres::LossFunction* make_loss(Loss l, double scale) {
@@ -402,7 +402,7 @@ Eigen::Vector3d rotation_error(const Eigen::Matrix3d& R_meas, const Eigen::Matri
 }
 
 Eigen::Matrix3d predict_tip_rotation(const config::Scene& scene, const Eigen::Vector3d& q, bool* ok) {
-  rod::ShootingSolver solver(scene.model, scene.solver);
+  rod::RodSolver solver(scene.model, scene.solver);
   const actuation::Vec6 w = actuation::JetMap(scene.jets).wrench(q);
   rod::TipWrench tw;
   tw.force = w.head<3>();

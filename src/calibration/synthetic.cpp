@@ -13,7 +13,7 @@ std::vector<Sample> synthesize(const config::Scene& truth, const SyntheticOption
   std::mt19937 rng(o.seed);
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   std::normal_distribution<double> n01(0.0, 1.0);
-  rod::ShootingSolver solver(truth.model, truth.solver);
+  rod::RodSolver solver(truth.model, truth.solver);
   const actuation::JetMap jets(truth.jets);
   std::vector<Sample> out;
   for (int k = 0; k < o.samples; ++k) {

@@ -23,7 +23,7 @@ constexpr std::initializer_list<const char*> kRodKeys = {"length",         "bend
 
 /// Stiffness from `k`bending_stiffness/torsional_stiffness, or from moduli and diameters (then also
 /// EA and GA for the Cosserat rod). `k` is the key prefix ("rod." or "" for a segment's own tree).
-void parse_stiffness(Tree& t, const std::string& k, rod::ElasticRod* p) {
+void parse_stiffness(Tree& t, const std::string& k, rod::RodSegment* p) {
   const bool direct = t.has(k + "bending_stiffness") || t.has(k + "torsional_stiffness");
   const bool moduli = t.has(k + "youngs_modulus") || t.has(k + "shear_modulus") || t.has(k + "outer_diameter") ||
                       t.has(k + "inner_diameter");
@@ -51,7 +51,8 @@ void parse_stiffness(Tree& t, const std::string& k, rod::ElasticRod* p) {
 
 /// `k`model: kirchhoff (default, or `inherited`) | cosserat. The Cosserat rod needs K_se = diag(GA,
 /// GA, EA): the keys shear_stiffness and axial_stiffness [N], or moduli and diameters (GA = G·A, EA = E·A).
-void parse_kind(Tree& t, const std::string& k, const std::string& inherited, bool segment, rod::ElasticRod* p) {
+void parse_kind(Tree& t, const std::string& k, const std::string& inherited, bool segment, rod::RodSegment* p,
+                rod::RodKind* out) {
   const std::string kind = t.text(k + "model", inherited);
   if (kind != "kirchhoff" && kind != "cosserat")
     t.fail(k + "model", "must be kirchhoff or cosserat, got '" + kind + "'");
@@ -60,11 +61,11 @@ void parse_kind(Tree& t, const std::string& k, const std::string& inherited, boo
   if (kind == "kirchhoff") {
     for (const char* key : {"shear_stiffness", "axial_stiffness"})
       if (t.has(k + key)) t.fail(k + key, "only with model: cosserat");
-    p->kind = rod::RodKind::kKirchhoff;
+    *out = rod::RodKind::kKirchhoff;
     p->shear_stiffness = p->axial_stiffness = 0.0;
     return;
   }
-  p->kind = rod::RodKind::kCosserat;
+  *out = rod::RodKind::kCosserat;
   p->shear_stiffness = t.positive(k + "shear_stiffness", p->shear_stiffness);
   p->axial_stiffness = t.positive(k + "axial_stiffness", p->axial_stiffness);
   if (!(p->shear_stiffness > 0.0))
@@ -74,28 +75,16 @@ void parse_kind(Tree& t, const std::string& k, const std::string& inherited, boo
 }
 
 /// One uniform piece of rod under the key prefix `k`.
-void parse_piece(Tree& t, const std::string& k, const std::string& inherited_kind, bool segment, rod::ElasticRod* p) {
+void parse_piece(Tree& t, const std::string& k, const std::string& inherited_kind, bool segment, rod::RodSegment* p,
+                 rod::RodKind* kind) {
   p->length = t.positive(k + "length");
   parse_stiffness(t, k, p);
-  parse_kind(t, k, inherited_kind, segment, p);
+  parse_kind(t, k, inherited_kind, segment, p, kind);
   p->precurvature = t.vec3<rod::Vec3>(k + "precurvature", rod::Vec3::Zero());
   p->linear_density = t.nonnegative(k + "linear_density", 0.0);
 }
 
-rod::RodSegment segment_of(const rod::ElasticRod& p) {
-  rod::RodSegment s;
-  s.length = p.length;
-  s.stiffness = p.stiffness;
-  s.precurvature = p.precurvature;
-  s.linear_density = p.linear_density;
-  s.shear_stiffness = p.shear_stiffness;
-  s.axial_stiffness = p.axial_stiffness;
-  return s;
-}
-
-/// rod.segments: base to tip, each with the single-rod keys. The scene's uniform `model.rod` gets
-/// the total length and the first segment's material (what a single-rod consumer may read; the
-/// consumers that only handle a uniform rod check Scene::uniform()).
+/// rod.segments: base to tip, each with the single-rod keys.
 void parse_segments(Tree& t, const YAML::Node& rod_node, Scene* s) {
   t.keys("rod", {"segments", "model"});
   t.allow("rod.segments");
@@ -108,28 +97,25 @@ void parse_segments(Tree& t, const YAML::Node& rod_node, Scene* s) {
     Tree item(list[i], '.', "rod.segments[" + std::to_string(i) + "].");
     if (!list[i].IsMap()) item.fail("", "must be a mapping of single-rod keys");
     item.keys("", kRodKeys);
-    rod::ElasticRod piece;
-    parse_piece(item, "", kind, true, &piece);
-    s->body.segments.push_back(segment_of(piece));
-    if (i == 0) s->model.rod = piece;
+    rod::RodSegment piece;
+    parse_piece(item, "", kind, true, &piece, &s->rod.kind);
+    s->rod.segments.push_back(piece);
   }
-  s->model.rod.length = s->body.length();
-  s->body.kind = s->model.rod.kind;
 }
 
 void parse_rod(Tree& t, Scene* s) {
   const YAML::Node node = t.section("rod");
   if (node["segments"]) return parse_segments(t, node, s);
   t.keys("rod", kRodKeys);
-  parse_piece(t, "rod.", "kirchhoff", false, &s->model.rod);
-  s->body.segments = {segment_of(s->model.rod)};
-  s->body.kind = s->model.rod.kind;
+  rod::RodSegment piece;
+  parse_piece(t, "rod.", "kirchhoff", false, &piece, &s->rod.kind);
+  s->rod.segments = {piece};
 }
 
 void parse_tip(Tree& t, Scene* s) {
   const YAML::Node tip = t.section("tip");
   t.keys("tip", {"mass", "actuated"});
-  s->model.tip_mass = t.nonnegative("tip.mass");
+  s->rod.tip_mass = t.nonnegative("tip.mass");
   if (t.has("tip.actuated")) {
     t.allow("tip.actuated");
     static const char* names[6] = {"fx", "fy", "fz", "mx", "my", "mz"};
@@ -168,19 +154,20 @@ void parse_solver(Tree& t, rod::ShootingOptions* st) {
 void parse_jets(Tree& t, Scene* s) {
   t.section("jets");
   t.keys("jets", {"misalignment", "max_force", "inlet_area", "outlet_area", "water_density", "nozzle_offset"});
-  s->has_jets = true;
-  s->jets.misalignment = t.vec3<rod::Vec3>("jets.misalignment");
+  actuation::JetGeometry jets;
+  jets.misalignment = t.vec3<rod::Vec3>("jets.misalignment");
   const rod::Vec3 qmax = t.vec3<rod::Vec3>("jets.max_force");
   for (int i = 0; i < 3; ++i)
     if (!(qmax[i] > 0.0))
       t.fail("jets.max_force[" + std::to_string(i) + "]", "must be positive, got " + Tree::format(qmax[i]));
-  s->max_jet_force = qmax;
   s->nozzle.inlet_area = t.positive("jets.inlet_area");
   s->nozzle.outlet_area = t.positive("jets.outlet_area");
   s->nozzle.water_density = t.positive("jets.water_density");
   if (s->nozzle.outlet_area >= s->nozzle.inlet_area)
     t.fail("jets.outlet_area", "must be smaller than jets.inlet_area (else the thrust of eq. 26 is not positive)");
-  s->jets.nozzle_offset = t.number("jets.nozzle_offset", 0.0);
+  jets.nozzle_offset = t.number("jets.nozzle_offset", 0.0);
+  s->jets = jets;
+  s->rod.actuators = control::jet_actuators(jets, qmax, s->rod.length());
 }
 
 /// An item of a list section: its own tree, keys checked, errors named "<list>[i].<key>".
@@ -213,14 +200,14 @@ void parse_loads(Tree& t, const YAML::Node& root, Scene* s) {
   for (size_t i = 0; i < list.size(); ++i) {
     Tree item = list_item(t, list, "loads", i, {"at", "mass", "force", "moment", "frame"});
     rod::PointLoad l;
-    l.at = arc_length(item, "at", s->body.length());
+    l.at = arc_length(item, "at", s->rod.length());
     l.mass = item.nonnegative("mass", 0.0);
     l.force = item.vec3<rod::Vec3>("force", rod::Vec3::Zero());
     l.moment = item.vec3<rod::Vec3>("moment", rod::Vec3::Zero());
     const std::string frame = item.text("frame", "body");
     if (frame != "body" && frame != "base") item.fail("frame", "must be body or base, got '" + frame + "'");
     l.frame = frame == "body" ? rod::LoadFrame::kBody : rod::LoadFrame::kBase;
-    s->body.loads.push_back(l);
+    s->rod.loads.push_back(l);
   }
 }
 
@@ -246,14 +233,13 @@ rod::Actuator parse_actuator(Tree& item, size_t i, double L) {
 /// actuators: N inputs anywhere along the body (instead of `jets`).
 void parse_actuators(Tree& t, const YAML::Node& root, Scene* s) {
   const YAML::Node list = list_section(t, root, "actuators");
-  if (list.size() == 0 || list.size() > static_cast<size_t>(rod::kMaxActuators))
-    t.fail("actuators", "must list 1 to " + std::to_string(rod::kMaxActuators) + " actuators");
+  if (list.size() == 0 || list.size() > static_cast<size_t>(rod::kMaxInputs))
+    t.fail("actuators", "must list 1 to " + std::to_string(rod::kMaxInputs) + " actuators");
   for (size_t i = 0; i < list.size(); ++i) {
     Tree item =
         list_item(t, list, "actuators", i, {"name", "at", "position", "direction", "max_force", "min_force", "type"});
-    s->body.actuators.push_back(parse_actuator(item, i, s->body.length()));
+    s->rod.actuators.push_back(parse_actuator(item, i, s->rod.length()));
   }
-  s->has_actuators = true;
 }
 
 /// nozzle: the thrust equation's areas and density (eq. 26), for actuators of type jet.
@@ -286,18 +272,15 @@ Scene parse_scene(const std::string& text) {
   parse_rod(t, &s);
   parse_tip(t, &s);
   s.solver.cold_stability_check = s.actuated;
-  s.model.gravity = t.vec3<rod::Vec3>("gravity");
-  s.body.tip_mass = s.model.tip_mass;
-  s.body.gravity = s.model.gravity;
+  s.rod.gravity = t.vec3<rod::Vec3>("gravity");
   if (t.has("solver")) parse_solver(t, &s.solver);
   if (t.has("jets") && t.has("actuators")) t.fail("actuators", "give either jets (the HydroJet's three) or actuators");
   if (t.has("jets")) parse_jets(t, &s);
-  if (s.has_jets) s.body.actuators = control::jet_actuators(s.jets, s.max_jet_force, s.body.length());
   if (t.has("loads")) parse_loads(t, root, &s);
   if (t.has("actuators")) parse_actuators(t, root, &s);
   if (t.has("nozzle")) parse_nozzle(t, &s);
-  for (size_t i = 0; i < s.body.actuators.size(); ++i)
-    if (s.body.actuators[i].type == rod::ActuatorType::kJet && !s.has_jets && !t.has("nozzle"))
+  for (size_t i = 0; i < s.rod.actuators.size(); ++i)
+    if (s.rod.actuators[i].type == rod::ActuatorType::kJet && !s.jets && !t.has("nozzle"))
       t.fail("actuators[" + std::to_string(i) + "].type",
              "jet needs the nozzle section (inlet_area, outlet_area, water_density)");
   return s;
@@ -316,27 +299,14 @@ Scene load_scene(const std::string& path) {
 namespace hydrojet {
 namespace config {
 
-void require_uniform(const Scene& scene, const std::string& who) {
-  const std::string why = who + " handles one uniform rod with its actuators at the tip so far";
-  if (scene.body.segments.size() > 1) throw SceneError("rod.segments", why);
-  if (!scene.body.loads.empty()) throw SceneError("loads", why);
-  for (size_t i = 0; i < scene.body.actuators.size(); ++i)
-    if (scene.body.actuators[i].at < scene.body.length())
-      throw SceneError("actuators[" + std::to_string(i) + "].at", why);
-}
-
 control::RobotModel make_controller_model(const Scene& scene, const actuation::FlowRegulatorOptions& flow) {
-  if (scene.body.actuators.empty())
+  if (scene.rod.actuators.empty())
     throw SceneError("jets", "missing (the controller needs the jets, or an actuators section)");
   control::RobotModel m;
-  m.rod = scene.model;
+  m.rod = scene.rod;
   m.solver = scene.solver;
-  m.actuated = scene.actuated;
-  m.jets = scene.jets;
   m.nozzle = scene.nozzle;
-  m.max_jet_force = scene.max_jet_force;
   m.flow = flow;
-  if (!scene.has_jets || !scene.uniform()) m.body = scene.body;  // the HydroJet description stays as it was
   return m;
 }
 

@@ -109,7 +109,7 @@ void Controller::commanded() {
     state_ = ControllerState::kRunning;
 }
 
-rod::RodSolution Controller::model_fk(const JetVector& q) { return solve_model(q); }
+rod::RodSolution Controller::model_fk(const InputVector& q) { return solve_model(q); }
 
 ControllerOutput Controller::update(const ControllerInputs& in) {
   ControllerOutput out = resting_output();
@@ -168,7 +168,7 @@ ControllerOutput Controller::resting_output() const {
 // Algorithm 1, line 4: q_obs from measured flow by the thrust equation (26) (jets) or the measured
 // force (force actuators), and w_a = W q_obs.
 std::string Controller::observe_jets(const ControllerInputs& in, ControllerOutput& out) const {
-  const JetVector none = jets_.zeros();
+  const InputVector none = jets_.zeros();
   const bool have_forces = in.forces.size() == jets_.jet_count();
   out.jet_force_observed = jets_.observed_forces(in.flows, have_forces ? in.forces : none);
   for (int i = 0; i < jets_.jet_count(); ++i) {
@@ -184,7 +184,7 @@ std::string Controller::observe_jets(const ControllerInputs& in, ControllerOutpu
 
 // Line 6: forward kinematics at the inputs q (eqs. 6, 9, 12, 14); C^b and J_q follow from
 // model_.linearise().
-rod::RodSolution Controller::solve_model(const JetVector& q) {
+rod::RodSolution Controller::solve_model(const InputVector& q) {
   return params_.observer ? model_.solve(q, observer_.wrench()) : model_.solve(q);
 }
 
@@ -208,7 +208,7 @@ void Controller::observe_model_error(const ControllerInputs& in, const rod::RodS
 
 // The solver did not converge (fewer times in a row than max_solver_failures): no new force this
 // cycle; the flow regulators keep the jets at the flows of the observed jet forces.
-ControllerOutput Controller::hold(ControllerOutput out, const JetVector& flows, double dt) {
+ControllerOutput Controller::hold(ControllerOutput out, const InputVector& flows, double dt) {
   if (reference_.on_path()) pd_.skip(dt);  // a path moves with time: the next cycle sees two cycles' motion
   out.jet_force_command.setZero();
   out.flow_command = jets_.flows_for_forces(out.jet_force_observed);
@@ -261,7 +261,7 @@ std::string Controller::command_inputs(const rod::RodSolution& sol, const Actuat
   o.max_force_step = params_.max_force_rate * dt;
   o.max_force = params_.max_force;
   o.length = model_.body().length();
-  const JetVector& base = params_.integrate_from_measured ? out.jet_force_observed : previous_command_;
+  const InputVector& base = params_.integrate_from_measured ? out.jet_force_observed : previous_command_;
   const InputStep step = input_step(sol.tip_rotation, lin, x_cntr, base, running_lower(dt), model_.upper(), o);
   if (!step.ok) return step.message;
   previous_command_ = step.q;
@@ -275,11 +275,11 @@ std::string Controller::command_inputs(const rod::RodSolution& sol, const Actuat
 // w the fast-path weight of the reference's speed. The idle force moves no faster than the tip force
 // may (limits/max_force_rate): a jet raised to it is a tip-force step that input_step's rate limit
 // does not see (it clamps the base into the bounds first).
-JetVector Controller::running_lower(double dt) {
+InputVector Controller::running_lower(double dt) {
   const double target = params_.min_jet_force * fast_path_weight(pd_.speed(), params_.fast_path_rate);
   const double step = params_.max_force_rate * dt;
   idle_force_ = std::clamp(target, idle_force_ - step, idle_force_ + step);
-  JetVector lower = model_.lower();
+  InputVector lower = model_.lower();
   if (idle_force_ > 0.0)
     for (int i = 0; i < jets_.jet_count(); ++i)
       if (jets_.is_jet(i)) lower[i] = std::max(lower[i], std::min(idle_force_, 0.5 * model_.upper()[i]));
@@ -295,13 +295,13 @@ JetVector Controller::running_lower(double dt) {
 // jet's room to its q_max on a path, to reachable_force_fraction of it otherwise, or 0), which
 // come before the rate. The next step's base stays the QP's own
 // q (previous_command_), so the rounding does not accumulate.
-JetVector Controller::round_corners(const JetVector& q, const ActuatedModel::Linearisation& lin, double dt) {
+InputVector Controller::round_corners(const InputVector& q, const ActuatedModel::Linearisation& lin, double dt) {
   bool fresh = false;  // a mode found this cycle (else only the excess along the last one)
   double scale = 0.0;
   if (params_.allocation_smoothing > 0.0) {
-    JetVector jets = jets_.zeros();
+    InputVector jets = jets_.zeros();
     for (int i = 0; i < jets_.jet_count(); ++i) jets[i] = jets_.is_jet(i) ? 1.0 : 0.0;
-    const JetVector mode = jet_common_mode(lin.actuation, jets);
+    const InputVector mode = jet_common_mode(lin.actuation, jets);
     if (!mode.isZero()) {
       common_mode_ = mode;
       fresh = true;
@@ -329,7 +329,7 @@ JetVector Controller::round_corners(const JetVector& q, const ActuatedModel::Lin
 
 // Eq. (26) and the actuator feedback: flow for each jet force and the per-jet PI flow regulators;
 // force actuators get their drive.
-std::string Controller::actuate(const JetVector& flows, double dt, ControllerOutput& out) {
+std::string Controller::actuate(const InputVector& flows, double dt, ControllerOutput& out) {
   out.flow_command = jets_.flows_for_forces(out.jet_force_command);
   out.valve_command = jets_.regulate(out.jet_force_command, out.flow_command, flows, dt);
   monitor_.record_flow_command(out.flow_command);

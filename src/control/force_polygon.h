@@ -18,10 +18,10 @@ namespace control {
 
 class ForcePolygon {
  public:
-  using Generators = Eigen::Matrix<double, 2, Eigen::Dynamic, 0, 2, kMaxJets>;
+  using Generators = Eigen::Matrix<double, 2, Eigen::Dynamic, 0, 2, kMaxInputs>;
 
   /// G: 2×N; bounds: N each, q_min ≤ q_max; origin: the point rays start from (inside).
-  ForcePolygon(const Generators& G, const JetVector& q_min, const JetVector& q_max, const Eigen::Vector2d& origin)
+  ForcePolygon(const Generators& G, const InputVector& q_min, const InputVector& q_max, const Eigen::Vector2d& origin)
       : origin_(origin) {
     const int n = static_cast<int>(G.cols());
     center_ = G * (0.5 * (q_min + q_max));
@@ -60,7 +60,7 @@ class ForcePolygon {
  private:
   Eigen::Vector2d origin_, center_;
   Generators normal_;
-  JetVector half_width_;
+  InputVector half_width_;
 };
 
 }  // namespace control

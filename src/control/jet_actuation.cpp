@@ -6,10 +6,10 @@
 namespace hydrojet {
 namespace control {
 
-JetActuation::JetActuation(const rod::GeneralRodModel& body, const actuation::Nozzle& nozzle,
+JetActuation::JetActuation(const rod::RodModel& body, const actuation::Nozzle& nozzle,
                            const actuation::FlowRegulatorOptions& flow)
     : nozzle_(nozzle),
-      drive_scale_(JetVector::Zero(static_cast<int>(body.actuators.size()))),
+      drive_scale_(InputVector::Zero(static_cast<int>(body.actuators.size()))),
       regulators_(body.actuators.size(), actuation::FlowRegulator(flow)) {
   for (size_t i = 0; i < body.actuators.size(); ++i) {
     const rod::Actuator& a = body.actuators[i];
@@ -18,21 +18,21 @@ JetActuation::JetActuation(const rod::GeneralRodModel& body, const actuation::No
   }
 }
 
-JetVector JetActuation::observed_forces(const JetVector& flows, const JetVector& forces) const {
-  JetVector q(jet_count());
+InputVector JetActuation::observed_forces(const InputVector& flows, const InputVector& forces) const {
+  InputVector q(jet_count());
   for (int i = 0; i < jet_count(); ++i) q[i] = jet_[i] ? actuation::force_from_flow(flows[i], nozzle_) : forces[i];
   return q;
 }
 
-JetVector JetActuation::flows_for_forces(const JetVector& forces) const {
-  JetVector flows(forces.size());
+InputVector JetActuation::flows_for_forces(const InputVector& forces) const {
+  InputVector flows(forces.size());
   for (int i = 0; i < forces.size(); ++i) flows[i] = jet_[i] ? actuation::flow_from_force(forces[i], nozzle_) : 0.0;
   return flows;
 }
 
-JetVector JetActuation::regulate(const JetVector& q, const JetVector& flow_command, const JetVector& measured_flows,
+InputVector JetActuation::regulate(const InputVector& q, const InputVector& flow_command, const InputVector& measured_flows,
                                  double dt) {
-  JetVector duty(jet_count());
+  InputVector duty(jet_count());
   for (int i = 0; i < jet_count(); ++i)
     duty[i] = jet_[i] ? regulators_[i].update(flow_command[i], measured_flows[i], dt)
                       : (drive_scale_[i] > 0.0 ? std::clamp(q[i] / drive_scale_[i], -1.0, 1.0) : 0.0);

@@ -38,11 +38,11 @@ std::string LookAtOptions::validate() const {
 }
 
 struct LookAtSolver::Impl {
-  using TaskJacobian = Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxJets>;
+  using TaskJacobian = Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxInputs>;
 
   /// One model equilibrium of the iteration.
   struct State {
-    JetVector q;  ///< actuator inputs [N], within their bounds
+    InputVector q;  ///< actuator inputs [N], within their bounds
     Mat3 rotation = Mat3::Identity();
     Vec3 tip = Vec3::Zero();
     rod::ActuationJacobian twist_per_input;  ///< J_q at this equilibrium
@@ -54,7 +54,7 @@ struct LookAtSolver::Impl {
   }
 
   /// The model at inputs q (false when the solve does not converge).
-  bool equilibrium(const JetVector& q, State* s) {
+  bool equilibrium(const InputVector& q, State* s) {
     const rod::RodSolution sol = model.solve(q);
     if (!sol.converged) return false;
     s->q = q;
@@ -85,17 +85,17 @@ struct LookAtSolver::Impl {
 
   /// Gauss–Newton step of the residual in the inputs [N] within their bounds (q + step stays in the
   /// box); *blocked: the bounds keep the step from most of the reduction the free step would give.
-  JetVector newton_step(const State& s, const Vec3& P, bool* blocked = nullptr) const {
+  InputVector newton_step(const State& s, const Vec3& P, bool* blocked = nullptr) const {
     const TaskJacobian J = jacobian(s, P);
     const Vec3 r = residual(s, P);
     actuation::InputHessian H = J.transpose() * J;
     H.diagonal().array() += 1e-12 * H.trace() / static_cast<double>(s.q.size()) + 1e-300;
-    const JetVector g = -J.transpose() * r;
-    const JetVector lo = model.lower() - s.q, hi = model.upper() - s.q;
+    const InputVector g = -J.transpose() * r;
+    const InputVector lo = model.lower() - s.q, hi = model.upper() - s.q;
     const actuation::BoxQpResult qp = actuation::minimise_box_qp(H, g, lo, hi);
-    const JetVector step = qp.ok ? qp.q : JetVector(JetVector::Zero(s.q.size()));
+    const InputVector step = qp.ok ? qp.q : InputVector(InputVector::Zero(s.q.size()));
     if (blocked) {
-      const double free_gain = r.norm() - (J * JetVector(H.ldlt().solve(g)) + r).norm();
+      const double free_gain = r.norm() - (J * InputVector(H.ldlt().solve(g)) + r).norm();
       const double box_gain = r.norm() - (J * step + r).norm();
       *blocked = free_gain > 0.0 && box_gain < 0.1 * free_gain;
     }
@@ -105,7 +105,7 @@ struct LookAtSolver::Impl {
   /// Backtracking along the step (within the bounds, as the box is convex; at the edge the iteration
   /// slides along it): the first trial whose residual is smaller than s's replaces s (then
   /// linearised). False when none is.
-  bool line_search(State* s, const Vec3& P, const JetVector& step) {
+  bool line_search(State* s, const Vec3& P, const InputVector& step) {
     const double r0 = residual(*s, P).norm();
     State trial;
     double fraction = 1.0;
@@ -165,13 +165,13 @@ struct LookAtSolver::Impl {
       return true;
     }
     model.reset();
-    const JetVector rest = JetVector::Zero(model.input_count()).cwiseMax(model.lower()).cwiseMin(model.upper());
+    const InputVector rest = InputVector::Zero(model.input_count()).cwiseMax(model.lower()).cwiseMin(model.upper());
     return equilibrium(rest, s) && linearise(s);
   }
 
   LookAtResult solve(const Vec3& P) {
     State s;
-    s.q = JetVector::Zero(model.input_count());
+    s.q = InputVector::Zero(model.input_count());
     if (!P.allFinite()) return result(s, P, 0, "the point is not finite");
     if (!start(&s)) return result(s, P, 0, "the model solve failed with the jets off");
     if ((P - s.tip).norm() < options.min_distance)

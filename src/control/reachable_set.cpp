@@ -33,7 +33,7 @@ class ForceSweep {
   /// The tip z-axis at rest (inputs at 0, or at the bound nearest to it; unit, base frame), and the
   /// steering plane there; false when the solve fails.
   bool zero_force_direction(Vec3* d) {
-    rest_ = JetVector::Zero(model_.input_count()).cwiseMax(model_.lower()).cwiseMin(model_.upper());
+    rest_ = InputVector::Zero(model_.input_count()).cwiseMax(model_.lower()).cwiseMin(model_.upper());
     const rod::RodSolution s = model_.solve(rest_);
     const ActuatedModel::Linearisation lin = s.converged ? model_.linearise() : ActuatedModel::Linearisation();
     if (!lin.ok) return false;
@@ -42,7 +42,7 @@ class ForceSweep {
     if (e1.norm() < 1e-6) e1 = Vec3::UnitY() - d->y() * *d;
     e1.normalize();
     const Vec3 e2 = d->cross(e1);
-    const Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxJets> M =
+    const Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxInputs> M =
         -so3::hat(*d) * s.tip_rotation * lin.actuation.bottomRows<3>();
     steering_.resize(2, model_.input_count());
     steering_.row(0) = e1.transpose() * M;
@@ -59,7 +59,7 @@ class ForceSweep {
     const int rays = kRaysPerBin * options_.azimuth_bins, rings = options_.force_samples;
     const Eigen::Vector2d o = polygon_->origin();
     Vec3 d;
-    JetVector q = rest_;
+    InputVector q = rest_;
     if (accepted(o, &q, &d)) out.push_back(d);
     for (int j = 0; j < rays; ++j) {
       const Eigen::Vector2d u(std::cos(kTwoPi * j / rays), std::sin(kTwoPi * j / rays));
@@ -81,7 +81,7 @@ class ForceSweep {
 
  private:
   /// The model at the inputs that steer to s (warm-started from *q, which they replace).
-  bool accepted(const Eigen::Vector2d& s, JetVector* q, Vec3* d) {
+  bool accepted(const Eigen::Vector2d& s, InputVector* q, Vec3* d) {
     const actuation::BoundedAllocationResult a =
         actuation::allocate_bounded(steering_, s, model_.lower(), model_.upper(), lambda_, 1e-9, q);
     if (!a.ok) return false;
@@ -97,7 +97,7 @@ class ForceSweep {
 
   ActuatedModel model_;
   const ReachableSetOptions& options_;
-  JetVector rest_;
+  InputVector rest_;
   actuation::InputMatrix steering_;
   double lambda_ = 0.0;
   std::unique_ptr<ForcePolygon> polygon_;

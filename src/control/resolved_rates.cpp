@@ -55,11 +55,11 @@ Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, const Ve
   return x_cntr;
 }
 
-JetVector jet_common_mode(const rod::ActuationJacobian& actuation, const JetVector& jets) {
+InputVector jet_common_mode(const rod::ActuationJacobian& actuation, const InputVector& jets) {
   const int n = static_cast<int>(jets.size());
-  JetVector mode = JetVector::Zero(n);
-  Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxJets> A(6, 0);
-  Eigen::Matrix<int, Eigen::Dynamic, 1, 0, kMaxJets, 1> index(0);
+  InputVector mode = InputVector::Zero(n);
+  Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxInputs> A(6, 0);
+  Eigen::Matrix<int, Eigen::Dynamic, 1, 0, kMaxInputs, 1> index(0);
   for (int i = 0; i < n; ++i)
     if (jets[i] != 0.0) {
       A.conservativeResize(Eigen::NoChange, A.cols() + 1);
@@ -73,11 +73,11 @@ JetVector jet_common_mode(const rod::ActuationJacobian& actuation, const JetVect
   // every vector past the sixth when m > 6). 1e-6, not rounding's 1e-16: a general robot's J_q is
   // computed, to about 1e-9; a direction that moves the tip by 1e-6 of the others is still a
   // common mode for this purpose.
-  const Eigen::JacobiSVD<Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxJets>> svd(A, Eigen::ComputeFullV);
+  const Eigen::JacobiSVD<Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxInputs>> svd(A, Eigen::ComputeFullV);
   const auto& s = svd.singularValues();
   const double tol = 1e-6 * (s.size() > 0 ? s(0) : 0.0);
-  Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxJets, 1> ones = Eigen::VectorXd::Ones(m);
-  Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxJets, 1> nearest = Eigen::VectorXd::Zero(m);
+  Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxInputs, 1> ones = Eigen::VectorXd::Ones(m);
+  Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxInputs, 1> nearest = Eigen::VectorXd::Zero(m);
   for (int k = 0; k < m; ++k)
     if (k >= s.size() || s(k) <= tol) nearest += svd.matrixV().col(k) * svd.matrixV().col(k).dot(ones);
   const double top = nearest.maxCoeff();
@@ -86,7 +86,7 @@ JetVector jet_common_mode(const rod::ActuationJacobian& actuation, const JetVect
   return mode;
 }
 
-AllocationRounding round_allocation(const JetVector& q, const JetVector& lower, const JetVector& mode, double scale) {
+AllocationRounding round_allocation(const InputVector& q, const InputVector& lower, const InputVector& mode, double scale) {
   AllocationRounding r;
   double y0 = std::numeric_limits<double>::infinity();
   for (int i = 0; i < q.size(); ++i)
@@ -103,11 +103,11 @@ AllocationRounding round_allocation(const JetVector& q, const JetVector& lower, 
 
 namespace {
 
-using WrenchRows = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxJets>;
+using WrenchRows = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxInputs>;
 
 /// The step's QP: H = MᵀM + μ²W̃ᵀW̃ + λI, g = Mᵀ(δd + M base) + μ²W̃ᵀW̃ base (½qᵀHq − gᵀq).
-void step_qp(const Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxJets>& M, const WrenchRows& W, const Vec3& dd,
-             const JetVector& base, const InputStepOptions& o, actuation::InputHessian* H, JetVector* g) {
+void step_qp(const Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxInputs>& M, const WrenchRows& W, const Vec3& dd,
+             const InputVector& base, const InputStepOptions& o, actuation::InputHessian* H, InputVector* g) {
   const int n = static_cast<int>(base.size());
   const actuation::InputHessian WtW = W.transpose() * W;
   *H = M.transpose() * M + o.damping * o.damping * WtW;
@@ -118,7 +118,7 @@ void step_qp(const Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxJets>& M, 
 
 /// Scales the step q − base so that its tip-force change is at most max_step [N], then q so that its
 /// tip force is at most max_force [N] (toward 0, clamped into the box should 0 lie outside it).
-JetVector limit(JetVector q, const JetVector& base, const WrenchRows& W, const JetVector& lower, const JetVector& upper,
+InputVector limit(InputVector q, const InputVector& base, const WrenchRows& W, const InputVector& lower, const InputVector& upper,
                 const InputStepOptions& o) {
   const double step = (W.topRows<3>() * (q - base)).norm();
   if (step > o.max_force_step) q = base + (q - base) * (o.max_force_step / step);
@@ -130,7 +130,7 @@ JetVector limit(JetVector q, const JetVector& base, const WrenchRows& W, const J
 }  // namespace
 
 InputStep input_step(const Mat3& tip_rotation, const ActuatedModel::Linearisation& lin, const Vec3& x_cntr,
-                     const JetVector& base_in, const JetVector& lower, const JetVector& upper,
+                     const InputVector& base_in, const InputVector& lower, const InputVector& upper,
                      const InputStepOptions& o) {
   InputStep out;
   const int n = static_cast<int>(base_in.size());
@@ -139,22 +139,22 @@ InputStep input_step(const Mat3& tip_rotation, const ActuatedModel::Linearisatio
     out.message = "control: actuation Jacobian missing or of the wrong size";
     return out;
   }
-  const JetVector base = base_in.cwiseMax(lower).cwiseMin(upper);
+  const InputVector base = base_in.cwiseMax(lower).cwiseMin(upper);
   out.q = base;
   const Vec3 d = tip_rotation.col(2);  // the model's tip direction
-  const Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxJets> M =
+  const Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxInputs> M =
       -so3::hat(d) * tip_rotation * lin.actuation.bottomRows<3>();
   WrenchRows W = lin.wrenches;
   W.bottomRows<3>() /= o.length;  // moments as forces at the arm L
   actuation::InputHessian H;
-  JetVector g;
+  InputVector g;
   step_qp(M, W, x_cntr.cross(d), base, o, &H, &g);
   const actuation::BoxQpResult qp = actuation::minimise_box_qp(H, g, lower, upper, &base);
   if (!qp.ok) {
     out.message = "control: " + qp.message;
     return out;
   }
-  const JetVector q_free = H.ldlt().solve(g);
+  const InputVector q_free = H.ldlt().solve(g);
   out.bound_cost = (W.topRows<3>() * (qp.q - q_free)).norm();
   out.q = limit(qp.q, base, W, lower, upper, o);
   out.ok = out.q.allFinite();

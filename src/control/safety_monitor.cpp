@@ -12,8 +12,8 @@ std::string jet_name(int i) { return "jet " + std::to_string(i + 1); }
 
 SafetyMonitor::SafetyMonitor(const ControllerOptions& options, int jet_count)
     : options_(options),
-      flow_fault_integral_(JetVector::Zero(jet_count)),
-      last_flow_command_(JetVector::Zero(jet_count)) {}
+      flow_fault_integral_(InputVector::Zero(jet_count)),
+      last_flow_command_(InputVector::Zero(jet_count)) {}
 
 void SafetyMonitor::reset() {
   solver_failures_ = 0;
@@ -40,7 +40,7 @@ std::string SafetyMonitor::check_sensors(const ControllerInputs& in) const {
   return "";
 }
 
-std::string SafetyMonitor::check_flow_faults(const JetVector& flows, double dt) {
+std::string SafetyMonitor::check_flow_faults(const InputVector& flows, double dt) {
   for (int i = 0; i < flows.size(); ++i) {
     const double excess = std::abs(flows[i] - last_flow_command_[i]) - options_.flow_fault_tolerance;
     flow_fault_integral_[i] = excess > 0.0 ? flow_fault_integral_[i] + excess * dt : 0.0;

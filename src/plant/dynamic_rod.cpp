@@ -10,7 +10,7 @@
 #include <type_traits>
 #include <utility>
 
-#include "hydrojet_control/rod/shooting_solver.h"
+#include "hydrojet_control/rod/rod_solver.h"
 #include "hydrojet_control/rod/so3.h"
 
 namespace hydrojet {
@@ -81,7 +81,7 @@ DynamicRod::DynamicRod(const DynamicRodModel& model) : model_(model) {
   kse_vstar_ = Vec3(0.0, 0.0, model_.axial_stiffness);  // K_se v*, v* = e_z
   b_se_ = model_.kelvin_voigt_time * k_se_;
   rho_j_ = model_.rotational_inertia_per_length * Vec3(1.0, 1.0, 2.0);
-  inputs_ = rod::ActuatorInputs::Zero(static_cast<int>(model_.body.actuators.size()));
+  inputs_ = rod::InputVector::Zero(static_cast<int>(model_.body.actuators.size()));
   build_grid();
   slots_ = 4 * steps_ + 1;  // four RK4 stages per step, plus the tip
 
@@ -111,7 +111,7 @@ void DynamicRod::set_coefficients(const Coefficients& c) {
 
 void DynamicRod::build_grid() {
   const bool general = !model_.body.segments.empty();
-  const rod::GeneralRodModel body = general ? model_.body : rod::general_model(model_.model);
+  const rod::RodModel body = general ? model_.body : rod::general_model(model_.model);
   length_ = body.length();
   // Breakpoints: base, segment ends, loads, actuators, tip.
   std::vector<double> cuts = {0.0, length_};
@@ -451,7 +451,7 @@ bool DynamicRod::newton(Vec6* x, const rod::TipWrench& w, bool full_newton, cons
 }
 
 Vec6 DynamicRod::kirchhoff_guess(const rod::TipWrench& w, bool* ok) {
-  // Quasi-static Kirchhoff solution (rod::ShootingSolver), then n(0), m(0) from the global force
+  // Quasi-static Kirchhoff solution (rod::RodSolver), then n(0), m(0) from the global force
   // and moment balance of the whole rod:
   //   n(0) = R(L) f_b + m_t g + ρA g L
   //   m(0) = R(L) l_b + p(L) × n(L) + ∫₀ᴸ p × ρA g ds
@@ -459,7 +459,7 @@ Vec6 DynamicRod::kirchhoff_guess(const rod::TipWrench& w, bool* ok) {
   st.integrator.type = rod::IntegratorType::kRk8;
   st.integrator.steps = 8;
   st.residual_tolerance = 1e-12;
-  rod::ShootingSolver solver(model_.model, st);
+  rod::RodSolver solver(model_.model, st);
   const rod::RodSolution sol = solver.solve(w);
   Vec6 x;
   const Vec3 g = model_.model.gravity;
@@ -481,18 +481,18 @@ Vec6 DynamicRod::kirchhoff_guess(const rod::TipWrench& w, bool* ok) {
   return x;
 }
 
-// The general rod's static Kirchhoff solution (rod::GeneralRodSolver), then n(0), m(0) from the
+// The general rod's static Kirchhoff solution (rod::RodSolver), then n(0), m(0) from the
 // force and moment balance of everything the rod carries: tip wrench and mass, the loads and
 // actuators at their nodes, the distributed weight.
 Vec6 DynamicRod::general_guess(const rod::TipWrench& w, bool* ok) {
-  rod::GeneralRodModel g = model_.body;
+  rod::RodModel g = model_.body;
   g.kind = rod::RodKind::kKirchhoff;
   g.tip_mass = model_.model.tip_mass;
   g.gravity = model_.model.gravity;
   rod::ShootingOptions st;
   st.integrator.type = rod::IntegratorType::kRk8;
   st.residual_tolerance = 1e-12;
-  rod::GeneralRodSolver solver(g, st);
+  rod::RodSolver solver(g, st);
   *ok = solver.solve(inputs_, w).converged;
   auto frame = [&](double s, Mat3* R, Vec3* p) {
     if (!*ok || !solver.frame_at(s, R, p)) *R = Mat3::Identity(), *p = s * Vec3::UnitZ();
@@ -547,7 +547,7 @@ bool DynamicRod::reset_to_static(const rod::TipWrench& w) {
   jac_valid_ = false;  // the static Jacobian (c0 = 0) is not the dynamic one
   if (!ok) {
     last_error_ = "reset_to_static: " + last_error_ +
-                  (kirchhoff_ok ? "" : " (the quasi-static ShootingSolver did not converge either)");
+                  (kirchhoff_ok ? "" : " (the quasi-static RodSolver did not converge either)");
     return false;
   }
   z1_ = rec_;
@@ -691,7 +691,7 @@ bool DynamicRod::advance(const rod::TipWrench& w, double dt) {
   return true;
 }
 
-bool DynamicRod::set_inputs(const rod::ActuatorInputs& q) {
+bool DynamicRod::set_inputs(const rod::InputVector& q) {
   if (q.size() != inputs_.size()) {
     std::ostringstream os;
     os << "set_inputs: " << q.size() << " inputs for " << inputs_.size() << " actuators";

@@ -61,7 +61,7 @@ Plant::Plant(const PlantModel& p, unsigned seed)
   model_.rod.model.gravity = R_tracker_base_.transpose() * Eigen::Vector3d(0, 0, -model_.gravity);
   general_ = !model_.rod.body.segments.empty();
   const int n = general_ ? static_cast<int>(model_.rod.body.actuators.size()) : 3;
-  drive_scale_ = thrust_ = duty_ = Vector::Zero(n);
+  drive_scale_ = thrust_ = duty_ = rod::InputVector::Zero(n);
   for (int i = 0, valve = 0; i < n; ++i) {
     const rod::Actuator* a = general_ ? &model_.rod.body.actuators[i] : nullptr;
     jet_.push_back(!a || a->type == rod::ActuatorType::kJet);
@@ -78,7 +78,7 @@ bool Plant::reset() {
   duty_.setZero();
   thrust_.setZero();
   hydraulics_.reset();
-  if (general_) rod_->set_inputs(Vector::Zero(actuator_count()));
+  if (general_) rod_->set_inputs(rod::InputVector::Zero(actuator_count()));
   error_.clear();
   if (!rod_->reset_to_static(rod::TipWrench{})) {
     error_ = "rod: " + rod_->last_error();
@@ -87,30 +87,30 @@ bool Plant::reset() {
   return true;
 }
 
-void Plant::command(const Vector& duty, double t) {
+void Plant::command(const rod::InputVector& duty, double t) {
   const bool ok = duty.size() == actuator_count() && duty.allFinite();
-  duty_ = ok ? duty : Vector(Vector::Zero(actuator_count()));  // a broken command closes the valves
+  duty_ = ok ? duty : rod::InputVector(rod::InputVector::Zero(actuator_count()));  // a broken command closes the valves
   t_command_ = t;
 }
 
-Plant::Vector Plant::flows() const {
-  const Hydraulics::Vector valves = hydraulics_.flows();
-  Vector q = Vector::Zero(actuator_count());
+rod::InputVector Plant::flows() const {
+  const rod::InputVector valves = hydraulics_.flows();
+  rod::InputVector q = rod::InputVector::Zero(actuator_count());
   for (int i = 0; i < actuator_count(); ++i)
     if (jet_[i]) q[i] = valves[valve_of_[i]];
   return q;
 }
 
-Plant::Vector Plant::jet_forces() const {
-  const Vector q = flows();
-  Vector f(actuator_count());
+rod::InputVector Plant::jet_forces() const {
+  const rod::InputVector q = flows();
+  rod::InputVector f(actuator_count());
   for (int i = 0; i < actuator_count(); ++i)
     f[i] = jet_[i] ? actuation::force_from_flow(q[i], model_.nozzle) : thrust_[i];
   return f;
 }
 
-void Plant::step_actuators(const Vector& duty, double dt) {
-  Hydraulics::Vector valve_duty(hydraulics_.size());
+void Plant::step_actuators(const rod::InputVector& duty, double dt) {
+  rod::InputVector valve_duty(hydraulics_.size());
   for (int i = 0; i < actuator_count(); ++i) {
     if (jet_[i]) {
       valve_duty[valve_of_[i]] = duty[i];
@@ -134,7 +134,7 @@ bool Plant::advance_to(double t) {
   for (int i = 1; i <= n; ++i) {
     // Command timeout: the valves close when the controller goes silent.
     timed_out_ = t_ - t_command_ > model_.command_timeout;
-    step_actuators(timed_out_ ? Vector(Vector::Zero(actuator_count())) : duty_, dt);
+    step_actuators(timed_out_ ? rod::InputVector(rod::InputVector::Zero(actuator_count())) : duty_, dt);
     rod::TipWrench tw;
     tw.force = model_.external_tip_force;
     tw.moment = model_.external_tip_moment;
@@ -163,14 +163,14 @@ TrackerSample Plant::tracker_sample() {
   return tracker_.sample(t_, tip, base);
 }
 
-Plant::Vector Plant::flow_sample() {
-  Vector q = flow_sensors_.sample(flows());
+rod::InputVector Plant::flow_sample() {
+  rod::InputVector q = flow_sensors_.sample(flows());
   for (int i = 0; i < actuator_count(); ++i)
     if (!jet_[i]) q[i] = 0.0;
   return q;
 }
 
-Plant::Vector Plant::force_sample() { return jet_forces(); }
+rod::InputVector Plant::force_sample() { return jet_forces(); }
 
 }  // namespace plant
 }  // namespace hydrojet

@@ -1,65 +1,73 @@
-// Internal to hydrojet_rod: the damped Newton iteration on the tip orientation R(L) (the shooting
-// unknown x of eq. 15, R(L) ← R(L)·exp(x̂)), written once for ShootingSolver and GeneralRodSolver.
-// Not installed.
+// Internal to hydrojet_rod: the damped Newton iteration of the shooting problems, written once for
+// single shooting (unknown: the tip orientation R(L), R(L) ← R(L)·exp(x̂)) and multiple shooting
+// (unknowns: the node states). Not installed.
 #pragma once
 
 #include <Eigen/LU>
 #include <cmath>
 
-#include "hydrojet_control/rod/shooting_solver.h"
+#include "hydrojet_control/rod/rod_solver.h"
 #include "hydrojet_control/rod/so3.h"
 
 namespace hydrojet {
 namespace rod {
 namespace internal {
 
-/// Newton with a step cap (options.max_step [rad]) and a backtracking line search on |r| from
-/// *R_tip. `evaluate(R)` returns an evaluation with members ok, r (residual log R(0)) and J (∂r/∂x).
-/// True when |r| ≤ options.residual_tolerance; *R_tip then holds the root and *last its evaluation.
-/// sol gets the iterations, the residual and, on failure, the reason.
-template <class Eval, class Evaluate>
-bool damped_newton(Evaluate&& evaluate, const ShootingOptions& options, Mat3* R_tip, RodSolution* sol, Eval* last) {
-  Eval e = evaluate(*R_tip);
+/// Backtracking halvings of the line search before it gives up.
+constexpr int kLineSearchHalvings = 12;
+
+/// Newton with a step cap (options.max_step [rad], in the problem's own measure) and a backtracking
+/// line search on the residual norm from *x. The problem P provides, for its unknowns X and its
+/// evaluation E:
+///   E evaluate(const X&)                        with members ok and a residual
+///   double residual(const E&)                   the residual's norm
+///   bool step(const E&, Step* dx)               the Newton step; false when the Jacobian is singular
+///   double size(const Step&)                    the step's size compared with max_step
+///   X moved(const X&, const Step&, double a)    the unknowns moved by a·dx
+/// True when the residual ≤ options.residual_tolerance; *x then holds the root and *last its
+/// evaluation. sol gets the iterations, the residual and, on failure, the reason.
+template <class P, class X, class E>
+bool damped_newton(P& p, const ShootingOptions& options, X* x, RodSolution* sol, E* last) {
+  E e = p.evaluate(*x);
   for (int it = 0;; ++it) {
     if (!e.ok) {
       sol->message = "integration failed (non-finite state or step limit)";
       return false;
     }
-    sol->residual = e.r.norm();
+    sol->residual = p.residual(e);
     if (sol->residual <= options.residual_tolerance) {
-      *last = e;
+      *last = std::move(e);
       return true;
     }
     if (it >= options.max_iterations) {
       sol->message = "Newton iteration limit reached";
-      *last = e;
+      *last = std::move(e);
       return false;
     }
     ++sol->iterations;
-    Eigen::PartialPivLU<Mat3> lu(e.J);
-    Vec3 step = -lu.solve(e.r);
-    if (!step.allFinite() || std::abs(e.J.determinant()) < 1e-300) {
+    typename P::Step step;
+    if (!p.step(e, &step)) {
       sol->message = "singular shooting Jacobian";
-      *last = e;
+      *last = std::move(e);
       return false;
     }
-    const double n = step.norm();
+    const double n = p.size(step);
     if (n > options.max_step) step *= options.max_step / n;
     bool accepted = false;
     double alpha = 1.0;
-    for (int k = 0; k < 10; ++k, alpha *= 0.5) {
-      const Mat3 R_try = *R_tip * so3::exp(alpha * step);
-      Eval t = evaluate(R_try);
-      if (t.ok && t.r.norm() < (1.0 - 1e-4 * alpha) * sol->residual) {
-        *R_tip = so3::orthonormalize(R_try);
-        e = t;
+    for (int k = 0; k < kLineSearchHalvings; ++k, alpha *= 0.5) {
+      X trial = p.moved(*x, step, alpha);
+      E t = p.evaluate(trial);
+      if (t.ok && p.residual(t) < (1.0 - 1e-4 * alpha) * sol->residual) {
+        *x = std::move(trial);
+        e = std::move(t);
         accepted = true;
         break;
       }
     }
     if (!accepted) {
       sol->message = "line search failed (no descent)";
-      *last = e;
+      *last = std::move(e);
       return false;
     }
   }

@@ -10,7 +10,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "hydrojet_control/rod/shooting_solver.h"
+#include "hydrojet_control/rod/rod_solver.h"
 #include "kinsol_workspace.h"
 
 namespace hydrojet {
@@ -85,14 +85,14 @@ int KinsolWorkspace::solve(Func f, Jac j, void* data, double* x, double fnorm_to
   return flag;
 }
 
-KinsolWorkspace& ShootingSolver::Workspace::kinsol() {
+KinsolWorkspace& RodSolver::Workspace::kinsol() {
   if (!kinsol_) kinsol_.reset(new KinsolWorkspace);
   return *kinsol_;
 }
 
-bool ShootingSolver::newton_kinsol(Mat3* R_tip, const Load& load, RodSolution* sol, Eval* last) {
+bool RodSolver::newton_kinsol(Mat3* R_tip, const Load& load, RodSolution* sol, Eval* last) {
   struct Ctx {
-    ShootingSolver* s = nullptr;
+    RodSolver* s = nullptr;
     const Load* load = nullptr;
     Mat3 R_ref;
     Vec3 x = Vec3::Constant(std::nan(""));
@@ -126,8 +126,8 @@ bool ShootingSolver::newton_kinsol(Mat3* R_tip, const Load& load, RodSolution* s
   double x[3] = {0.0, 0.0, 0.0};
   long iters = 0, fevals = 0;
   // KINSOL's test is on the max-norm; |r| ≤ tol in the 2-norm is checked below.
-  const int flag = workspace_.kinsol().solve(f, j, &c, x, settings_.residual_tolerance / std::sqrt(3.0),
-                                             settings_.max_iterations, settings_.max_step, &iters, &fevals);
+  const int flag = workspace_.kinsol().solve(f, j, &c, x, options_.residual_tolerance / std::sqrt(3.0),
+                                             options_.max_iterations, options_.max_step, &iters, &fevals);
   sol->iterations += static_cast<int>(iters);
   const Eval& e = c.at(x);
   sol->rhs_evaluations += c.rhs;
@@ -138,7 +138,7 @@ bool ShootingSolver::newton_kinsol(Mat3* R_tip, const Load& load, RodSolution* s
   *last = e;
   *R_tip = so3::orthonormalize(c.R_ref * so3::exp(Vec3(x[0], x[1], x[2])));
   sol->residual = e.r.norm();
-  if (sol->residual <= settings_.residual_tolerance) return true;
+  if (sol->residual <= options_.residual_tolerance) return true;
   sol->message =
       flag >= 0 ? "KINSOL stopped above the residual tolerance" : "KINSOL failed (flag " + std::to_string(flag) + ")";
   return false;

@@ -2,7 +2,7 @@
 // continuation and fold tracking — written once for single shooting (unknown: the tip orientation
 // R(L)) and multiple shooting (unknowns: the node states). Not installed.
 //
-// A Problem (ShootingSolver::SingleShooting, ShootingSolver::MultipleShooting) provides:
+// A Problem (RodSolver::Shooting, RodSolver::MultipleShooting) provides:
 //   Unknowns, Load, Point = PathPoint<Unknowns, Load>, Saved
 //   kNewtonFromUnloaded                   Newton straight to the target from the unloaded shape
 //   x, det, tip                           the current equilibrium (the result after the ladder)
@@ -20,7 +20,7 @@
 #include <string>
 
 #include "hydrojet_control/rod/rod_model.h"
-#include "hydrojet_control/rod/shooting_solver.h"
+#include "hydrojet_control/rod/rod_solver.h"
 #include "hydrojet_control/rod/so3.h"
 #include "hydrojet_control/rod/stability.h"
 
@@ -99,8 +99,8 @@ struct PathPoint {
   double det;
 };
 
-/// The load-path Problem of shooting on the tip orientation R(L) (ShootingSolver::SingleShooting,
-/// GeneralRodSolver::Shooting derive from it): the current equilibrium and Newton's last evaluation
+/// The load-path Problem of shooting on the tip orientation R(L) (RodSolver::Shooting derives from
+/// it): the current equilibrium and Newton's last evaluation
 /// `e` (with ok, r, J, R0, p0). Derived provides options(), length(), growth() and
 /// newton_at(&R, load, &e), the solver's damped Newton.
 template <class Derived, class LoadT, class EvalT>

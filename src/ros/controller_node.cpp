@@ -67,7 +67,7 @@ bool finite_pose(const geometry_msgs::Pose& p) {
 }
 
 /// One message entry per actuator.
-std::vector<double> copy_jets(const control::JetVector& from) {
+std::vector<double> copy_jets(const rod::InputVector& from) {
   return std::vector<double>(from.data(), from.data() + from.size());
 }
 
@@ -573,7 +573,7 @@ class ControllerNode {
   void read_flows(control::ControllerInputs& in) const {
     if (!have_jets_) return;
     const int n =
-        std::min({static_cast<int>(control::kMaxJets), controller_->jet_count(), static_cast<int>(jets_.flow.size())});
+        std::min({static_cast<int>(rod::kMaxInputs), controller_->jet_count(), static_cast<int>(jets_.flow.size())});
     in.flow_valid = true;
     in.flows.resize(n);
     for (int i = 0; i < n; ++i) {

@@ -161,7 +161,7 @@ class PlantNode {
   /// On the way out (a signal, the end of `duration`): the simulated valves shut, and a last
   /// jets/state shows it (valve_command all zero unless a valve is stuck).
   void close_valves() {
-    plant_->command(plant::Plant::Vector::Zero(plant_->actuator_count()), plant_->time());
+    plant_->command(rod::InputVector::Zero(plant_->actuator_count()), plant_->time());
     publish_sensors(plant_->time());
     ROS_INFO("plant: stopping (signal %d): valves closed", ros_bridge::shutdown_signal());
   }
@@ -222,7 +222,7 @@ class PlantNode {
   }
 
   /// The faults of plant/fault on this sample's readings; an ended stuck valve is freed.
-  void apply_faults(double t, plant::Plant::Vector* q, std::vector<uint8_t>* valid) {
+  void apply_faults(double t, rod::InputVector* q, std::vector<uint8_t>* valid) {
     for (auto it = faults_.begin(); it != faults_.end();) {
       if (t >= it->to) {
         if (it->kind == "stuck_valve") plant_->hydraulics()[plant_->valve_of(it->actuator)].set_stuck(-1.0);
@@ -238,7 +238,7 @@ class PlantNode {
 
   void command(const hydrojet_control::JetCommand::ConstPtr& m) {
     // One duty per actuator; a wrong count or a non-finite entry closes the valves (Plant::command).
-    plant::Plant::Vector duty(std::min<int>(m->valve_command.size(), rod::kMaxActuators));
+    rod::InputVector duty(std::min<int>(m->valve_command.size(), rod::kMaxInputs));
     for (int i = 0; i < duty.size(); ++i) duty[i] = m->valve_command[i];
     if (static_cast<int>(m->valve_command.size()) != plant_->actuator_count()) duty.setZero(0);
     const double t = o_.lockstep ? m->header.stamp.toSec() - o_.start_time : plant_->time();
@@ -263,8 +263,8 @@ class PlantNode {
       broadcast(tip, "tip_sensor");
       broadcast(base, "base_sensor");
     }
-    plant::Plant::Vector q = plant_->flow_sample();
-    const plant::Plant::Vector f = plant_->force_sample();
+    rod::InputVector q = plant_->flow_sample();
+    const rod::InputVector f = plant_->force_sample();
     if (o_.flow_fault_at >= 0 && t >= o_.flow_fault_at) {
       q[0] = std::nan("");
       if (q.size() > 1) q[1] = -1e-6;
@@ -274,8 +274,8 @@ class PlantNode {
     apply_faults(t, &q, &valid);
     hydrojet_control::JetState js;
     js.header.stamp = stamp;
-    const plant::Plant::Vector duty = plant_->valves_closed_by_timeout()
-                                          ? plant::Plant::Vector(plant::Plant::Vector::Zero(n))
+    const rod::InputVector duty = plant_->valves_closed_by_timeout()
+                                          ? rod::InputVector(rod::InputVector::Zero(n))
                                           : plant_->valve_command();
     js.flow.resize(n);
     js.flow_valid.resize(n);

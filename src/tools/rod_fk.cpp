@@ -12,8 +12,8 @@
 
 #include "hydrojet_control/config/scene.h"
 #include "hydrojet_control/config/wrench_batch.h"
-#include "hydrojet_control/rod/general_rod_solver.h"
-#include "hydrojet_control/rod/shooting_solver.h"
+#include "hydrojet_control/rod/rod_solver.h"
+#include "hydrojet_control/rod/rod_solver.h"
 #include "hydrojet_control/rod/stability.h"
 #include "hydrojet_control/util/json_writer.h"
 
@@ -139,8 +139,8 @@ std::vector<hydrojet::rod::TipWrench> read_batch(const std::string& src) {
 }
 
 /// True when the scene is more than one uniform rod with its actuation at the tip: segments, point
-/// loads or actuators along the body. Those scenes are solved by GeneralRodSolver; the others by
-/// ShootingSolver's fast path, the actuators then entering as the tip wrench B q.
+/// loads or actuators along the body. Those scenes are solved by RodSolver; the others by
+/// RodSolver's fast path, the actuators then entering as the tip wrench B q.
 bool needs_general_solver(const hydrojet::config::Scene& scene) {
   if (!scene.uniform()) return true;
   for (const auto& a : scene.body.actuators)
@@ -192,7 +192,7 @@ hydrojet::config::Scene load_scene(Options* opt) {
 }
 
 /// --compliance: the body compliance C^b and the stability margin (null when not converged).
-void add_compliance(hydrojet::rod::ShootingSolver& solver, const hydrojet::config::Scene& scene, bool converged,
+void add_compliance(hydrojet::rod::RodSolver& solver, const hydrojet::config::Scene& scene, bool converged,
                     JsonObject* j) {
   const bool actuated = !scene.body.actuators.empty();
   if (!converged) {
@@ -246,7 +246,7 @@ void add_shape(const Solver& solver, bool converged, int K, JsonObject* j) {
 }
 
 /// One solve for the tip wrench w as its JSON line.
-std::string solve_json(hydrojet::rod::ShootingSolver& solver, const hydrojet::config::Scene& scene, const Options& opt,
+std::string solve_json(hydrojet::rod::RodSolver& solver, const hydrojet::config::Scene& scene, const Options& opt,
                        const hydrojet::rod::TipWrench& w, bool* converged) {
   const auto t0 = std::chrono::steady_clock::now();
   const hydrojet::rod::RodSolution sol = solver.solve(w);
@@ -260,7 +260,7 @@ std::string solve_json(hydrojet::rod::ShootingSolver& solver, const hydrojet::co
 
 /// --compliance on a general scene: C^b, J_q from the sensitivities, and the stability of the block
 /// of C^b on the actuators' equivalent tip wrenches (the scene's tip.actuated when it has none).
-void add_general_compliance(hydrojet::rod::GeneralRodSolver& solver, const hydrojet::config::Scene& scene,
+void add_general_compliance(hydrojet::rod::RodSolver& solver, const hydrojet::config::Scene& scene,
                             bool converged, JsonObject* j) {
   const bool actuated = solver.actuator_count() > 0;
   if (!converged) {
@@ -269,7 +269,7 @@ void add_general_compliance(hydrojet::rod::GeneralRodSolver& solver, const hydro
     return;
   }
   const auto tc0 = std::chrono::steady_clock::now();
-  const hydrojet::rod::GeneralCompliance c = solver.compliance();
+  const hydrojet::rod::Compliance c = solver.compliance();
   const auto tc1 = std::chrono::steady_clock::now();
   const auto st = actuated
                       ? hydrojet::rod::stability(c.body, hydrojet::rod::equivalent_tip_wrenches(c.body, c.actuation),
@@ -283,9 +283,9 @@ void add_general_compliance(hydrojet::rod::GeneralRodSolver& solver, const hydro
 }
 
 /// One solve of a general scene: the actuators' inputs q and the tip wrench w.
-std::string solve_general_json(hydrojet::rod::GeneralRodSolver& solver, const hydrojet::config::Scene& scene,
+std::string solve_general_json(hydrojet::rod::RodSolver& solver, const hydrojet::config::Scene& scene,
                                const Options& opt, const hydrojet::rod::TipWrench& w, bool* converged) {
-  hydrojet::rod::ActuatorInputs q = hydrojet::rod::ActuatorInputs::Zero(solver.actuator_count());
+  hydrojet::rod::InputVector q = hydrojet::rod::InputVector::Zero(solver.actuator_count());
   for (int i = 0; i < q.size() && i < static_cast<int>(opt.actuators.size()); ++i) q[i] = opt.actuators[i];
   const auto t0 = std::chrono::steady_clock::now();
   const hydrojet::rod::RodSolution sol = solver.solve(q, w);
@@ -311,11 +311,11 @@ bool run_all(const hydrojet::config::Scene& scene, const Options& opt,
     return all_converged;
   };
   if (needs_general_solver(scene)) {
-    hydrojet::rod::GeneralRodSolver solver(scene.body, scene.solver);
+    hydrojet::rod::RodSolver solver(scene.body, scene.solver);
     return each(
         [&](const hydrojet::rod::TipWrench& w, bool* c) { return solve_general_json(solver, scene, opt, w, c); });
   }
-  hydrojet::rod::ShootingSolver solver(scene.model, scene.solver);
+  hydrojet::rod::RodSolver solver(scene.model, scene.solver);
   return each([&](const hydrojet::rod::TipWrench& w, bool* c) { return solve_json(solver, scene, opt, w, c); });
 }
 

@@ -1,6 +1,6 @@
 // Scene files (YAML text: rod or rod.segments, tip, gravity, solver, jets, loads, actuators,
 // nozzle). Contract (config/scene.h, config/yaml_tree.h): parse_scene() fails only with
-// SceneError naming a key; an accepted scene is a valid general rod (GeneralRodModel::validate()
+// SceneError naming a key; an accepted scene is a valid general rod (RodModel::validate()
 // empty) with a positive, finite length.
 #include <cmath>
 

@@ -19,16 +19,15 @@
 #include <string>
 
 #include "hydrojet_control/actuation/allocation.h"
+#include "hydrojet_control/rod/rod_model.h"
 
 namespace hydrojet {
 namespace actuation {
 
-/// Most inputs of the bounded allocation (as rod::kMaxActuators).
-constexpr int kMaxInputs = 8;
+using rod::kMaxInputs;
 /// Actuation matrix: 1..6 wrench rows × 1..8 inputs.
 using InputMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, 6, kMaxInputs>;
-/// Inputs q [N], bounds.
-using InputVector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxInputs, 1>;
+using rod::InputVector;
 
 struct BoundedAllocationResult {
   InputVector q;               ///< the minimiser of eq. (20); zeros when !ok

@@ -12,7 +12,7 @@
 // (E₀, G₀ the starting moduli): the moduli stay positive and all seven are O(1). Derivatives are
 // central differences (absolute step 1e-6) through the shooting solver; every sample keeps its own
 // solver, warm-started while only the misalignments move (they change the wrench, not the rod);
-// a new u, E or G goes through ShootingSolver::set_model(), which resets the warm start. The
+// a new u, E or G goes through RodSolver::set_model(), which resets the warm start. The
 // covariance is ceres::Covariance (JᵀJ)⁻¹ scaled by the residual variance σ̂² = Σ|r_i|²/(3N − p),
 // mapped back to E and G by the delta method.
 #pragma once

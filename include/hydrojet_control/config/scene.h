@@ -3,6 +3,7 @@
 // ROS-free (yaml-cpp + Eigen).
 #pragma once
 
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -10,8 +11,8 @@
 #include "hydrojet_control/config/yaml_tree.h"
 #include "hydrojet_control/actuation/thrust.h"
 #include "hydrojet_control/control/controller.h"
-#include "hydrojet_control/rod/general_rod.h"
-#include "hydrojet_control/rod/shooting_solver.h"
+#include "hydrojet_control/rod/rod_model.h"
+#include "hydrojet_control/rod/rod_solver.h"
 #include "hydrojet_control/rod/stability.h"
 
 namespace hydrojet {
@@ -24,24 +25,16 @@ class SceneError : public KeyError {
 };
 
 struct Scene {
-  rod::RodModel model;
+  /// The robot: its segments (one for a single-rod scene), point loads (`loads`), actuators
+  /// (`actuators`, or the three jets of a `jets` section at the tip), tip mass and gravity.
+  rod::RodModel rod;
+  /// tip.actuated: the tip-wrench components the solver's cold stability check looks at.
   rod::ActuatedSet actuated = rod::lateral_force_actuation();
   rod::ShootingOptions solver;
-  /// The optional `jets` section (paper §6.2, Table 1).
-  bool has_jets = false;
-  actuation::JetGeometry jets;  ///< misalignment (δα, δβ, δγ) [rad], nozzle offset [m]
-  actuation::Nozzle nozzle;     ///< A_in, A_out [m^2], water density [kg/m^3]
-  Eigen::Vector3d max_jet_force = Eigen::Vector3d(0.243, 0.224, 0.244);  ///< q_max [N]
-
-  /// The robot as a general follower-actuated rod (issue 14), always filled: its segments (one for a
-  /// single-rod scene), point loads (`loads`), actuators (`actuators`, or the three jets of a `jets`
-  /// section at the tip), tip mass and gravity.
-  rod::GeneralRodModel body;
-  /// The scene has an `actuators` section (instead of `jets`).
-  bool has_actuators = false;
-  /// One uniform rod with no point loads: `model` describes it completely and ShootingSolver's fast
-  /// path applies (the actuators, if any, then act at the tip as a tip wrench when all sit at L).
-  bool uniform() const { return body.segments.size() == 1 && body.loads.empty(); }
+  actuation::Nozzle nozzle;  ///< A_in, A_out [m^2], water density [kg/m^3] of the actuators of type jet
+  /// The `jets` section as given (misalignment (δα, δβ, δγ) [rad], nozzle offset [m] of the HydroJet's
+  /// three jets, paper §6.2): what the calibration fits and writes back. Empty with `actuators`.
+  std::optional<actuation::JetGeometry> jets;
 };
 
 /// Parses scene YAML text. Known sections: rod (single-rod keys, or rod.segments), tip, gravity, and
@@ -49,14 +42,10 @@ struct Scene {
 /// jet). Other top-level sections are allowed (later tools add plant, ...); unknown keys inside a
 /// known section are errors.
 Scene parse_scene(const std::string& yaml_text);
-/// The controller's model of the robot from a scene (its rod, solver, jets and nozzles) and the
-/// flow-regulator gains. SceneError("jets", ...) when the scene has no jets section.
+/// The controller's model of the robot from a scene (its rod, solver and nozzles) and the
+/// flow-regulator gains. SceneError("actuators", ...) when the robot has no actuators.
 control::RobotModel make_controller_model(const Scene& scene, const actuation::FlowRegulatorOptions& flow);
 
-/// SceneError naming rod.segments or loads when `scene` is not uniform(): for the parts of the stack
-/// that solve one uniform rod with actuation at the tip only (`who`, e.g. "the controller"), until
-/// they move to the general solver (issue 14).
-void require_uniform(const Scene& scene, const std::string& who);
 /// Reads and parses a scene file; SceneError("scene", ...) when the file cannot be read.
 Scene load_scene(const std::string& path);
 

@@ -72,7 +72,7 @@ class Controller {
   ControllerState state() const { return state_; }
   /// Why it aborted (empty unless aborted).
   const std::string& abort_reason() const { return abort_reason_; }
-  /// Number of jets (entries of every JetVector in and out).
+  /// Number of jets (entries of every InputVector in and out).
   int jet_count() const { return jets_.jet_count(); }
 
   /// One cycle of Algorithm 1. Call at the control rate with the latest samples.
@@ -85,26 +85,26 @@ class Controller {
   const DisturbanceObserver& observer() const { return observer_; }
 
   /// The model's forward kinematics at inputs q [N] (for open-loop prediction and tests).
-  rod::RodSolution model_fk(const JetVector& q);
+  rod::RodSolution model_fk(const InputVector& q);
 
  private:
   // The steps of update(), in order. Those returning a string return the abort reason (empty: go on).
   ControllerOutput resting_output() const;
   std::string observe_jets(const ControllerInputs& in, ControllerOutput& out) const;
-  rod::RodSolution solve_model(const JetVector& q);
+  rod::RodSolution solve_model(const InputVector& q);
   bool predicting() const;
   void observe_model_error(const ControllerInputs& in, const rod::RodSolution& sol,
                            const ActuatedModel::Linearisation& lin, double dt);
-  ControllerOutput hold(ControllerOutput out, const JetVector& flows, double dt);
+  ControllerOutput hold(ControllerOutput out, const InputVector& flows, double dt);
   std::string check_stability(const ActuatedModel::Linearisation& lin, ControllerOutput& out) const;
   void start_configured_path(double t);
   void commanded();
   void track_reference(const ControllerInputs& in, const rod::RodSolution& sol, double dt, ControllerOutput& out);
   std::string command_inputs(const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin, double dt,
                              ControllerOutput& out);
-  JetVector running_lower(double dt);
-  JetVector round_corners(const JetVector& q, const ActuatedModel::Linearisation& lin, double dt);
-  std::string actuate(const JetVector& flows, double dt, ControllerOutput& out);
+  InputVector running_lower(double dt);
+  InputVector round_corners(const InputVector& q, const ActuatedModel::Linearisation& lin, double dt);
+  std::string actuate(const InputVector& flows, double dt, ControllerOutput& out);
   ControllerOutput finish_cycle(ControllerOutput out);
   ControllerOutput abort(ControllerOutput out, const std::string& why);
   void reset_actuation();
@@ -116,9 +116,9 @@ class Controller {
   DirectionPd pd_;
   DisturbanceObserver observer_;
   bool predicted_ = false;      ///< this cycle closes on the observer's prediction (observer_prediction)
-  JetVector previous_command_;  ///< the last step's inputs [N], before the rounding (the base of the next step)
+  InputVector previous_command_;  ///< the last step's inputs [N], before the rounding (the base of the next step)
   double common_force_ = 0.0;   ///< a: the rounding's offset along common_mode_ now [N] (round_corners)
-  JetVector common_mode_;       ///< the jets' common mode last found (empty: none yet)
+  InputVector common_mode_;       ///< the jets' common mode last found (empty: none yet)
   double idle_force_ = 0.0;     ///< the jets' idle force now [N] (running_lower; limits/min_jet_force)
   std::shared_ptr<const ReachableSet> path_reachable_;  ///< full q_max: path points
   std::shared_ptr<const ReachableSet> reachable_;       ///< with reserve: operator targets

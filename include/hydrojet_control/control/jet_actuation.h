@@ -17,31 +17,31 @@ namespace control {
 class JetActuation {
  public:
   /// The actuators of `body` (at least one), the jets' nozzle and flow regulator.
-  JetActuation(const rod::GeneralRodModel& body, const actuation::Nozzle& nozzle,
+  JetActuation(const rod::RodModel& body, const actuation::Nozzle& nozzle,
                const actuation::FlowRegulatorOptions& flow);
 
   int jet_count() const { return static_cast<int>(jet_.size()); }
   /// Actuator i is a water jet (flow-driven, eq. 26); else it takes its force directly.
   bool is_jet(int i) const { return jet_[i]; }
   /// A zero entry per actuator.
-  JetVector zeros() const { return JetVector::Zero(jet_count()); }
+  InputVector zeros() const { return InputVector::Zero(jet_count()); }
 
   /// Inputs q_obs [N]: jets from their measured flows [m^3/s] by eq. (26), force actuators their
   /// measured forces [N].
-  JetVector observed_forces(const JetVector& flows, const JetVector& forces) const;
+  InputVector observed_forces(const InputVector& flows, const InputVector& forces) const;
   /// Flows [m^3/s] for inputs q [N] by eq. (26) inverted; 0 for force actuators.
-  JetVector flows_for_forces(const JetVector& forces) const;
+  InputVector flows_for_forces(const InputVector& forces) const;
 
   /// One step of the drives: jets by their PI flow regulators (valve duty [0, 1] for the commanded
   /// and measured flows [m^3/s] after dt [s]); force actuators the drive of the commanded input q.
-  JetVector regulate(const JetVector& q, const JetVector& flow_command, const JetVector& measured_flows, double dt);
+  InputVector regulate(const InputVector& q, const InputVector& flow_command, const InputVector& measured_flows, double dt);
   /// Zeroes the regulators' integrators.
   void reset();
 
  private:
   actuation::Nozzle nozzle_;
   std::vector<bool> jet_;
-  JetVector drive_scale_;                             ///< max(|q_min|, |q_max|) [N] per actuator
+  InputVector drive_scale_;                             ///< max(|q_min|, |q_max|) [N] per actuator
   std::vector<actuation::FlowRegulator> regulators_;  ///< one per actuator (used by the jets)
 };
 

@@ -9,7 +9,7 @@
 
 #include "hydrojet_control/control/controller_options.h"
 #include "hydrojet_control/control/robot_model.h"
-#include "hydrojet_control/rod/shooting_solver.h"
+#include "hydrojet_control/rod/rod_solver.h"
 
 namespace hydrojet {
 namespace control {
@@ -66,7 +66,7 @@ class DirectionPd {
 /// tip twist per unit input), the one nearest to every jet equal, scaled to a largest entry of 1.
 /// Zero when there is none that raises every jet (fewer jets than the rank of their tip motion, or
 /// jets that cannot cancel). jets[i] ≠ 0: input i is a jet (force actuators are left out).
-JetVector jet_common_mode(const rod::ActuationJacobian& actuation, const JetVector& jets);
+InputVector jet_common_mode(const rod::ActuationJacobian& actuation, const InputVector& jets);
 
 /// Inputs q's corners rounded along the common mode n (jet_common_mode(), n_i > 0 on the jets it
 /// covers). With the margins y_i = (q_i − lower_i)/n_i over those jets and y₀ their least (0 where
@@ -80,7 +80,7 @@ struct AllocationRounding {
   double excess = 0.0;  ///< max(0, y₀): q's common mode above its least [N]
   double amount = 0.0;  ///< c [N]
 };
-AllocationRounding round_allocation(const JetVector& q, const JetVector& lower, const JetVector& mode, double scale);
+AllocationRounding round_allocation(const InputVector& q, const InputVector& lower, const InputVector& mode, double scale);
 
 /// Limits and weights of one step of the law on the actuation Jacobian (ControllerOptions' names).
 struct InputStepOptions {
@@ -92,7 +92,7 @@ struct InputStepOptions {
 };
 
 struct InputStep {
-  JetVector q;  ///< the new inputs [N], within [lower, upper]
+  InputVector q;  ///< the new inputs [N], within [lower, upper]
   /// Tip force [N] that the input bounds cost: ‖W_f (q − q_free)‖ with q_free the step without
   /// bounds (0 when the step lies within reach; compared with unreachable_tolerance).
   double bound_cost = 0.0;
@@ -112,7 +112,7 @@ struct InputStep {
 /// δf = (MᵀM + μ²)⁻¹Mᵀ(x_cntr × d) on the force block of C^b, and q is eq. (20)'s allocation of it, as
 /// long as no bound is active. base: the previous command (or w_a's inputs) [N], clamped into the box.
 InputStep input_step(const Mat3& tip_rotation, const ActuatedModel::Linearisation& lin, const Vec3& x_cntr,
-                     const JetVector& base, const JetVector& lower, const JetVector& upper,
+                     const InputVector& base, const InputVector& lower, const InputVector& upper,
                      const InputStepOptions& options);
 
 }  // namespace control

@@ -34,9 +34,9 @@ class SafetyMonitor {
   /// be controlled; the flow loop would only wind up. The excess deviation beyond the tolerance is
   /// integrated, so that a gross fault trips sooner than a marginal one: trip when
   /// ∫(|ΔQ| − tol)⁺ dt ≥ tol · flow_fault_time. flows [m^3/s], dt [s].
-  std::string check_flow_faults(const JetVector& flows, double dt);
+  std::string check_flow_faults(const InputVector& flows, double dt);
   /// Remembers this cycle's flow command [m^3/s], the reference of the next check_flow_faults().
-  void record_flow_command(const JetVector& flow_command) { last_flow_command_ = flow_command; }
+  void record_flow_command(const InputVector& flow_command) { last_flow_command_ = flow_command; }
 
   /// Solver failures: counts non-converged solves in a row (a converged one resets the count) and
   /// trips at max_solver_failures.
@@ -55,8 +55,8 @@ class SafetyMonitor {
   ControllerOptions options_;
   int solver_failures_ = 0;
   bool oscillation_armed_ = false;
-  JetVector flow_fault_integral_;  ///< ∫(|ΔQ| − tol)⁺ dt per jet [m^3]
-  JetVector last_flow_command_;    ///< [m^3/s]
+  InputVector flow_fault_integral_;  ///< ∫(|ΔQ| − tol)⁺ dt per jet [m^3]
+  InputVector last_flow_command_;    ///< [m^3/s]
 };
 
 }  // namespace control

@@ -52,7 +52,7 @@
 // at the tip F_L, M_L join the capsule's boundary condition. Actuator inputs q: set_inputs().
 //
 // Static limit: with all time derivatives zero this is the static Cosserat rod; as EA, GA → ∞ it is
-// the Kirchhoff rod of rod_model.h (ShootingSolver). The tip-position difference is about
+// the Kirchhoff rod of rod_model.h (RodSolver). The tip-position difference is about
 // L·|n|/min(GA, EA) (shear + extension), ≈ 1.5e-7 m for the HydroJet at 0.16 N with the defaults.
 //
 // Dynamic stability (a property of the model, converged in N and Δt): the follower jet force can
@@ -60,7 +60,7 @@
 // τ_kv = 0.01 s a tip-frame force above ≈0.2 N (any direction in the x–y plane) gives a growing
 // oscillation that saturates in a whirling limit cycle (tip speeds 3–5 m/s); the threshold rises
 // with damping (≈0.25 N at τ_kv = 0.02 s, ≈0.35 N at 0.03 s). Such steps then never settle to the
-// ShootingSolver equilibrium. With τ_kv = 0 and violent forcing, the per-step problem can fail to
+// RodSolver equilibrium. With τ_kv = 0 and violent forcing, the per-step problem can fail to
 // converge (step() returns false); τ_kv ≥ 1e-3 s is recommended.
 #pragma once
 
@@ -70,8 +70,8 @@
 #include <vector>
 
 #include "hydrojet_control/rod/rod_model.h"
-#include "hydrojet_control/rod/general_rod.h"
-#include "hydrojet_control/rod/general_rod_solver.h"
+#include "hydrojet_control/rod/rod_model.h"
+#include "hydrojet_control/rod/rod_solver.h"
 
 namespace hydrojet {
 namespace plant {
@@ -84,7 +84,7 @@ using rod::Vec6;
 /// The dynamic rod: its statics and what the dynamics add (damping, drag, inertia), and the
 /// numerics of its time stepping. SI units. Defaults a plant file can set: config/plant.yaml. The RodModel supplies L,
 /// EI_x, EI_y, GJ, ũ, ρA (used for both the body weight and the body's translational inertia), m_t and g, exactly as in
-/// the quasi-static ShootingSolver, so both models share one static equilibrium (up to shear/extension).
+/// the quasi-static RodSolver, so both models share one static equilibrium (up to shear/extension).
 ///
 /// ρA = 0 (the paper's massless body) is supported: the body is then a (visco)elastic spring
 /// slaved to the capsule, whose mass and tip_inertia carry the dynamics. A small positive ρA (e.g.
@@ -94,7 +94,7 @@ struct DynamicRodModel {
   /// A general rod (issue 14): its segments, point loads and actuators replace model.rod's uniform
   /// material and length (model.tip_mass and model.gravity still apply; body.tip_mass and
   /// body.gravity are not used). Empty segments (the default): the uniform model.rod.
-  rod::GeneralRodModel body;
+  rod::RodModel body;
   double shear_stiffness = 1e5;  ///< GA [N]; stiff by default (≈1e6·EI/L² for HydroJet)
   double axial_stiffness = 1e5;  ///< EA [N]; stiff by default (nearly inextensible)
   /// τ_kv [s]: B_se = τ_kv K_se, B_bt = τ_kv K_bt. Mode damping ratio ζ ≈ τ_kv ω/2: with 0.01 s
@@ -136,7 +136,7 @@ class DynamicRod {
 
   /// Puts the rod at rest in the static equilibrium under the tip wrench `w` (same model, same
   /// grid, all velocities zero, history consistent with rest) and sets time() to 0. Initialised
-  /// from the quasi-static rod::ShootingSolver, then refined on this model (finite GA, EA).
+  /// from the quasi-static rod::RodSolver, then refined on this model (finite GA, EA).
   /// Returns false (state unchanged) and sets last_error() if no equilibrium was found.
   bool reset_to_static(const rod::TipWrench& w);
 
@@ -155,7 +155,7 @@ class DynamicRod {
 
   /// Actuator inputs q [N], one per body.actuators in order, held from the next step (or reset) on.
   /// False (inputs unchanged, last_error() says why) for a wrong count or a non-finite entry.
-  bool set_inputs(const rod::ActuatorInputs& q);
+  bool set_inputs(const rod::InputVector& q);
 
   /// Sets g [m/s²] in the base frame (a tilted base); takes effect from the next step. A
   /// non-finite vector is ignored and reported through last_error().
@@ -246,7 +246,7 @@ class DynamicRod {
   std::vector<double> node_s_;   ///< arc length of each node [m]
   std::vector<int> node_load_;   ///< per node: index into node_loads_, or −1
   std::vector<NodeLoad> node_loads_;
-  rod::ActuatorInputs inputs_;
+  rod::InputVector inputs_;
   double residual_scale_ = 0.0;  // magnitude of the terms in the last residual [N]
   bool drag_active_ = false;
   Coefficients coef_;

@@ -8,6 +8,8 @@
 #include <vector>
 #include <string>
 
+#include "hydrojet_control/rod/rod_model.h"
+
 namespace hydrojet {
 namespace plant {
 
@@ -51,18 +53,17 @@ class Valve {
 /// three valve models in turn).
 class Hydraulics {
  public:
-  using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, 8, 1>;  ///< one entry per jet
   explicit Hydraulics(const std::array<ValveModel, 3>& p, int jets = 3) {
     for (int i = 0; i < jets; ++i) valves_.emplace_back(p[i % 3]);
   }
   /// Advances every valve by dt [s] under its duty; returns the flows [m^3/s].
-  Vector step(const Vector& duty, double dt) {
-    Vector q(size());
+  rod::InputVector step(const rod::InputVector& duty, double dt) {
+    rod::InputVector q(size());
     for (int i = 0; i < size(); ++i) q[i] = valves_[i].step(duty[i], dt);
     return q;
   }
-  Vector flows() const {
-    Vector q(size());
+  rod::InputVector flows() const {
+    rod::InputVector q(size());
     for (int i = 0; i < size(); ++i) q[i] = valves_[i].flow();
     return q;
   }

@@ -68,12 +68,11 @@ class Plant {
   /// At rest, jets off, time 0. False (with error()) if the rod could not be initialised.
   bool reset();
   /// One entry per actuator (the HydroJet's three jets, or rod.body's actuators).
-  using Vector = rod::ActuatorInputs;
 
   /// The latest command received at time t [s]: per actuator the valve duty [0, 1] (jets) or the
   /// drive [−1, 1] (force actuators: force = drive · max(|min_force|, |max_force|)). A wrong count or
   /// a non-finite entry closes the valves.
-  void command(const Vector& duty, double t);
+  void command(const rod::InputVector& duty, double t);
   /// Integrates up to time t [s] (internal steps of internal_dt). False with error() if the rod
   /// solver failed; the plant then holds its last state.
   bool advance_to(double t);
@@ -81,10 +80,10 @@ class Plant {
   /// What the tracker reports now (tip and base sensors in the tracker frame).
   TrackerSample tracker_sample();
   /// What the flow sensors report now [m^3/s] (0 for force actuators).
-  Vector flow_sample();
+  rod::InputVector flow_sample();
   /// The actuators' forces as an exact force sensor reports them [N] (the controller reads it for
   /// force actuators; a jet's force it computes from the flow).
-  Vector force_sample();
+  rod::InputVector force_sample();
   int actuator_count() const { return static_cast<int>(duty_.size()); }
   /// Actuator i is a water jet (valve and flow); else a force actuator.
   bool is_jet(int i) const { return jet_[i]; }
@@ -95,9 +94,9 @@ class Plant {
   Eigen::Matrix3d tip_rotation() const { return rod_->tip_rotation(); }  ///< truth, base frame
   Eigen::Vector3d tip_position() const { return rod_->tip_position(); }  ///< truth, base frame [m]
   std::vector<Eigen::Vector3d> backbone() const { return rod_->backbone(); }
-  Vector flows() const;       ///< truth [m^3/s] (0 for force actuators)
-  Vector jet_forces() const;  ///< truth [N], per actuator
-  Vector valve_command() const { return duty_; }
+  rod::InputVector flows() const;       ///< truth [m^3/s] (0 for force actuators)
+  rod::InputVector jet_forces() const;  ///< truth [N], per actuator
+  rod::InputVector valve_command() const { return duty_; }
   bool valves_closed_by_timeout() const { return timed_out_; }
   const std::string& error() const { return error_; }
   Hydraulics& hydraulics() { return hydraulics_; }
@@ -106,7 +105,7 @@ class Plant {
 
  private:
   /// Advances the actuators by dt under the current command (or closed valves).
-  void step_actuators(const Vector& duty, double dt);
+  void step_actuators(const rod::InputVector& duty, double dt);
 
   PlantModel model_;
   std::unique_ptr<DynamicRod> rod_;
@@ -114,13 +113,13 @@ class Plant {
   bool general_ = false;       ///< rod.body describes the robot
   std::vector<bool> jet_;      ///< per actuator: a jet (else a force actuator)
   std::vector<int> valve_of_;  ///< per actuator: its valve in hydraulics_ (jets), or −1
-  Vector drive_scale_;         ///< force actuators: force per unit drive [N]
-  Vector thrust_;              ///< force actuators: their force now [N]
+  rod::InputVector drive_scale_;         ///< force actuators: force per unit drive [N]
+  rod::InputVector thrust_;              ///< force actuators: their force now [N]
   Hydraulics hydraulics_;
   TrackerModel tracker_;
   FlowSensorModel flow_sensors_;
   Eigen::Matrix3d R_tracker_base_;
-  Vector duty_;
+  rod::InputVector duty_;
   double t_ = 0.0, t_command_ = -1e300;
   bool timed_out_ = true;
   std::string error_;

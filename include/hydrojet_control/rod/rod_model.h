@@ -33,6 +33,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <string>
+#include <vector>
 
 #include "hydrojet_control/rod/so3.h"
 
@@ -50,32 +52,95 @@ enum class RodKind {
   kCosserat,   ///< shearable and extensible: v = e_z + K_se⁻¹ Rᵀ n, K_se = diag(GA, GA, EA)
 };
 
-/// Material and geometry of the rod. Uniform along s; stiffness_at()/precurvature_at() are the
-/// seam for K(s) and ũ(s) (their s-derivatives enter eq. 14 as K' and ũ').
-struct ElasticRod {
-  double length = 0.09;                              ///< L [m]
-  Vec3 stiffness = Vec3(6.01e-4, 6.01e-4, 2.23e-4);  ///< diag(E·Ix, E·Iy, G·J) [N m^2]
-  Vec3 precurvature = Vec3::Zero();                  ///< ũ in the body frame [1/m]
-  double linear_density = 0.0;                       ///< ρA [kg/m]; 0 = massless body
-  RodKind kind = RodKind::kKirchhoff;                ///< Kirchhoff (default) or Cosserat
-  double shear_stiffness = 0.0;                      ///< GA [N] (kCosserat only; must then be > 0)
-  double axial_stiffness = 0.0;                      ///< EA [N] (kCosserat only; must then be > 0)
+/// Most actuator inputs a model may have: the storage bound of InputVector (no heap allocation).
+constexpr int kMaxInputs = 8;
+/// Actuator inputs q [N] (or flows, valve duties: one entry per actuator), in the model's actuator order.
+using InputVector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxInputs, 1>;
 
-  Vec3 stiffness_at(double /*s*/) const { return stiffness; }
-  Vec3 precurvature_at(double /*s*/) const { return precurvature; }
-  /// diag(K_se⁻¹) [1/N]; zero for the Kirchhoff rod (the limit EA, GA → ∞).
-  Vec3 shear_extension_compliance() const {
+/// One piece of the rod with uniform material and precurvature, base to tip.
+struct RodSegment {
+  double length = 0.0;               ///< [m], > 0
+  Vec3 stiffness = Vec3::Zero();     ///< diag(E·Ix, E·Iy, G·J) [N m^2], each > 0
+  Vec3 precurvature = Vec3::Zero();  ///< ũ in the body frame [1/m]
+  double linear_density = 0.0;       ///< ρA [kg/m], ≥ 0
+  double shear_stiffness = 0.0;      ///< GA [N] (Cosserat only; then > 0)
+  double axial_stiffness = 0.0;      ///< EA [N] (Cosserat only; then > 0)
+
+  /// diag(K_se⁻¹) [1/N] of a Cosserat rod; zero for the Kirchhoff rod (the limit EA, GA → ∞).
+  Vec3 shear_extension_compliance(RodKind kind) const {
     if (kind != RodKind::kCosserat) return Vec3::Zero();
     return Vec3(1.0 / shear_stiffness, 1.0 / shear_stiffness, 1.0 / axial_stiffness);
   }
 };
 
-/// Everything the static model needs besides the actuation wrench.
-struct RodModel {
-  ElasticRod rod;
-  double tip_mass = 0.0;        ///< m_t [kg]
-  Vec3 gravity = Vec3::Zero();  ///< g in the base frame [m/s^2]
+/// In which frame a point load's force and moment are fixed.
+enum class LoadFrame {
+  kBody,  ///< the body frame at its arc length: a follower load
+  kBase,  ///< the base frame: a dead load (as a weight)
 };
+
+/// A wrench applied at one point of the backbone (besides the tip's), at the centreline.
+struct PointLoad {
+  double at = 0.0;                     ///< arc length s [m], 0 < s ≤ L
+  double mass = 0.0;                   ///< [kg], ≥ 0: its weight m·g (base frame) acts at s
+  Vec3 force = Vec3::Zero();           ///< [N], in `frame`
+  Vec3 moment = Vec3::Zero();          ///< [N m], in `frame`
+  LoadFrame frame = LoadFrame::kBody;  ///< frame of force and moment
+};
+
+/// How an actuator's input becomes its force.
+enum class ActuatorType {
+  kForce,  ///< the input q is the force [N]
+  kJet,    ///< a water jet: q from the flow by the thrust equation (26) (needs the scene's nozzle)
+};
+
+/// One actuator: input q [N] applies the follower force q·direction at `position` of the body frame
+/// at arc length `at`, i.e. the body wrench q·(d, p × d) at the centreline there.
+struct Actuator {
+  std::string name;
+  double at = 0.0;                 ///< arc length s [m], 0 < s ≤ L
+  Vec3 position = Vec3::Zero();    ///< point of application, body frame at s [m] (moment arm)
+  Vec3 direction = Vec3::UnitX();  ///< unit force direction on the rod, body frame at s
+  double min_force = 0.0;          ///< [N] (negative: reversible)
+  double max_force = 0.0;          ///< [N], ≥ min_force
+  ActuatorType type = ActuatorType::kForce;
+
+  /// Body wrench (f, m) at the centreline at s per unit input: (d, p × d).
+  Vec6 unit_wrench() const {
+    Vec6 w;
+    w << direction, position.cross(direction);
+    return w;
+  }
+};
+
+/// The robot: everything its static model needs besides the inputs. The HydroJet is one uniform
+/// segment with three jets at the tip (eq. 24); any follower-actuated robot is segments, point loads
+/// and actuators anywhere along the body.
+struct RodModel {
+  std::vector<RodSegment> segments;  ///< base to tip, at least one
+  RodKind kind = RodKind::kKirchhoff;
+  std::vector<PointLoad> loads;     ///< besides the tip's, any order
+  std::vector<Actuator> actuators;  ///< inputs in this order (0..kMaxInputs of them)
+  double tip_mass = 0.0;            ///< m_t [kg] at s = L
+  Vec3 gravity = Vec3::Zero();      ///< g in the base frame [m/s^2]
+
+  /// L [m]: the sum of the segment lengths.
+  double length() const {
+    double L = 0.0;
+    for (const auto& s : segments) L += s.length;
+    return L;
+  }
+  int input_count() const { return static_cast<int>(actuators.size()); }
+  /// One uniform segment, no point loads and every actuator at the tip: the tip wrench says it all
+  /// (the solver then integrates one piece, and J_q = C^b W).
+  bool tip_actuated_uniform() const;
+  /// Empty when valid, else a message naming the offending field ("segments[1].length: ...").
+  std::string validate() const;
+};
+
+/// A uniform rod of one segment, no point loads, no actuators.
+RodModel uniform_rod(const RodSegment& segment, double tip_mass = 0.0, const Vec3& gravity = Vec3::Zero(),
+                     RodKind kind = RodKind::kKirchhoff);
 
 /// Follower wrench at the tip, expressed in the tip frame (w_a of eq. 16).
 struct TipWrench {
@@ -108,13 +173,17 @@ struct RodTermSet {
   }
 };
 
-/// The terms a model needs: Cosserat only for kCosserat, the distributed load only when ρA·g ≠ 0,
-/// the precurvature only when ũ ≠ 0.
+/// The terms a model needs: Cosserat only for kCosserat, the distributed load only when some ρA·g ≠ 0,
+/// the precurvature only when some ũ ≠ 0.
 inline RodTermSet needed_terms(const RodModel& m) {
   RodTermSet t;
-  t.cosserat = m.rod.kind == RodKind::kCosserat;
-  t.distributed_load = m.rod.linear_density != 0.0 && m.gravity.squaredNorm() != 0.0;
-  t.precurved = m.rod.precurvature.squaredNorm() != 0.0;
+  t.cosserat = m.kind == RodKind::kCosserat;
+  t.distributed_load = false;
+  t.precurved = false;
+  for (const RodSegment& s : m.segments) {
+    t.distributed_load = t.distributed_load || (s.linear_density != 0.0 && m.gravity.squaredNorm() != 0.0);
+    t.precurved = t.precurved || s.precurvature.squaredNorm() != 0.0;
+  }
   return t;
 }
 

@@ -1,3 +1,3 @@
-#include "kernel_impl.h"
+#include "sweep_impl.h"
 
 HYDROJET_ROD_KERNELS(true, false, true)

@@ -1,14 +1,15 @@
-// The table of compiled kernel variants (see kernel_impl.h) and the choice of the scene's variant.
-#include "hydrojet_control/rod/shooting_solver.h"
+// The table of compiled model variants (sweep.h) and the choice of the model's variant.
+#include "../sweep.h"
 
 namespace hydrojet {
 namespace rod {
 
-void ShootingSolver::select_kernels() {
-#define HJ_KERNEL(C, W, P, NAME)                                                                      \
-  Kernels {                                                                                           \
-    &ShootingSolver::evaluate_t<RodTerms<C, W, P>>, &ShootingSolver::compliance_t<RodTerms<C, W, P>>, \
-        &ShootingSolver::error_t<RodTerms<C, W, P>>, NAME                                             \
+void RodSolver::select_kernels() {
+  using internal::Sweep;
+#define HJ_KERNEL(C, W, P, NAME)                                                                            \
+  Kernels {                                                                                                 \
+    {&Sweep<0, RodTerms<C, W, P>>::run, &Sweep<3, RodTerms<C, W, P>>::run, &Sweep<6, RodTerms<C, W, P>>::run, \
+     &Sweep<9, RodTerms<C, W, P>>::run, NAME},                                                              \
   }
   static const Kernels table[8] = {
       HJ_KERNEL(false, false, false, "kirchhoff"),       HJ_KERNEL(false, false, true, "kirchhoff+precurved"),
@@ -18,7 +19,7 @@ void ShootingSolver::select_kernels() {
   };
   static const Kernels general = HJ_KERNEL(true, true, true, "general");
 #undef HJ_KERNEL
-  if (!settings_.specialize_model) {
+  if (!options_.specialize_model) {
     kernels_ = &general;
     return;
   }
@@ -26,7 +27,7 @@ void ShootingSolver::select_kernels() {
   kernels_ = &table[(t.cosserat ? 4 : 0) + (t.distributed_load ? 2 : 0) + (t.precurved ? 1 : 0)];
 }
 
-const char* ShootingSolver::variant_name() const { return kernels_->name; }
+const char* RodSolver::variant_name() const { return kernels_->name; }
 
 }  // namespace rod
 }  // namespace hydrojet

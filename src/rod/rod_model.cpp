@@ -1,4 +1,4 @@
-#include "hydrojet_control/rod/general_rod.h"
+#include "hydrojet_control/rod/rod_model.h"
 
 #include <cmath>
 
@@ -15,7 +15,7 @@ bool finite(const Vec3& v) { return v.allFinite(); }
 
 }  // namespace
 
-std::string GeneralRodModel::validate() const {
+std::string RodModel::validate() const {
   if (segments.empty()) return "segments: at least one segment is needed";
   for (size_t i = 0; i < segments.size(); ++i) {
     const RodSegment& g = segments[i];
@@ -37,8 +37,8 @@ std::string GeneralRodModel::validate() const {
     if (!(l.mass >= 0.0) || !std::isfinite(l.mass)) return item("loads", i, "mass") + "must be >= 0";
     if (!finite(l.force) || !finite(l.moment)) return item("loads", i, "force") + "force and moment must be finite";
   }
-  if (actuators.size() > static_cast<size_t>(kMaxActuators))
-    return "actuators: at most " + std::to_string(kMaxActuators) + " actuators";
+  if (actuators.size() > static_cast<size_t>(kMaxInputs))
+    return "actuators: at most " + std::to_string(kMaxInputs) + " actuators";
   for (size_t i = 0; i < actuators.size(); ++i) {
     const Actuator& a = actuators[i];
     if (!on_rod(a.at)) return item("actuators", i, "at") + "must lie in (0, L]";
@@ -55,20 +55,20 @@ std::string GeneralRodModel::validate() const {
   return "";
 }
 
-GeneralRodModel general_model(const RodModel& m) {
-  GeneralRodModel g;
-  RodSegment s;
-  s.length = m.rod.length;
-  s.stiffness = m.rod.stiffness;
-  s.precurvature = m.rod.precurvature;
-  s.linear_density = m.rod.linear_density;
-  s.shear_stiffness = m.rod.shear_stiffness;
-  s.axial_stiffness = m.rod.axial_stiffness;
-  g.segments = {s};
-  g.kind = m.rod.kind;
-  g.tip_mass = m.tip_mass;
-  g.gravity = m.gravity;
-  return g;
+bool RodModel::tip_actuated_uniform() const {
+  if (segments.size() != 1 || !loads.empty()) return false;
+  for (const Actuator& a : actuators)
+    if (a.at < length()) return false;
+  return true;
+}
+
+RodModel uniform_rod(const RodSegment& segment, double tip_mass, const Vec3& gravity, RodKind kind) {
+  RodModel m;
+  m.segments = {segment};
+  m.kind = kind;
+  m.tip_mass = tip_mass;
+  m.gravity = gravity;
+  return m;
 }
 
 }  // namespace rod
