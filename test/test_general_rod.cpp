@@ -1,4 +1,4 @@
-// GeneralRodSolver (issue 14): segments, point loads and actuators along the body, checked against
+// GeneralRodSolver: segments, point loads and actuators along the body, checked against
 // closed forms of beam theory, against ShootingSolver where both apply (a uniform rod with its
 // actuation at the tip), and C^b / J_q against central differences of full solves.
 #include <gtest/gtest.h>

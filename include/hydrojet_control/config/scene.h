@@ -33,7 +33,7 @@ struct Scene {
   actuation::Nozzle nozzle;     ///< A_in, A_out [m^2], water density [kg/m^3]
   Eigen::Vector3d max_jet_force = Eigen::Vector3d(0.243, 0.224, 0.244);  ///< q_max [N]
 
-  /// The robot as a general follower-actuated rod (issue 14), always filled: its segments (one for a
+  /// The robot as a general follower-actuated rod, always filled: its segments (one for a
   /// single-rod scene), point loads (`loads`), actuators (`actuators`, or the three jets of a `jets`
   /// section at the tip), tip mass and gravity.
   rod::GeneralRodModel body;
@@ -55,7 +55,7 @@ control::RobotModel make_controller_model(const Scene& scene, const actuation::F
 
 /// SceneError naming rod.segments or loads when `scene` is not uniform(): for the parts of the stack
 /// that solve one uniform rod with actuation at the tip only (`who`, e.g. "the controller"), until
-/// they move to the general solver (issue 14).
+/// they move to the general solver.
 void require_uniform(const Scene& scene, const std::string& who);
 /// Reads and parses a scene file; SceneError("scene", ...) when the file cannot be read.
 Scene load_scene(const std::string& path);

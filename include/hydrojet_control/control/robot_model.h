@@ -1,5 +1,5 @@
 // What the controller needs from a scene: the rod and its solver, the actuators (the HydroJet's
-// three jets of eq. 24, or any follower actuators of issue 14) and the nozzles of the jets; and the
+// three jets of eq. 24, or any follower actuators) and the nozzles of the jets; and the
 // model itself at given inputs (ActuatedModel): equilibrium, actuation Jacobian J_q, C^b, stability.
 // ROS-free (Eigen, the rod and actuation libraries).
 #pragma once
@@ -23,13 +23,13 @@ namespace control {
 /// Storage bound of a JetVector (no heap allocation); the count itself comes from the model.
 constexpr int kMaxJets = rod::kMaxActuators;
 /// One entry per actuator (inputs q [N], flows, valve duties), in the model's actuator order. The
-/// name is the HydroJet's (its actuators are jets); any actuator of issue 14 has an entry.
+/// name is the HydroJet's (its actuators are jets); any follower actuator has an entry.
 using JetVector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxJets, 1>;
 
 /// Inputs the controller needs from a scene. Two ways to describe the robot:
 ///   - the HydroJet's (body.segments empty, the default): the uniform `rod` with the three jets of
 ///     `jets` at its tip, bounds [0, max_jet_force];
-///   - any follower-actuated robot (issue 14): `body` with its segments, point loads and actuators
+///   - any follower-actuated robot: `body` with its segments, point loads and actuators
 ///     (make_controller_model fills it from a scene; `rod` then only gives nothing the body lacks).
 struct RobotModel {
   rod::RodModel rod;

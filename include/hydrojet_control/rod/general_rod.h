@@ -1,4 +1,4 @@
-// Any follower-actuated rod (issue 14; the paper's §5 and §8: "a full 6 DoF wrench applied at any
+// Any follower-actuated rod (the paper's §5 and §8: "a full 6 DoF wrench applied at any
 // location along the body or a connection of multiple soft bodies with different stiffness
 // characteristics"): segments of different material base to tip, point loads along the body (a mass,
 // a wrench fixed in the base frame or following the body), and N actuators anywhere, each applying
