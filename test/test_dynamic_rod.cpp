@@ -182,7 +182,7 @@ TEST(DynamicRodStatic, SettlesToKirchhoffSolutionUnderConstantForce) {
   EXPECT_GT((ref2.tip_position - ref.tip_position).norm(), 1e-3);  // the tilt did matter
 }
 
-// A general rod (issue 14): two segments (the distal one softer and precurved), a point mass and a
+// A general rod: two segments (the distal one softer and precurved), a point mass and a
 // pair of actuators mid-body, actuators at the tip, one with a moment arm. At rest under the inputs
 // (reset_to_static) and after settling from a step of them (the jump conditions with their inertia),
 // the dynamic rod sits where the static general solver puts it (a second, independent method: its

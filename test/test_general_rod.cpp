@@ -1,5 +1,5 @@
-// RodSolver (issue 14): segments, point loads and actuators along the body, checked against
-// closed forms of beam theory, against RodSolver where both apply (a uniform rod with its
+// RodSolver on general robots: segments, point loads and actuators along the body, checked against
+// closed forms of beam theory, against the one-piece solve where both apply (a uniform rod with its
 // actuation at the tip), and C^b / J_q against central differences of full solves.
 #include <gtest/gtest.h>
 

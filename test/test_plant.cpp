@@ -242,7 +242,7 @@ TEST(ClosedLoopRun, DeterministicForASeed) {
   EXPECT_NE(a.rms, d.rms);  // another seed, other sensor noise
 }
 
-// A general robot (issue 14): with constant drives the second robot's plant settles where the
+// A general robot: with constant drives the second robot's plant settles where the
 // static general solver puts it at the forces its thrusters reach (drive × max_force after their
 // lag), mid-body thrusters, point mass and segments included.
 TEST(PlantGeneral, SettlesToTheGeneralStaticModel) {
@@ -292,7 +292,7 @@ TEST(ClosedLoopRun, TheSecondRobotClosedLoopBeatsOpenLoop) {
   EXPECT_LT(closed.rms, 0.5 * open.rms);
 }
 
-// Issue 16: the disturbance observer converges to a constant force injected at the simulated tip
+// The disturbance observer converges to a constant force injected at the simulated tip
 // within 2 s, to 10 %. The plant is the model exactly (no mismatch) but for that force, with sensor
 // noise; the controller holds its start direction in closed loop, so the inputs move meanwhile.
 TEST(DisturbanceObserver, ConvergesToAForceInjectedAtTheTip) {
@@ -335,7 +335,7 @@ TEST(DisturbanceObserver, ConvergesToAForceInjectedAtTheTip) {
   EXPECT_LT(at_2s, 0.10);
 }
 
-// The plant variations of issue 16 (config/plants/*.yaml) load on both HydroJet scenes and differ
+// The plant variations (config/plants/*.yaml) load on both HydroJet scenes and differ
 // from the default plant where their comments say.
 TEST(PlantConfig, TheVariationsLoad) {
   const std::string dir = std::string(HYDROJET_SOURCE_DIR) + "/config/plants/";

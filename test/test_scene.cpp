@@ -192,7 +192,7 @@ TEST(YamlTree, TypedReadsFallbacksAndNamedErrors) {
   EXPECT_EQ(tree_error([&] { u.reject_unknown(); }), "(no error)");
 }
 
-// --- Any follower-actuated rod (issue 14): rod.segments, loads, actuators ---------------------------
+// --- Any follower-actuated rod: rod.segments, loads, actuators --------------------------------------
 
 namespace {
 const char* kGeneral = R"(
@@ -331,7 +331,7 @@ TEST(SceneGeneral, UniformOnlyConsumersRefuseByName) {
   EXPECT_NO_THROW(hydrojet::config::require_uniform(hydrojet::test::scene("hydrojet_0deg"), "the controller"));
 }
 
-// The second robot shipped with the package (issue 14).
+// The second robot shipped with the package.
 TEST(SceneGeneral, TheSecondRobotLoads) {
   const hydrojet::config::Scene s = hydrojet::test::scene("two_segment_thrusters");
   EXPECT_EQ(s.body.segments.size(), 2u);

@@ -42,7 +42,7 @@
 // that start is poor). If a step still fails, the interval is retried as 2, 4, ..., 16 substeps.
 // No heap allocation per step: all arrays are sized in the constructor.
 //
-// Any follower-actuated rod (issue 14): DynamicRodModel::body gives segments (each with its own
+// Any follower-actuated rod: DynamicRodModel::body gives segments (each with its own
 // stiffness, precurvature and ρA), point loads and actuators. The grid then has a node on every
 // segment end, load and actuator (the pieces between them get steps in proportion to their length,
 // about `nodes` − 1 in all), and at such a node s_k the internal force and moment drop by the
@@ -91,7 +91,7 @@ using rod::Vec6;
 /// 1e-3 kg/m) adds the body's own (higher) modes; either way the per-step problem is well posed.
 struct DynamicRodModel {
   rod::RodModel model;  ///< statics: geometry, stiffness, ũ, ρA, m_t, gravity
-  /// A general rod (issue 14): its segments, point loads and actuators replace model.rod's uniform
+  /// A general rod: its segments, point loads and actuators replace model.rod's uniform
   /// material and length (model.tip_mass and model.gravity still apply; body.tip_mass and
   /// body.gravity are not used). Empty segments (the default): the uniform model.rod.
   rod::RodModel body;

@@ -27,7 +27,7 @@ struct StabilityReport {
 
 StabilityReport stability(const Mat6& compliance_body, const ActuatedSet& actuated);
 
-/// The same for a general actuator set (issue 14): the block of C^b on the span of the actuators'
+/// The same for a general actuator set: the block of C^b on the span of the actuators'
 /// tip body wrenches (columns of `wrenches`), Uᵀ C^b U with U an orthonormal basis of that span. For
 /// actuators at the tip pass their unit wrenches (d, p × d); the HydroJet's three jets span {f_x, f_y},
 /// so this equals stability(C, lateral_force_actuation()) up to rounding (U rotates within the block).
