@@ -78,7 +78,7 @@ double path_tip_error(const hydrojet::config::Scene& sc) {
   ref.integrator.type = hydrojet::rod::IntegratorType::kRk8;
   ref.integrator.steps = 256;
   ref.residual_tolerance = 1e-13;
-  hydrojet::rod::RodSolver a(sc.model, sc.solver), b(sc.model, ref);
+  hydrojet::rod::RodSolver a(hydrojet::numerics::bare(sc), sc.solver), b(hydrojet::numerics::bare(sc), ref);
   double worst = 0.0;
   for (const auto& w : path()) {
     const auto sa = a.solve(w), sb = b.solve(w);
@@ -90,7 +90,7 @@ double path_tip_error(const hydrojet::config::Scene& sc) {
 
 void BM_ColdSolve(benchmark::State& state) {
   const auto sc = scene();
-  hydrojet::rod::RodSolver s(sc.model, sc.solver);
+  hydrojet::rod::RodSolver s(hydrojet::numerics::bare(sc), sc.solver);
   size_t i = 0;
   for (auto _ : state) {
     s.reset();
@@ -101,7 +101,7 @@ void BM_ColdSolve(benchmark::State& state) {
 
 void BM_WarmSolve(benchmark::State& state) {
   const auto sc = scene();
-  hydrojet::rod::RodSolver s(sc.model, sc.solver);
+  hydrojet::rod::RodSolver s(hydrojet::numerics::bare(sc), sc.solver);
   size_t i = 0;
   for (auto _ : state) benchmark::DoNotOptimize(s.solve(path()[i++ % path().size()]));
   state.counters["tip_error_m"] = path_tip_error(sc);
@@ -109,7 +109,7 @@ void BM_WarmSolve(benchmark::State& state) {
 
 void BM_WarmSolveCompliance(benchmark::State& state) {
   const auto sc = scene();
-  hydrojet::rod::RodSolver s(sc.model, sc.solver);
+  hydrojet::rod::RodSolver s(hydrojet::numerics::bare(sc), sc.solver);
   size_t i = 0;
   for (auto _ : state) {
     benchmark::DoNotOptimize(s.solve(path()[i++ % path().size()]));
@@ -125,7 +125,7 @@ hydrojet::rod::ShootingOptions general(hydrojet::rod::ShootingOptions s) {
 
 void BM_WarmSolveGeneral(benchmark::State& state) {
   const auto sc = scene();
-  hydrojet::rod::RodSolver s(sc.model, general(sc.solver));
+  hydrojet::rod::RodSolver s(hydrojet::numerics::bare(sc), general(sc.solver));
   size_t i = 0;
   for (auto _ : state) benchmark::DoNotOptimize(s.solve(path()[i++ % path().size()]));
   state.SetLabel(s.variant_name());
@@ -133,7 +133,7 @@ void BM_WarmSolveGeneral(benchmark::State& state) {
 
 void BM_WarmSolveComplianceGeneral(benchmark::State& state) {
   const auto sc = scene();
-  hydrojet::rod::RodSolver s(sc.model, general(sc.solver));
+  hydrojet::rod::RodSolver s(hydrojet::numerics::bare(sc), general(sc.solver));
   size_t i = 0;
   for (auto _ : state) {
     benchmark::DoNotOptimize(s.solve(path()[i++ % path().size()]));
@@ -146,13 +146,13 @@ void BM_WarmSolveComplianceGeneral(benchmark::State& state) {
 /// 90 % of its range with its own phase.
 void general_path_benchmark(benchmark::State& state, const std::string& name) {
   const auto sc = hydrojet::config::load_scene(std::string(HYDROJET_SOURCE_DIR) + "/config/scenes/" + name + ".yaml");
-  hydrojet::rod::RodSolver s(sc.body, sc.solver);
-  const int N = s.actuator_count();
+  hydrojet::rod::RodSolver s(sc.rod, sc.solver);
+  const int N = s.input_count();
   std::vector<hydrojet::rod::InputVector> qs;
   for (int i = 0; i < 200; ++i) {
     hydrojet::rod::InputVector q(N);
     for (int j = 0; j < N; ++j) {
-      const auto& a = sc.body.actuators[j];
+      const auto& a = sc.rod.actuators[j];
       q[j] = a.min_force + (a.max_force - a.min_force) * (0.5 + 0.4 * std::sin(2.0 * M_PI * i / 200.0 + 1.7 * j));
     }
     qs.push_back(q);
@@ -171,8 +171,8 @@ void BM_GeneralWarmSolveJacobianHydroJet(benchmark::State& state) { general_path
 void BM_StabilityMap3000(benchmark::State& state) {
   const auto sc = hydrojet::config::load_scene(std::string(HYDROJET_SOURCE_DIR) + "/config/scenes/hydrojet_" +
                                                std::to_string(state.range(0)) + "deg.yaml");
-  const hydrojet::actuation::JetMap jets(sc.jets);
-  const std::vector<Vec3> grid = hydrojet::numerics::stability_grid(sc.max_jet_force);
+  const hydrojet::actuation::JetMap jets(*sc.jets);
+  const std::vector<Vec3> grid = hydrojet::numerics::stability_grid(hydrojet::numerics::jet_max_force(sc));
   std::vector<TipWrench> w(grid.size());
   for (size_t i = 0; i < grid.size(); ++i) {
     const hydrojet::rod::Vec6 w6 = jets.wrench(grid[i]);
@@ -182,7 +182,7 @@ void BM_StabilityMap3000(benchmark::State& state) {
   double min_eig = 0.0;
   int failures = 0;
   for (auto _ : state) {
-    hydrojet::rod::RodSolver s(sc.model, sc.solver);
+    hydrojet::rod::RodSolver s(hydrojet::numerics::bare(sc), sc.solver);
     min_eig = 1e300;
     failures = 0;
     for (const TipWrench& x : w) {
@@ -206,7 +206,7 @@ hydrojet::control::RobotModel robot_model() {
 void BM_LookAt(benchmark::State& state) {
   using hydrojet::control::Vec3;
   hydrojet::control::LookAtSolver solver(robot_model());
-  hydrojet::rod::RodSolver rest(scene().model, scene().solver);
+  hydrojet::rod::RodSolver rest(hydrojet::numerics::bare(scene()), scene().solver);
   const hydrojet::rod::RodSolution s = rest.solve(TipWrench());
   const Vec3 d = s.tip_rotation.col(2), side = d.cross(Vec3::UnitX()).normalized(), up = d.cross(side);
   int i = 0, failures = 0, iterations = 0;
@@ -260,8 +260,8 @@ void control_cycle(benchmark::State& state, bool papers_law) {
   if (papers_law) c.ki = c.min_jet_force = c.allocation_smoothing = 0.0;
   const hydrojet::config::Scene sc = scene();
   hc::Controller ctl(hydrojet::config::make_controller_model(sc, o.flow_regulator), c);
-  hydrojet::rod::RodSolver plant(sc.model, sc.solver);
-  const hydrojet::actuation::JetMap jets(sc.jets);
+  hydrojet::rod::RodSolver plant(hydrojet::numerics::bare(sc), sc.solver);
+  const hydrojet::actuation::JetMap jets(*sc.jets);
   hc::ControllerInputs in;
   in.tip_valid = in.flow_valid = true;
   in.flows = hc::InputVector::Zero(3);

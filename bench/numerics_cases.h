@@ -21,6 +21,18 @@ inline config::Scene scene(const std::string& name) {
   return config::load_scene(std::string(HYDROJET_SOURCE_DIR) + "/config/scenes/" + name + ".yaml");
 }
 
+/// The rod of a scene without its actuators: loaded by a tip wrench only.
+inline rod::RodModel bare(const config::Scene& s) {
+  rod::RodModel m = s.rod;
+  m.actuators.clear();
+  return m;
+}
+
+/// q_max [N] of a HydroJet scene's three jets.
+inline Vec3 jet_max_force(const config::Scene& s) {
+  return Vec3(s.rod.actuators.at(0).max_force, s.rod.actuators.at(1).max_force, s.rod.actuators.at(2).max_force);
+}
+
 /// Jet map of eq. (24) with Table 1's misalignments: tip-frame force from three jet forces [N].
 inline Vec3 jet_force(double q1, double q2, double q3) {
   const double p3 = M_PI / 3.0, da = 0.12, db = 0.06, dg = -0.08;
@@ -46,9 +58,11 @@ struct Case {
 };
 
 inline rod::RodModel to_cosserat(rod::RodModel m, double GA, double EA) {
-  m.rod.kind = rod::RodKind::kCosserat;
-  m.rod.shear_stiffness = GA;
-  m.rod.axial_stiffness = EA;
+  m.kind = rod::RodKind::kCosserat;
+  for (rod::RodSegment& sg : m.segments) {
+    sg.shear_stiffness = GA;
+    sg.axial_stiffness = EA;
+  }
   return m;
 }
 
@@ -60,16 +74,16 @@ inline Case make_case(const std::string& name, const std::string& description, c
   c.model = m;
   c.wrench.force = force;
   c.reference_segments = ref_segments;
-  c.tolerance = 1e-6 * m.rod.length / 0.09;
+  c.tolerance = 1e-6 * m.length() / 0.09;
   return c;
 }
 
 /// The scenes of docs/work_precision.md.
 inline std::vector<Case> work_precision_cases() {
-  const rod::RodModel hj0 = scene("hydrojet_0deg").model, hj30 = scene("hydrojet_30deg").model;
+  const rod::RodModel hj0 = bare(scene("hydrojet_0deg")), hj30 = bare(scene("hydrojet_30deg"));
   rod::RodModel soft_long = hj30;
-  soft_long.rod.length *= 5.0;
-  soft_long.rod.stiffness *= 0.2;
+  soft_long.segments[0].length *= 5.0;
+  soft_long.segments[0].stiffness *= 0.2;
   return {
       make_case("hj0_mid", "HydroJet 0°, jets 1+2 at half force", hj0, mid_jet()),
       make_case("hj0_max", "HydroJet 0°, jet 1 at full force (0.243 N)", hj0, max_jet()),
@@ -86,14 +100,14 @@ inline std::vector<Case> work_precision_cases() {
 
 /// The stiff and extreme cases of docs/stability.md.
 inline std::vector<Case> extreme_cases() {
-  const rod::RodModel hj30 = scene("hydrojet_30deg").model;
+  const rod::RodModel hj30 = bare(scene("hydrojet_30deg"));
   std::vector<Case> v;
   rod::RodModel soft = hj30, stiff = hj30, tilted = hj30, longr = hj30;
-  soft.rod.stiffness *= 1e-3;
-  stiff.rod.stiffness *= 1e3;
+  soft.segments[0].stiffness *= 1e-3;
+  stiff.segments[0].stiffness *= 1e3;
   tilted.gravity = Vec3(0.0, 9.81, 0.0);  // base turned 90° about x: gravity across the rod
   tilted.tip_mass *= 10.0;
-  longr.rod.length *= 10.0;
+  longr.segments[0].length *= 10.0;
   v.push_back(
       make_case("very_soft", "EI, GJ × 1e-3, jet force × 1e-3 (same shape scale as gravity)", soft, mid_jet(1e-3), 16));
   v.push_back(make_case("very_soft_full_jets", "EI, GJ × 1e-3 under the full mid jet force (FL²/EI ≈ 2500)", soft,
@@ -169,7 +183,7 @@ inline Reference reference(const Case& c) {
   r.angle_agreement = so3::log(sa.tip_rotation.transpose() * sb.tip_rotation).norm();
   const rod::Compliance C = a.compliance();
   r.compliance = C.body;
-  r.ok = C.ok && r.agreement <= 1e-10 * std::max(1.0, c.model.rod.length / 0.09);
+  r.ok = C.ok && r.agreement <= 1e-10 * std::max(1.0, c.model.length() / 0.09);
   if (!r.ok) r.message = "references disagree by " + std::to_string(r.agreement) + " m";
   return r;
 }

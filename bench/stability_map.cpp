@@ -51,7 +51,7 @@ int main(int argc, char** argv) {
     std::cerr << "stability_map: " << e.what() << "\n";
     return 2;
   }
-  if (!sc.has_jets) {
+  if (!sc.jets) {
     std::cerr << "stability_map: scene has no jets section\n";
     return 2;
   }
@@ -61,8 +61,8 @@ int main(int argc, char** argv) {
   }
   if (steps > 0) sc.solver.integrator.steps = steps;
   if (tol > 0.0) sc.solver.integrator.tolerance = tol;
-  const actuation::JetMap jets(sc.jets);
-  const std::vector<rod::Vec3> grid = numerics::stability_grid(scale * sc.max_jet_force);
+  const actuation::JetMap jets(*sc.jets);
+  const std::vector<rod::Vec3> grid = numerics::stability_grid(scale * hydrojet::numerics::jet_max_force(sc));
   struct Row {
     rod::Vec3 q, f, tip;
     bool converged;
@@ -70,7 +70,7 @@ int main(int argc, char** argv) {
     int folds;
   };
   std::vector<Row> rows(grid.size());
-  rod::RodSolver solver(sc.model, sc.solver);
+  rod::RodSolver solver(hydrojet::numerics::bare(sc), sc.solver);
   int failures = 0, folds = 0;
   double min_sigma = 1e300, min_eig = 1e300;
   const auto t0 = std::chrono::steady_clock::now();

@@ -164,12 +164,12 @@ int stiffness() {
     }
     // Integrate the state from the tip (R(L) = tip rotation, R(0) = I at the solution).
     rod::RodOde<0, rod::CosseratGeneral> ode;
-    const rod::ElasticRod& p = c.model.rod;
+    const rod::RodSegment& p = c.model.segments.front();
     ode.k_diag = p.stiffness;
     ode.k_inv = p.stiffness.cwiseInverse();
     ode.u_tilde = p.precurvature;
     ode.length = p.length;
-    ode.kse_inv = p.shear_extension_compliance();
+    ode.kse_inv = p.shear_extension_compliance(c.model.kind);
     ode.n_tip = sol.tip_rotation * c.wrench.force + c.model.tip_mass * c.model.gravity;
     ode.w_dist = p.linear_density * c.model.gravity;
     rod::RodOde<0, rod::CosseratGeneral>::State y = rod::RodOde<0, rod::CosseratGeneral>::State::Zero();

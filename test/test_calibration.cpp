@@ -106,8 +106,8 @@ TEST(CalibrationZeta, Table1ModuliAndRoundTrip) {
   const ZetaVector t = truth_zeta();
   const config::Scene a = apply_zeta(s, t, cs);
   EXPECT_LT((zeta_from_scene(a, cs) - t).cwiseQuotient(t.cwiseAbs().cwiseMax(1.0)).cwiseAbs().maxCoeff(), 1e-14);
-  EXPECT_EQ(a.model.rod.precurvature.z(), s.model.rod.precurvature.z());
-  EXPECT_EQ(a.model.tip_mass, s.model.tip_mass);
+  EXPECT_EQ(a.rod.segments[0].precurvature.z(), s.rod.segments[0].precurvature.z());
+  EXPECT_EQ(a.rod.tip_mass, s.rod.tip_mass);
 }
 
 TEST(CalibrationZeta, CrossSectionFromSceneTextAndParamList) {
@@ -424,31 +424,31 @@ TEST(CalibrationSceneWriter, OutputIsACompleteSceneThatLoadsBack) {
     EXPECT_NE(yaml.find("length: 0.09\n"), std::string::npos) << yaml;  // short exact numbers
     const config::Scene b = config::parse_scene(yaml);
     // ζ in, through the scene library's own moduli → stiffness conversion.
-    EXPECT_NEAR(b.model.rod.stiffness.x(), z[kE] * kI, 1e-14 * b.model.rod.stiffness.x());
-    EXPECT_NEAR(b.model.rod.stiffness.y(), z[kE] * kI, 1e-14 * b.model.rod.stiffness.y());
-    EXPECT_NEAR(b.model.rod.stiffness.z(), z[kG] * 2 * kI, 1e-14 * b.model.rod.stiffness.z());
-    EXPECT_EQ(b.model.rod.precurvature, Eigen::Vector3d(z[kUx], z[kUy], start.model.rod.precurvature.z()));
-    EXPECT_EQ(b.jets.misalignment, Eigen::Vector3d(z[kDa], z[kDb], z[kDg]));
+    EXPECT_NEAR(b.rod.segments[0].stiffness.x(), z[kE] * kI, 1e-14 * b.rod.segments[0].stiffness.x());
+    EXPECT_NEAR(b.rod.segments[0].stiffness.y(), z[kE] * kI, 1e-14 * b.rod.segments[0].stiffness.y());
+    EXPECT_NEAR(b.rod.segments[0].stiffness.z(), z[kG] * 2 * kI, 1e-14 * b.rod.segments[0].stiffness.z());
+    EXPECT_EQ(b.rod.segments[0].precurvature, Eigen::Vector3d(z[kUx], z[kUy], start.rod.segments[0].precurvature.z()));
+    EXPECT_EQ(b.jets->misalignment, Eigen::Vector3d(z[kDa], z[kDb], z[kDg]));
     // Everything else carried over.
-    EXPECT_EQ(b.model.rod.length, start.model.rod.length);
-    EXPECT_EQ(b.model.rod.linear_density, start.model.rod.linear_density);
-    EXPECT_EQ(b.model.tip_mass, start.model.tip_mass);
-    EXPECT_EQ(b.model.gravity, start.model.gravity);
+    EXPECT_EQ(b.rod.segments[0].length, start.rod.segments[0].length);
+    EXPECT_EQ(b.rod.segments[0].linear_density, start.rod.segments[0].linear_density);
+    EXPECT_EQ(b.rod.tip_mass, start.rod.tip_mass);
+    EXPECT_EQ(b.rod.gravity, start.rod.gravity);
     EXPECT_EQ(b.actuated, start.actuated);
     EXPECT_EQ(b.solver.integrator.type, start.solver.integrator.type);
     EXPECT_EQ(b.solver.integrator.steps, start.solver.integrator.steps);
     EXPECT_EQ(b.solver.residual_tolerance, start.solver.residual_tolerance);
-    EXPECT_EQ(b.max_jet_force, start.max_jet_force);
+    for (int i = 0; i < 3; ++i) EXPECT_EQ(b.rod.actuators[i].max_force, start.rod.actuators[i].max_force);
     EXPECT_EQ(b.nozzle.inlet_area, start.nozzle.inlet_area);
     EXPECT_EQ(b.nozzle.outlet_area, start.nozzle.outlet_area);
     EXPECT_EQ(b.nozzle.water_density, start.nozzle.water_density);
-    EXPECT_EQ(b.jets.nozzle_offset, start.jets.nozzle_offset);
+    EXPECT_EQ(b.jets->nozzle_offset, start.jets->nozzle_offset);
     EXPECT_EQ(cross_section_from_scene_text(yaml, CrossSection{0.01, 0.002}).outer_diameter, 0.008);
     EXPECT_EQ(YAML::Load(yaml)["calibration"]["rms_rad"].as<double>(), 0.01);
     // Written again (e.g. a calibrated scene as the next start): one calibration section, still valid.
     const std::string again = calibrated_scene_yaml(yaml, z, CrossSection(), "", YAML::Node());
     EXPECT_FALSE(YAML::Load(again)["calibration"]);
-    EXPECT_EQ(config::parse_scene(again).model.rod.stiffness, b.model.rod.stiffness);
+    EXPECT_EQ(config::parse_scene(again).rod.segments[0].stiffness, b.rod.segments[0].stiffness);
   }
   // Keys the writer does not know survive, in known sections and as sections of their own.
   const std::string custom =
@@ -462,8 +462,8 @@ TEST(CalibrationSceneWriter, OutputIsACompleteSceneThatLoadsBack) {
   EXPECT_EQ(c.solver.integrator.type, rod::IntegratorType::kDopri5);
   EXPECT_EQ(c.solver.integrator.tolerance, 1e-8);
   EXPECT_TRUE(c.actuated[5]);
-  EXPECT_EQ(c.jets.nozzle_offset, 0.003);
-  EXPECT_EQ(c.model.rod.precurvature.z(), 0.0);
+  EXPECT_EQ(c.jets->nozzle_offset, 0.003);
+  EXPECT_EQ(c.rod.segments[0].precurvature.z(), 0.0);
   EXPECT_EQ(YAML::Load(out)["plant"]["note"].as<std::string>(), "kept");
   EXPECT_THROW(calibrated_scene_yaml("rod: {length: 1}\n", truth_zeta(), CrossSection()), config::SceneError);
 }

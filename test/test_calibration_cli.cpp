@@ -112,11 +112,13 @@ TEST(CalibrateCli, FitsCsvWritesSceneAndEndsWithJson) {
   // The fitted scene loads and carries the fitted values (moduli and diameters of §6.2).
   config::Scene fitted;
   ASSERT_NO_THROW(fitted = config::load_scene(out));
-  EXPECT_NEAR(fitted.model.rod.stiffness.x(), number_field(p, "E") * kI, 1e-12 * fitted.model.rod.stiffness.x());
-  EXPECT_NEAR(fitted.model.rod.stiffness.z(), number_field(p, "G") * 2 * kI, 1e-12 * fitted.model.rod.stiffness.z());
-  EXPECT_EQ(fitted.model.rod.precurvature.x(), number_field(p, "ux"));
-  EXPECT_EQ(fitted.jets.misalignment[2], number_field(p, "dg"));
-  EXPECT_EQ(fitted.model.tip_mass, 0.00258);
+  EXPECT_NEAR(fitted.rod.segments[0].stiffness.x(), number_field(p, "E") * kI,
+              1e-12 * fitted.rod.segments[0].stiffness.x());
+  EXPECT_NEAR(fitted.rod.segments[0].stiffness.z(), number_field(p, "G") * 2 * kI,
+              1e-12 * fitted.rod.segments[0].stiffness.z());
+  EXPECT_EQ(fitted.rod.segments[0].precurvature.x(), number_field(p, "ux"));
+  EXPECT_EQ(fitted.jets->misalignment[2], number_field(p, "dg"));
+  EXPECT_EQ(fitted.rod.tip_mass, 0.00258);
   // ... and calibrating again from it changes nothing (it is the optimum for these data).
   const CliRun again = run("--scene " + out + " --data " + csv + " --out " + tmp("fit2.yaml"));
   ASSERT_EQ(again.status, 0) << again.err;
@@ -150,7 +152,7 @@ TEST(CalibrateCli, CrossSectionOptionsRescaleTheModuli) {
   const double Ia = kI, Ib = M_PI * std::pow(0.01, 4) / 64.0;
   EXPECT_NEAR(number_field(object_field(b.last_line(), "parameters"), "E") * Ib,
               number_field(object_field(a.last_line(), "parameters"), "E") * Ia, 1e-6 * 4.8e-4);
-  EXPECT_EQ(config::load_scene(tmp("b.yaml")).model.rod.stiffness.x() > 0, true);
+  EXPECT_EQ(config::load_scene(tmp("b.yaml")).rod.segments[0].stiffness.x() > 0, true);
 }
 
 TEST(CalibrateCli, BoundHitIsWarned) {

@@ -51,7 +51,7 @@ struct StaticPlant {
   double stuck_flow = 0.0;  ///< [m^3/s]
 
   StaticPlant(const config::Scene& sc, const rod::RodModel& truth)
-      : rod(truth, sc.solver), jets(sc.jets), nozzle(sc.nozzle) {
+      : rod(truth, sc.solver), jets(*sc.jets), nozzle(sc.nozzle) {
     apply(Vec3::Zero());
   }
   void apply(const Vec3& duty) {
@@ -115,7 +115,7 @@ TEST(Controller, ConvergesOnStaticTargetsClosedAndOpenLoop) {
         control::ControllerOptions p = static_target(target.first, target.second);
         p.mode = mode;
         Controller c(config::make_controller_model(sc, flow_gains()), p);
-        StaticPlant plant(sc, sc.model);
+        StaticPlant plant(sc, test::bare(sc));
         c.start(0.0);
         const ControllerOutput out = run(c, plant, 0.0, 8.0);
         ASSERT_EQ(out.state, ControllerState::kRunning) << out.reason;
@@ -131,9 +131,9 @@ TEST(Controller, ConvergesOnStaticTargetsClosedAndOpenLoop) {
 // keeps the model's error — the paper's case for pose feedback.
 TEST(Controller, FeedbackRemovesModelMismatch) {
   const config::Scene sc = test::scene("hydrojet_0deg");
-  rod::RodModel truth = sc.model;
-  truth.rod.stiffness *= 1.25;
-  truth.rod.precurvature *= 0.0;
+  rod::RodModel truth = test::bare(sc);
+  truth.segments[0].stiffness *= 1.25;
+  truth.segments[0].precurvature *= 0.0;
   double err[2];
   for (int m = 0; m < 2; ++m) {
     control::ControllerOptions p = static_target(0.7, 1.0);
@@ -157,7 +157,7 @@ TEST(Controller, FollowsShortenedSpiral) {
   p.path.theta_end = 1.04;
   p.path.phi_end = 14.0;
   Controller c(config::make_controller_model(sc, flow_gains()), p);
-  StaticPlant plant(sc, sc.model);
+  StaticPlant plant(sc, test::bare(sc));
   c.start(0.0);
   double sum2 = 0.0;
   int n = 0;
@@ -251,7 +251,7 @@ struct OperatorRig {
             p.path_type = control::PathType::kNone;
             return p;
           }()),
-        plant(sc, sc.model) {}
+        plant(sc, test::bare(sc)) {}
   ControllerOutput run_for(double seconds) {
     const ControllerOutput out = run(c, plant, t, seconds);
     t += seconds;
@@ -330,7 +330,7 @@ TEST(ControllerSources, TheConfiguredSpiralRunsUnclippedAnOperatorTargetThereIsC
     // At 0° the spiral's end (ϑ up to 1.04 rad) leaves the reserve set at some azimuths; at 30° it stays
     // inside both sets.
     if (std::string(name) == "hydrojet_0deg") ASSERT_GT(outside.norm(), 0.0) << name << ": the sets do not differ";
-    StaticPlant plant(sc, sc.model);
+    StaticPlant plant(sc, test::bare(sc));
     c.start(0.0);
     ControllerOutput out;
     for (int k = 0; k * kDt < options.path.duration; ++k) {
@@ -406,7 +406,7 @@ struct SafetyRig {
               return m;
             }(),
             p),
-        plant(sc, sc.model) {
+        plant(sc, test::bare(sc)) {
     c.start(0.0);
     const ControllerOutput out = run(c, plant, 0.0, 1.0);  // running, jets on
     EXPECT_EQ(out.state, ControllerState::kRunning) << out.reason;
@@ -429,7 +429,7 @@ void expect_aborted(const ControllerOutput& out, const std::string& reason_part)
 TEST(ControllerSafety, StartsAndStopsWithJetsAtZero) {
   const config::Scene sc = test::scene("hydrojet_0deg");
   Controller c(config::make_controller_model(sc, flow_gains()), static_target(0.5, 0.0));
-  StaticPlant plant(sc, sc.model);
+  StaticPlant plant(sc, test::bare(sc));
   EXPECT_EQ(c.update(plant.inputs(0.0)).valve_command, Vec3::Zero());  // idle before start
   c.start(0.0);
   ControllerOutput out = run(c, plant, 0.0, 1.0);
@@ -513,7 +513,7 @@ TEST(ControllerSafety, LowStabilityMarginAborts) {
   control::ControllerOptions p = static_target(0.5, 0.0);
   const config::Scene sc = test::scene("hydrojet_0deg");
   Controller c(config::make_controller_model(sc, flow_gains()), p);
-  StaticPlant plant(sc, sc.model);
+  StaticPlant plant(sc, test::bare(sc));
   p.min_stability_margin = 100.0;  // N/m, far above the HydroJet's ~3 N/m
   c.set_params(p);
   c.start(0.0);
@@ -588,7 +588,7 @@ TEST(ControllerSafety, StuckOpenJetIsDetectedFromFlowFeedback) {
 // The flows must come one per jet (three for the HydroJet's jet map).
 TEST(ControllerSafety, WrongNumberOfFlowReadingsAborts) {
   SafetyRig r;
-  EXPECT_EQ(r.c.jet_count(), 3);
+  EXPECT_EQ(r.c.input_count(), 3);
   ControllerInputs in = r.plant.inputs(1.0);
   in.flows = Eigen::Vector2d(1e-6, 1e-6);
   expect_aborted(r.step(in), "flow: 2 readings for 3 jets");
@@ -607,7 +607,7 @@ struct HydroJetLinearisation {
 
 HydroJetLinearisation hydrojet_linearisation(const Eigen::Vector3d& q) {
   control::ActuatedModel m(config::make_controller_model(test::scene("hydrojet_0deg"), flow_gains()));
-  EXPECT_TRUE(m.fast_path());
+  EXPECT_TRUE(m.rod().tip_actuated_uniform());
   const rod::RodSolution sol = m.solve(q);
   EXPECT_TRUE(sol.converged);
   return {sol.tip_rotation, m.linearise(), m.lower(), m.upper()};
@@ -998,8 +998,8 @@ TEST(DirectionPd, AHeldCycleCountsInTheReferenceSpeed) {
 // (1 − 1/g) v / (K_p + K_i w / ((1 − w) K_p)) = 0.06 / 21 = 0.0029 rad, and without the weight (type 2) 0.
 TEST(Controller, TheSpeedWeightedIntegralRemovesTheRampErrorOfAGainMismatch) {
   const config::Scene sc = test::scene("hydrojet_0deg");
-  rod::RodModel truth = sc.model;
-  truth.rod.stiffness *= 0.8;
+  rod::RodModel truth = test::bare(sc);
+  truth.segments[0].stiffness *= 0.8;
   double ramp_error[3];  // the paper's law; K_i weighted (the default); K_i unweighted
   for (int law = 0; law < 3; ++law) {
     control::ControllerOptions p;  // K_p 3/s
@@ -1032,8 +1032,8 @@ TEST(Controller, TheSpeedWeightedIntegralRemovesTheRampErrorOfAGainMismatch) {
 // commands what the paper's law does, bit for bit, on a still target with a mismatched plant.
 TEST(Controller, OnAStillTargetTheFastPathElementsAreThePapersLaw) {
   const config::Scene sc = test::scene("hydrojet_0deg");
-  rod::RodModel truth = sc.model;
-  truth.rod.stiffness *= 0.8;
+  rod::RodModel truth = test::bare(sc);
+  truth.segments[0].stiffness *= 0.8;
   control::ControllerOptions bare = static_target(0.6, 1.0);
   bare.ki = 0.0;
   bare.min_jet_force = 0.0;
@@ -1069,7 +1069,7 @@ TEST(Controller, IdlingJetsStayOpenAndTheTargetIsStillReached) {
       p.ki = 0.0;
       p.allocation_smoothing = 0.0;  // the idle alone
       Controller c(config::make_controller_model(sc, flow_gains()), p);
-      StaticPlant plant(sc, sc.model);
+      StaticPlant plant(sc, test::bare(sc));
       c.start(0.0);
       double lowest = 1e9;
       ControllerOutput out;
@@ -1096,7 +1096,7 @@ TEST(RoundedAllocation, TheJetsCommonModeMovesTheTipByNothing) {
   const rod::InputVector jets = rod::InputVector::Ones(3);
   const rod::InputVector n = control::jet_common_mode(h.lin.actuation, jets);
   ASSERT_EQ(n.size(), 3);
-  const actuation::JetMap map(test::scene("hydrojet_0deg").jets);
+  const actuation::JetMap map(*test::scene("hydrojet_0deg").jets);
   Eigen::Vector3d closed = map.planar().row(0).transpose().cross(map.planar().row(1).transpose());
   if (closed.sum() < 0.0) closed = -closed;
   closed /= closed.maxCoeff();
@@ -1128,7 +1128,7 @@ TEST(RoundedAllocation, TheLogSumExpAmountAndNoCornerWhereTheForcePassesAJet) {
   EXPECT_NEAR(none.excess, d, 1e-15);  // scale 0: no rounding, the least common mode
   EXPECT_EQ(none.amount, 0.0);
 
-  const actuation::JetMap map(test::scene("hydrojet_0deg").jets);
+  const actuation::JetMap map(*test::scene("hydrojet_0deg").jets);
   const Eigen::Matrix<double, 2, 3> P = map.planar();
   Eigen::Vector3d n = P.row(0).transpose().cross(P.row(1).transpose());
   if (n.sum() < 0.0) n = -n;
@@ -1183,7 +1183,7 @@ TEST(Controller, TheRoundedAllocationSmoothsTheJetsAndLeavesTheTip) {
     p.min_jet_force = 0.0;
     p.allocation_smoothing = round ? 0.3 : 0.0;
     Controller c(config::make_controller_model(sc, flow_gains()), p);
-    StaticPlant plant(sc, sc.model);
+    StaticPlant plant(sc, test::bare(sc));
     c.start(0.0);
     c.follow(std::make_shared<ConePath>(), 0.0);
     std::vector<rod::InputVector> q;
@@ -1225,7 +1225,7 @@ TEST(Controller, JetsIdleInProportionToTheReferenceSpeed) {
   p.path_type = control::PathType::kNone;
   p.min_jet_force = 0.01;
   Controller c(config::make_controller_model(sc, flow_gains()), p);
-  StaticPlant plant(sc, sc.model);
+  StaticPlant plant(sc, test::bare(sc));
   c.start(0.0);
   double lowest_still = 1e9, lowest_moving = 1e9;
   for (int k = 0; k < 400; ++k) {

@@ -27,12 +27,13 @@ constexpr double kL = 0.09, kEI = 6.01e-4, kGJ = 2.23e-4, kTipMass = 0.00258;
 /// The HydroJet of Campisano et al. 2021 (Table 1), hanging along +z of the base.
 DynamicRodModel hydrojet_parameters() {
   DynamicRodModel p;
-  p.model.rod.length = kL;
-  p.model.rod.stiffness = Vec3(kEI, kEI, kGJ);
-  p.model.rod.precurvature = Vec3(0.034, 0.88, 0.0);
-  p.model.rod.linear_density = 0.0;
-  p.model.tip_mass = kTipMass;
-  p.model.gravity = Vec3(0.0, 0.0, 9.81);
+  p.rod.segments.resize(1);
+  p.rod.segments[0].length = kL;
+  p.rod.segments[0].stiffness = Vec3(kEI, kEI, kGJ);
+  p.rod.segments[0].precurvature = Vec3(0.034, 0.88, 0.0);
+  p.rod.segments[0].linear_density = 0.0;
+  p.rod.tip_mass = kTipMass;
+  p.rod.gravity = Vec3(0.0, 0.0, 9.81);
   p.kelvin_voigt_time = 0.01;  // light material damping (ζ ≈ 0.15 for the first mode)
   return p;
 }
@@ -40,12 +41,13 @@ DynamicRodModel hydrojet_parameters() {
 /// Straight rod, no gravity, no damping: the cantilever of the free-vibration tests.
 DynamicRodModel straight_undamped(double rho_a, const Vec3& tip_inertia) {
   DynamicRodModel p;
-  p.model.rod.length = kL;
-  p.model.rod.stiffness = Vec3(kEI, kEI, kGJ);
-  p.model.rod.precurvature.setZero();
-  p.model.rod.linear_density = rho_a;
-  p.model.tip_mass = kTipMass;
-  p.model.gravity.setZero();
+  p.rod.segments.resize(1);
+  p.rod.segments[0].length = kL;
+  p.rod.segments[0].stiffness = Vec3(kEI, kEI, kGJ);
+  p.rod.segments[0].precurvature.setZero();
+  p.rod.segments[0].linear_density = rho_a;
+  p.rod.tip_mass = kTipMass;
+  p.rod.gravity.setZero();
   p.kelvin_voigt_time = 0.0;
   p.tip_inertia = tip_inertia;
   return p;
@@ -76,7 +78,7 @@ double rotation_error(const Mat3& a, const Mat3& b) { return so3::log(a.transpos
 /// default 21 nodes is ≈1e-7 m and ≈1.1e-6 rad on this strongly bent configuration (measured: it
 /// falls 16× per halving of the step, 4th order), so 5e-7 m and 5e-6 rad are used for the grid.
 double position_tolerance(const DynamicRodModel& p, double n_max) {
-  return 2.0 * p.model.rod.length * n_max / std::min(p.shear_stiffness, p.axial_stiffness) + 5e-7;
+  return 2.0 * p.rod.segments[0].length * n_max / std::min(p.shear_stiffness, p.axial_stiffness) + 5e-7;
 }
 constexpr double kRotationTolerance = 5e-6;
 
@@ -124,7 +126,7 @@ TEST(DynamicRodStatic, ResetToStaticMatchesKirchhoffAndStaysPut) {
   w.force = jet_force(0.2, 0.05, 0.1);
   w.moment = Vec3(1e-4, -2e-4, 5e-5);
   ASSERT_TRUE(rod.reset_to_static(w)) << rod.last_error();
-  const rod::RodSolution ref = kirchhoff(p.model, w);
+  const rod::RodSolution ref = kirchhoff(p.rod, w);
   ASSERT_TRUE(ref.converged) << ref.message;
   const double dp = (rod.tip_position() - ref.tip_position).norm();
   const double dr = rotation_error(rod.tip_rotation(), ref.tip_rotation);
@@ -161,7 +163,7 @@ TEST(DynamicRodStatic, SettlesToKirchhoffSolutionUnderConstantForce) {
     ++steps;
   }
   EXPECT_LT(rod.tip_velocity().norm(), 1e-7);
-  const rod::RodSolution ref = kirchhoff(p.model, w);
+  const rod::RodSolution ref = kirchhoff(p.rod, w);
   ASSERT_TRUE(ref.converged) << ref.message;
   const double dp = (rod.tip_position() - ref.tip_position).norm();
   const double dr = rotation_error(rod.tip_rotation(), ref.tip_rotation);
@@ -173,7 +175,7 @@ TEST(DynamicRodStatic, SettlesToKirchhoffSolutionUnderConstantForce) {
   const Vec3 g(9.81 * std::sin(M_PI / 6), 0.0, 9.81 * std::cos(M_PI / 6));
   rod.set_gravity(g);
   while (rod.time() < 8.0) ASSERT_TRUE(rod.step(w, dt)) << rod.last_error();
-  rod::RodModel tilted = p.model;
+  rod::RodModel tilted = p.rod;
   tilted.gravity = g;
   const rod::RodSolution ref2 = kirchhoff(tilted, w);
   ASSERT_TRUE(ref2.converged);
@@ -219,16 +221,16 @@ rod::RodModel two_segment_body() {
 
 TEST(DynamicRodGeneral, RestsAndSettlesWhereTheStaticGeneralSolverPutsIt) {
   DynamicRodModel p;
-  p.body = two_segment_body();
-  p.model.tip_mass = 0.003;
-  p.model.gravity = Vec3(0.0, 0.0, 9.81);
+  p.rod = two_segment_body();
+  p.rod.tip_mass = 0.003;
+  p.rod.gravity = Vec3(0.0, 0.0, 9.81);
   p.kelvin_voigt_time = 0.02;
   p.tip_drag = 0.05;
   p.nodes = 31;
   DynamicRod rod(p);
-  rod::RodModel ref_model = p.body;
-  ref_model.tip_mass = p.model.tip_mass;
-  ref_model.gravity = p.model.gravity;
+  rod::RodModel ref_model = p.rod;
+  ref_model.tip_mass = p.rod.tip_mass;
+  ref_model.gravity = p.rod.gravity;
   rod::ShootingOptions st;
   st.integrator.type = rod::IntegratorType::kRk8;
   st.integrator.steps = 16;
@@ -395,7 +397,7 @@ TEST(DynamicRodHydroJet, JetForceStepOvershootsAndSettles) {
   EXPECT_LT(min_after_peak, 0.95);  // and swings back: an oscillation
   EXPECT_LT(rod.tip_velocity().norm(), 1e-6);
   EXPECT_LT((rod.tip_position() - pf).norm(), 1e-7);
-  const rod::RodSolution ref = kirchhoff(p.model, w);
+  const rod::RodSolution ref = kirchhoff(p.rod, w);
   ASSERT_TRUE(ref.converged);
   EXPECT_LT((rod.tip_position() - ref.tip_position).norm(), position_tolerance(p, rod.base_force().norm()));
   EXPECT_LT(rotation_error(rod.tip_rotation(), ref.tip_rotation), kRotationTolerance);
@@ -409,7 +411,7 @@ TEST(DynamicRodHydroJet, DragAndBodyMassReduceOvershootAndSettle) {
   double overshoot[2];
   for (int with_drag = 0; with_drag < 2; ++with_drag) {
     DynamicRodModel p = hydrojet_parameters();
-    p.model.rod.linear_density = 5e-3;
+    p.rod.segments[0].linear_density = 5e-3;
     p.rotational_inertia_per_length = 1e-8;
     if (with_drag) {
       p.linear_drag = 0.2;
@@ -432,7 +434,7 @@ TEST(DynamicRodHydroJet, DragAndBodyMassReduceOvershootAndSettle) {
     }
     overshoot[with_drag] = max_progress - 1.0;
     EXPECT_LT((rod.tip_position() - pf).norm(), 1e-6);
-    const rod::RodSolution ref = kirchhoff(p.model, w);
+    const rod::RodSolution ref = kirchhoff(p.rod, w);
     ASSERT_TRUE(ref.converged);
     EXPECT_LT((rod.tip_position() - ref.tip_position).norm(), position_tolerance(p, rod.base_force().norm()));
   }
@@ -490,11 +492,11 @@ TEST(DynamicRodInput, RejectsInvalidParametersNamingThem) {
       {"max_substep_halvings", [](DynamicRodModel* p) { p->max_substep_halvings = -1; }},
       {"tolerance", [](DynamicRodModel* p) { p->tolerance = 0.0; }},
       {"alpha", [](DynamicRodModel* p) { p->alpha = 0.3; }},
-      {"model.rod.length", [](DynamicRodModel* p) { p->model.rod.length = 0.0; }},
-      {"model.rod.stiffness", [](DynamicRodModel* p) { p->model.rod.stiffness.z() = 0.0; }},
-      {"model.rod.linear_density", [](DynamicRodModel* p) { p->model.rod.linear_density = -1e-3; }},
-      {"model.tip_mass", [](DynamicRodModel* p) { p->model.tip_mass = std::nan(""); }},
-      {"model.gravity", [](DynamicRodModel* p) { p->model.gravity.x() = std::nan(""); }},
+      {"rod.segments[0].length", [](DynamicRodModel* p) { p->rod.segments[0].length = 0.0; }},
+      {"rod.segments[0].stiffness", [](DynamicRodModel* p) { p->rod.segments[0].stiffness.z() = 0.0; }},
+      {"rod.segments[0].linear_density", [](DynamicRodModel* p) { p->rod.segments[0].linear_density = -1e-3; }},
+      {"rod.tip_mass", [](DynamicRodModel* p) { p->rod.tip_mass = std::nan(""); }},
+      {"rod.gravity", [](DynamicRodModel* p) { p->rod.gravity.x() = std::nan(""); }},
   };
   EXPECT_TRUE(hydrojet_parameters().validate().empty());
   for (const Case& c : cases) {

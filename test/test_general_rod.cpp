@@ -173,16 +173,17 @@ TEST(GeneralRodClosedForm, PrecurvedSegmentsArePiecewiseArcs) {
 TEST(GeneralRodEquivalence, IdenticalSegmentsAndTipActuatorsAreTheUniformRod) {
   for (rod::RodKind kind : {rod::RodKind::kKirchhoff, rod::RodKind::kCosserat}) {
     rod::RodModel u;
-    u.rod.length = 0.09;
-    u.rod.stiffness = Vec3(6.01e-4, 7.2e-4, 2.23e-4);
-    u.rod.precurvature = Vec3(0.034, 0.88, 0.1);
-    u.rod.linear_density = 0.03;
-    u.rod.kind = kind;
-    u.rod.shear_stiffness = 40.0;
-    u.rod.axial_stiffness = 150.0;
+    u.segments.resize(1);
+    u.segments[0].length = 0.09;
+    u.segments[0].stiffness = Vec3(6.01e-4, 7.2e-4, 2.23e-4);
+    u.segments[0].precurvature = Vec3(0.034, 0.88, 0.1);
+    u.segments[0].linear_density = 0.03;
+    u.kind = kind;
+    u.segments[0].shear_stiffness = 40.0;
+    u.segments[0].axial_stiffness = 150.0;
     u.tip_mass = 0.00258;
     u.gravity = Vec3(0.0, 4.9, 8.5);
-    rod::RodModel g = rod::general_model(u);
+    rod::RodModel g = u;
     rod::RodSegment half = g.segments[0];
     half.length = 0.045;
     g.segments = {half, half};
@@ -215,9 +216,9 @@ TEST(GeneralRodEquivalence, IdenticalSegmentsAndTipActuatorsAreTheUniformRod) {
 TEST(GeneralRodEquivalence, JetsSceneIsItsThreeActuators) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const config::Scene sc = test::scene(name);
-    ASSERT_EQ(sc.body.actuators.size(), 3u);
-    rod::RodSolver ref(sc.model, sc.solver);
-    rod::RodSolver gen(sc.body, sc.solver);
+    ASSERT_EQ(sc.rod.actuators.size(), 3u);
+    rod::RodSolver ref(test::bare(sc), sc.solver);
+    rod::RodSolver gen(sc.rod, sc.solver);
     for (const Vec3& jets : {Vec3(0.2, 0.05, 0.0), Vec3(0.0, 0.15, 0.21), Vec3(0.1, 0.1, 0.1)}) {
       rod::TipWrench w;
       w.force = test::jet_force(jets[0], jets[1], jets[2]);
@@ -324,14 +325,14 @@ TEST(GeneralRodErrors, BadModelsAndInputsAreNamed) {
 // (1e-6 m against a 64-step reference).
 TEST(GeneralRodScenes, TwoSegmentThrustersSolvesWithinTheAccuracyContract) {
   const config::Scene sc = test::scene("two_segment_thrusters");
-  rod::RodSolver solver(sc.body, sc.solver);
+  rod::RodSolver solver(sc.rod, sc.solver);
   rod::ShootingOptions fine = sc.solver;
   fine.integrator.steps = 64;
-  rod::RodSolver ref(sc.body, fine);
-  const int N = static_cast<int>(sc.body.actuators.size());
+  rod::RodSolver ref(sc.rod, fine);
+  const int N = static_cast<int>(sc.rod.actuators.size());
   for (int k = 0; k < 6; ++k) {
     rod::InputVector q(N);
-    for (int j = 0; j < N; ++j) q[j] = sc.body.actuators[j].max_force * (0.5 + 0.5 * std::sin(1.3 * k + 2.1 * j));
+    for (int j = 0; j < N; ++j) q[j] = sc.rod.actuators[j].max_force * (0.5 + 0.5 * std::sin(1.3 * k + 2.1 * j));
     const rod::RodSolution s = solver.solve(q), r = ref.solve(q);
     ASSERT_TRUE(s.converged && r.converged) << s.message << " / " << r.message;
     EXPECT_LT((s.tip_position - r.tip_position).norm(), 1e-6) << k;
@@ -344,7 +345,7 @@ TEST(GeneralRodScenes, TwoSegmentThrustersSolvesWithinTheAccuracyContract) {
 TEST(GeneralRodStability, ReducesToTheLateralForceBlockOnTheHydroJet) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const config::Scene sc = test::scene(name);
-    rod::RodSolver gen(sc.body, sc.solver);
+    rod::RodSolver gen(sc.rod, sc.solver);
     for (const Vec3& jets : {Vec3(0.2, 0.05, 0.0), Vec3(0.0, 0.15, 0.21), Vec3(0.02, 0.01, 0.03)}) {
       ASSERT_TRUE(gen.solve(inputs({jets[0], jets[1], jets[2]})).converged);
       const rod::Compliance c = gen.compliance();
@@ -357,7 +358,7 @@ TEST(GeneralRodStability, ReducesToTheLateralForceBlockOnTheHydroJet) {
     }
   }
   const config::Scene sc = test::scene("two_segment_thrusters");
-  rod::RodSolver gen(sc.body, sc.solver);
+  rod::RodSolver gen(sc.rod, sc.solver);
   ASSERT_TRUE(gen.solve(rod::InputVector::Constant(6, 0.03)).converged);
   const rod::Compliance c = gen.compliance();
   ASSERT_TRUE(c.ok);
@@ -376,10 +377,10 @@ TEST(GeneralRodStability, ColdSolvePastBucklingReachesTheBuckledBranchAsTheUnifo
   const double EI = 6.01e-4, L = 0.09, g = 9.81;
   const double Pcr = M_PI * M_PI * EI / (4 * L * L);
   rod::RodModel u = test::plain_rod(L, EI);
-  u.rod.stiffness.y() = 1.2 * EI;
+  u.segments[0].stiffness.y() = 1.2 * EI;
   u.gravity = Vec3(0, 0, -g);
   u.tip_mass = 1.1 * Pcr / g;
-  rod::RodModel m = rod::general_model(u);
+  rod::RodModel m = u;
   rod::RodSegment half = m.segments[0];
   half.length = L / 2;
   m.segments = {half, half};
@@ -415,12 +416,13 @@ TEST(GeneralRodStability, ColdSolvePastBucklingReachesTheBuckledBranchAsTheUnifo
 // segments to the same equilibrium.
 TEST(GeneralRodMultipleShooting, BeyondSingleShootingAsTheUniformRodsMultipleShooting) {
   rod::RodModel u;
-  u.rod.length = 0.3;
-  u.rod.stiffness = Vec3(2e-4, 2.4e-4, 1.5e-4);
-  u.rod.precurvature = Vec3(0.2, 1.0, 0.0);
+  u.segments.resize(1);
+  u.segments[0].length = 0.3;
+  u.segments[0].stiffness = Vec3(2e-4, 2.4e-4, 1.5e-4);
+  u.segments[0].precurvature = Vec3(0.2, 1.0, 0.0);
   u.gravity = Vec3(0.0, 2.0, 9.6);
   u.tip_mass = 0.002;
-  rod::RodModel g = rod::general_model(u);
+  rod::RodModel g = u;
   rod::RodSegment half = g.segments[0];
   half.length = 0.15;
   g.segments = {half, half};

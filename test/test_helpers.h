@@ -20,12 +20,25 @@ inline rod::Vec3 jet_force(double q1, double q2, double q3, double da = 0.12, do
                    std::cos(p3 - db) * q1 - std::cos(da) * q2 + std::cos(p3 - dg) * q3, 0.0);
 }
 
+/// The rod of a scene without its actuators: loaded by a tip wrench only.
+inline rod::RodModel bare(const config::Scene& s) {
+  rod::RodModel m = s.rod;
+  m.actuators.clear();
+  return m;
+}
+
+/// q_max [N] of a HydroJet scene's three jets.
+inline rod::Vec3 jet_max_force(const config::Scene& s) {
+  return rod::Vec3(s.rod.actuators.at(0).max_force, s.rod.actuators.at(1).max_force, s.rod.actuators.at(2).max_force);
+}
+
 /// A straight, unloaded, isotropic rod with no gravity (for closed-form checks).
 inline rod::RodModel plain_rod(double L = 0.09, double EI = 6.01e-4, double GJ = 2.23e-4) {
   rod::RodModel m;
-  m.rod.length = L;
-  m.rod.stiffness = rod::Vec3(EI, EI, GJ);
-  m.rod.precurvature.setZero();
+  m.segments.resize(1);
+  m.segments[0].length = L;
+  m.segments[0].stiffness = rod::Vec3(EI, EI, GJ);
+  m.segments[0].precurvature.setZero();
   m.tip_mass = 0.0;
   m.gravity.setZero();
   return m;

@@ -53,7 +53,7 @@ int check_case(const std::string& name, bool cvode = true) {
   const numerics::Reference ref = numerics::reference(c);
   EXPECT_TRUE(ref.ok) << name << ": " << ref.message;
   if (!ref.ok) return 0;
-  EXPECT_LE(ref.agreement, 1e-10 * std::max(1.0, c.model.rod.length / 0.09)) << name;
+  EXPECT_LE(ref.agreement, 1e-10 * std::max(1.0, c.model.segments[0].length / 0.09)) << name;
   int converged = 0;
   for (const Config& k : kConfigs) {
     if (!cvode && (k.type == IntegratorType::kCvodeAdams || k.type == IntegratorType::kCvodeBdf)) continue;
@@ -95,8 +95,8 @@ TEST(Extreme, SoftLongRod) { EXPECT_GE(check_case("soft_long", false), 2); }
 // full jet force the 0.9 m rod, FL²/EI ≈ 400, has folds and unstable equilibria along the load
 // path: docs/stability.md.)
 TEST(Extreme, LongRodColdStartsAcrossWorkspace) {
-  rod::RodModel m = numerics::scene("hydrojet_30deg").model;
-  m.rod.length *= 10.0;
+  rod::RodModel m = numerics::bare(numerics::scene("hydrojet_30deg"));
+  m.segments[0].length *= 10.0;
   rod::ShootingOptions s;
   s.integrator.steps = 64;
   rod::RodSolver solver(m, s);
@@ -123,7 +123,7 @@ TEST(Extreme, NearInstabilityIsDetectedAndReported) {
   const double EI = 6.01e-4, L = 0.09, g = 9.81;
   const double Pcr = M_PI * M_PI * EI / (4 * L * L);  // of the weaker direction
   rod::RodModel m = test::plain_rod(L, EI);
-  m.rod.stiffness.y() = 1.2 * EI;
+  m.segments[0].stiffness.y() = 1.2 * EI;
   m.gravity = Vec3(0, 0, -g);
   rod::ShootingOptions options = test::rk8(16);
   options.cold_stability_check.fill(false);
@@ -182,8 +182,8 @@ TEST(Extreme, ColdSolvePastBucklingReachesTheBuckledBranch) {
   for (double ratio : {1.1, 1.5}) {
     for (double imperfection : {0.0, 0.05}) {
       rod::RodModel m = test::plain_rod(L, EI);
-      m.rod.stiffness.y() = 1.2 * EI;
-      m.rod.precurvature.x() = imperfection;  // bends about x (the weaker axis): toward −y
+      m.segments[0].stiffness.y() = 1.2 * EI;
+      m.segments[0].precurvature.x() = imperfection;  // bends about x (the weaker axis): toward −y
       m.gravity = Vec3(0, 0, -g);
       m.tip_mass = ratio * Pcr / g;
       rod::RodSolver solver(m, test::rk8(32));
@@ -209,7 +209,7 @@ TEST(Extreme, ColdSolvePastBucklingReachesTheBuckledBranch) {
 TEST(Extreme, ColdSolveWithNoStableEquilibriumWarns) {
   const double EI = 6.01e-4, L = 0.09;
   rod::RodModel m = test::plain_rod(L, EI);
-  m.rod.stiffness.y() = 1.2 * EI;
+  m.segments[0].stiffness.y() = 1.2 * EI;
   rod::RodSolver solver(m, test::rk8(16));
   rod::TipWrench w;
   w.force.z() = -10.0 * M_PI * M_PI * EI / (4 * L * L);
@@ -224,9 +224,9 @@ TEST(Extreme, ColdSolveWithNoStableEquilibriumWarns) {
 TEST(Extreme, ColdStartsAcrossHydroJetWorkspace) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const config::Scene sc = numerics::scene(name);
-    rod::RodSolver solver(sc.model, sc.solver);
+    rod::RodSolver solver(test::bare(sc), sc.solver);
     Case c;
-    c.model = sc.model;
+    c.model = test::bare(sc);
     for (double q1 = 0; q1 <= 0.2431; q1 += 0.0486)
       for (double q2 = 0; q2 <= 0.2241; q2 += 0.0448)
         for (double q3 = 0; q3 <= 0.2441; q3 += 0.0488) {
@@ -249,7 +249,7 @@ TEST(Extreme, UnderResolvedFixedStepSolveIsRefused) {
   const rod::RodSolution sol = solver.solve(c.wrench);
   EXPECT_FALSE(sol.converged);
   EXPECT_NE(sol.message.find("estimated tip error"), std::string::npos) << sol.message;
-  EXPECT_GT(sol.error_estimate, 1e-5 * c.model.rod.length);
+  EXPECT_GT(sol.error_estimate, 1e-5 * c.model.segments[0].length);
   s.integrator.steps = 16;
   rod::RodSolver finer(c.model, s);
   const rod::RodSolution ok = finer.solve(c.wrench);

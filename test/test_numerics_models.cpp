@@ -21,9 +21,9 @@ namespace {
 double angle_between(const Mat3& A, const Mat3& B) { return so3::log(A.transpose() * B).norm(); }
 
 rod::RodModel cosserat(rod::RodModel m, double GA, double EA) {
-  m.rod.kind = rod::RodKind::kCosserat;
-  m.rod.shear_stiffness = GA;
-  m.rod.axial_stiffness = EA;
+  m.kind = rod::RodKind::kCosserat;
+  m.segments[0].shear_stiffness = GA;
+  m.segments[0].axial_stiffness = EA;
   return m;
 }
 
@@ -71,29 +71,29 @@ TEST(Cosserat, StraightRodMatchesExtensionAndTimoshenko) {
 TEST(Cosserat, ConvergesToKirchhoffAsStiffnessGrows) {
   const config::Scene sc = test::scene("hydrojet_30deg");
   const rod::TipWrench w = force(test::jet_force(0.2, 0.05, 0.1));
-  rod::RodSolver kirchhoff(sc.model, test::rk8(32));
+  rod::RodSolver kirchhoff(test::bare(sc), test::rk8(32));
   const rod::RodSolution k = kirchhoff.solve(w);
   ASSERT_TRUE(k.converged);
   double last = 1.0;
   for (double EA : {1e1, 1e2, 1e3, 1e4, 1e5, 1e6}) {
-    rod::RodSolver c(cosserat(sc.model, EA, EA), test::rk8(32));
+    rod::RodSolver c(cosserat(test::bare(sc), EA, EA), test::rk8(32));
     const rod::RodSolution s = c.solve(w);
     ASSERT_TRUE(s.converged) << "EA " << EA << ": " << s.message;
     const double gap = (s.tip_position - k.tip_position).norm();
-    EXPECT_LT(gap, sc.model.rod.length * 0.3 / EA) << "EA " << EA;  // ≤ L·max|n| / EA
+    EXPECT_LT(gap, sc.rod.segments[0].length * 0.3 / EA) << "EA " << EA;  // ≤ L·max|n| / EA
     if (EA > 1e1) {
       EXPECT_NEAR(last / gap, 10.0, 1.0) << "EA " << EA;  // first order in 1/EA
     }
     last = gap;
   }
-  rod::RodSolver stiff(cosserat(sc.model, 1e12, 1e12), test::rk8(32));
+  rod::RodSolver stiff(cosserat(test::bare(sc), 1e12, 1e12), test::rk8(32));
   EXPECT_LT((stiff.solve(w).tip_position - k.tip_position).norm(), 1e-12);
 }
 
 // C^b of a soft Cosserat rod from sensitivities against central differences of full solves.
 TEST(Cosserat, ComplianceMatchesCentralDifferences) {
   config::Scene sc = test::scene("hydrojet_0deg");
-  rod::RodSolver solver(cosserat(sc.model, 0.4, 1.3), test::rk8(16, 1e-14));
+  rod::RodSolver solver(cosserat(test::bare(sc), 0.4, 1.3), test::rk8(16, 1e-14));
   rod::TipWrench w = force(test::jet_force(0.1, 0.05, 0.0));
   w.moment = Vec3(1e-4, -2e-4, 5e-5);
   ASSERT_TRUE(solver.solve(w).converged);
@@ -119,19 +119,19 @@ TEST(Cosserat, ComplianceMatchesCentralDifferences) {
 // The right-hand side compiled for the scene's terms gives the same numbers as the general one.
 TEST(Specialization, VariantsMatchTheGeneralRightHandSide) {
   config::Scene hj = test::scene("hydrojet_30deg");
-  rod::RodModel weight = hj.model;
-  weight.rod.linear_density = 0.02;
-  weight.rod.stiffness.x() *= 1.3;
+  rod::RodModel weight = test::bare(hj);
+  weight.segments[0].linear_density = 0.02;
+  weight.segments[0].stiffness.x() *= 1.3;
   rod::RodModel straight = test::plain_rod();
   straight.gravity = Vec3(0, 9.81, 0);
   straight.tip_mass = 0.003;
   struct Case {
     rod::RodModel m;
     const char* variant;
-  } cases[] = {{hj.model, "kirchhoff+precurved"},
+  } cases[] = {{test::bare(hj), "kirchhoff+precurved"},
                {weight, "kirchhoff+weight+precurved"},
                {straight, "kirchhoff"},
-               {cosserat(hj.model, 2.0, 5.0), "cosserat+precurved"},
+               {cosserat(test::bare(hj), 2.0, 5.0), "cosserat+precurved"},
                {cosserat(weight, 2.0, 5.0), "cosserat+weight+precurved"}};
   for (const Case& c : cases) {
     rod::ShootingOptions s = test::rk8(8);
@@ -154,7 +154,7 @@ TEST(Specialization, VariantsMatchTheGeneralRightHandSide) {
 TEST(Cvode, AdamsAndBdfMatchTheReference) {
   const config::Scene sc = test::scene("hydrojet_30deg");
   const rod::TipWrench w = force(test::jet_force(0.2, 0.05, 0.1));
-  rod::RodSolver ref(sc.model, test::rk8(128, 1e-13));
+  rod::RodSolver ref(test::bare(sc), test::rk8(128, 1e-13));
   const rod::RodSolution r = ref.solve(w);
   ASSERT_TRUE(r.converged);
   const Mat6 Cref = ref.compliance().body;
@@ -162,7 +162,7 @@ TEST(Cvode, AdamsAndBdfMatchTheReference) {
     for (bool cvodes : {false, true}) {
       rod::ShootingOptions s = with(t, 1e-10);
       s.integrator.cvodes_sensitivities = cvodes;
-      rod::RodSolver solver(sc.model, s);
+      rod::RodSolver solver(test::bare(sc), s);
       const std::string what = std::string(rod::integrator_name(t)) + (cvodes ? " (CVODES sensitivities)" : "");
       const rod::RodSolution a = solver.solve(w);
       ASSERT_TRUE(a.converged) << what << ": " << a.message;
@@ -179,10 +179,10 @@ TEST(Cvode, AdamsAndBdfMatchTheReference) {
   rod::ShootingOptions k = sc.solver;
   k.newton = rod::NewtonBackend::kKinsol;
   k.residual_tolerance = 1e-12;
-  rod::RodSolver kin(sc.model, k);
+  rod::RodSolver kin(test::bare(sc), k);
   rod::ShootingOptions e = sc.solver;
   e.residual_tolerance = 1e-12;
-  rod::RodSolver eig(sc.model, e);
+  rod::RodSolver eig(test::bare(sc), e);
   const rod::RodSolution a = kin.solve(w), b = eig.solve(w);
   ASSERT_TRUE(a.converged) << a.message;
   ASSERT_TRUE(b.converged);
@@ -193,10 +193,10 @@ TEST(Cvode, AdamsAndBdfMatchTheReference) {
 TEST(MultipleShooting, AgreesWithSingleShooting) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const config::Scene sc = test::scene(name);
-    rod::RodSolver single(sc.model, test::rk8(16, 1e-12));
+    rod::RodSolver single(test::bare(sc), test::rk8(16, 1e-12));
     rod::ShootingOptions ms = test::rk8(16, 1e-12);
     ms.shooting_segments = 4;
-    rod::RodSolver multi(sc.model, ms);
+    rod::RodSolver multi(test::bare(sc), ms);
     for (const Vec3& f : {Vec3(0, 0, 0), test::jet_force(0.243, 0.0, 0.1), test::jet_force(0.0, 0.224, 0.0)}) {
       rod::TipWrench w = force(f);
       w.moment = Vec3(2e-4, 0, -1e-4);
@@ -218,7 +218,7 @@ TEST(MultipleShooting, AgreesWithSingleShooting) {
 // A copied solver is independent (its CVODE memory is its own) and gives the same answers.
 TEST(Cvode, CopiedSolverIsIndependent) {
   const config::Scene sc = test::scene("hydrojet_0deg");
-  rod::RodSolver a(sc.model, with(rod::IntegratorType::kCvodeBdf, 1e-9));
+  rod::RodSolver a(test::bare(sc), with(rod::IntegratorType::kCvodeBdf, 1e-9));
   const rod::TipWrench w = force(test::jet_force(0.1, 0.1, 0.0));
   ASSERT_TRUE(a.solve(w).converged);
   rod::RodSolver b = a;

@@ -386,7 +386,7 @@ TEST_P(Reachable, ComputedQuicklyWithEveryBinFilled) {
   EXPECT_GT(set.samples().size(), 1000u);
   EXPECT_LT(set.compute_time(), 2.0);
   // The zero-force direction is the model's tip z-axis with the jets off.
-  rod::RodSolver s(test::scene(GetParam()).model, test::scene(GetParam()).solver);
+  rod::RodSolver s(test::bare(test::scene(GetParam())), test::scene(GetParam()).solver);
   EXPECT_NEAR(angle(set.center(), s.solve(rod::TipWrench()).tip_rotation.col(2)), 0.0, 1e-12);
   std::printf("%s: %zu samples, compute %.3f s\n", GetParam().c_str(), set.samples().size(), set.compute_time());
   double lo = 10, hi = 0;
@@ -533,8 +533,7 @@ TEST(ReachableSet, ASweepBeyondItsTimeBoundIsRefused) {
   };
   EXPECT_EQ(refusal(model("hydrojet_0deg"), 1e-9).rfind("reachable set: the sweep took more than max_time", 0), 0u);
   control::RobotModel absurd = model("hydrojet_0deg");
-  absurd.max_jet_force.setConstant(1e12);
-  for (rod::Actuator& a : absurd.body.actuators) a.max_force = 1e12;
+  for (rod::Actuator& a : absurd.rod.actuators) a.max_force = 1e12;
   const auto t0 = std::chrono::steady_clock::now();
   EXPECT_NE(refusal(absurd, 0.5).find("max_time = 0.5 s"), std::string::npos);
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 30.0);
@@ -562,14 +561,14 @@ namespace {
 /// exactly (λ = 0) for its tip force, the jet map's wrench, a fresh solver.
 rod::RodSolution independent_fk(const std::string& scene, const control::LookAtResult& r) {
   const config::Scene sc = test::scene(scene);
-  const actuation::JetMap jets(sc.jets);
+  const actuation::JetMap jets(*sc.jets);
   const actuation::AllocationResult q =
-      actuation::allocate(jets.planar(), r.tip_force, Eigen::Vector3d::Zero(), sc.max_jet_force, 0.0);
+      actuation::allocate(jets.planar(), r.tip_force, Eigen::Vector3d::Zero(), test::jet_max_force(sc), 0.0);
   EXPECT_TRUE(q.ok && q.reachable) << "the tip force is allocatable";
   rod::TipWrench w;
   w.force = jets.wrench(q.q).head<3>();
   w.moment = jets.wrench(q.q).tail<3>();
-  rod::RodSolver s(sc.model, sc.solver);
+  rod::RodSolver s(test::bare(sc), sc.solver);
   const rod::RodSolution sol = s.solve(w);
   EXPECT_TRUE(sol.converged);
   return sol;
@@ -584,7 +583,7 @@ double line_distance(const rod::RodSolution& s, const Vec3& P, bool* in_front) {
 
 /// The jets-off tip position and direction.
 std::pair<Vec3, Vec3> rest_pose(const std::string& scene) {
-  rod::RodSolver s(test::scene(scene).model, test::scene(scene).solver);
+  rod::RodSolver s(test::bare(test::scene(scene)), test::scene(scene).solver);
   const rod::RodSolution sol = s.solve(rod::TipWrench());
   return {sol.tip_position, sol.tip_rotation.col(2)};
 }
@@ -701,7 +700,7 @@ TEST(LookAtOptions, AreValidated) {
 namespace {
 
 rod::RodSolution general_fk(const config::Scene& sc, const rod::InputVector& q) {
-  rod::RodSolver s(sc.body, sc.solver);
+  rod::RodSolver s(sc.rod, sc.solver);
   const rod::RodSolution sol = s.solve(q);
   EXPECT_TRUE(sol.converged) << sol.message;
   return sol;
@@ -735,8 +734,8 @@ TEST(GeneralRobot, LookAtAimsThroughThePointWithInputsInTheirBounds) {
     ASSERT_TRUE(r.ok) << r.message;
     ASSERT_EQ(r.inputs.size(), 6);
     for (int k = 0; k < 6; ++k) {
-      EXPECT_GE(r.inputs[k], sc.body.actuators[k].min_force - 1e-12);
-      EXPECT_LE(r.inputs[k], sc.body.actuators[k].max_force + 1e-12);
+      EXPECT_GE(r.inputs[k], sc.rod.actuators[k].min_force - 1e-12);
+      EXPECT_LE(r.inputs[k], sc.rod.actuators[k].max_force + 1e-12);
     }
     const rod::RodSolution fk = general_fk(sc, r.inputs);
     bool in_front = false;

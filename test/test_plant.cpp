@@ -168,10 +168,12 @@ TEST(PlantConfig, DefaultsMatchYaml) {
   const config::Scene sc = test::scene("hydrojet_30deg");
   const plant::PlantModel a = config::make_plant(sc, ""), b = config::load_plant(sc, path);
   EXPECT_EQ(a.base_tilt, b.base_tilt);
-  EXPECT_EQ(a.rod.model.rod.precurvature, b.rod.model.rod.precurvature);
-  EXPECT_EQ(a.rod.model.rod.stiffness, b.rod.model.rod.stiffness);
-  EXPECT_EQ(a.rod.model.tip_mass, b.rod.model.tip_mass);
-  EXPECT_EQ(a.jets.misalignment, b.jets.misalignment);
+  EXPECT_EQ(a.rod.rod.segments[0].precurvature, b.rod.rod.segments[0].precurvature);
+  EXPECT_EQ(a.rod.rod.segments[0].stiffness, b.rod.rod.segments[0].stiffness);
+  EXPECT_EQ(a.rod.rod.tip_mass, b.rod.rod.tip_mass);
+  ASSERT_EQ(a.rod.rod.actuators.size(), b.rod.rod.actuators.size());
+  for (size_t i = 0; i < a.rod.rod.actuators.size(); ++i)
+    EXPECT_EQ(a.rod.rod.actuators[i].unit_wrench(), b.rod.rod.actuators[i].unit_wrench());
   EXPECT_EQ(a.rod.kelvin_voigt_time, b.rod.kelvin_voigt_time);
   EXPECT_EQ(a.valves[1].dead_zone, b.valves[1].dead_zone);
 }
@@ -199,10 +201,8 @@ TEST(Plant, SettlesToTheQuasiStaticModel) {
     pl.command(duty, (k - 1) * 0.01);
     ASSERT_TRUE(pl.advance_to(k * 0.01)) << pl.error();
   }
-  rod::RodSolver qs(p.rod.model, sc.solver);
-  rod::TipWrench w;
-  w.force = actuation::JetMap(p.jets).wrench(pl.jet_forces()).head<3>();
-  const rod::RodSolution s = qs.solve(w);
+  rod::RodSolver qs(p.rod.rod, sc.solver);
+  const rod::RodSolution s = qs.solve(pl.jet_forces());
   ASSERT_TRUE(s.converged);
   // Shear/extension compliance of the dynamic rod (GA = EA = 1e5 N) and its grid: ~1e-6.
   EXPECT_LT((pl.tip_position() - s.tip_position).norm(), 2e-6);
@@ -249,7 +249,7 @@ TEST(PlantGeneral, SettlesToTheGeneralStaticModel) {
   const config::Scene sc = test::scene("two_segment_thrusters");
   const plant::PlantModel p = exact_plant(sc);
   plant::Plant pl(p, 1);
-  ASSERT_EQ(pl.actuator_count(), 6);
+  ASSERT_EQ(pl.input_count(), 6);
   rod::InputVector duty(6);
   duty << 0.4, 0.0, 0.3, 0.1, 0.5, 0.2;
   for (int k = 1; k <= 600; ++k) {
@@ -257,10 +257,10 @@ TEST(PlantGeneral, SettlesToTheGeneralStaticModel) {
     ASSERT_TRUE(pl.advance_to(k * 0.01)) << pl.error();
   }
   rod::InputVector q(6);
-  for (int i = 0; i < 6; ++i) q[i] = duty[i] * sc.body.actuators[i].max_force;
+  for (int i = 0; i < 6; ++i) q[i] = duty[i] * sc.rod.actuators[i].max_force;
   EXPECT_LT((pl.jet_forces() - q).norm(), 1e-9) << "the drives' forces after their lag";
   EXPECT_EQ(pl.flow_sample(), rod::InputVector::Zero(6)) << "thrusters have no flow";
-  rod::RodSolver qs(sc.body, sc.solver);
+  rod::RodSolver qs(sc.rod, sc.solver);
   const rod::RodSolution s = qs.solve(q);
   ASSERT_TRUE(s.converged) << s.message;
   std::printf("second robot: plant vs static model: %.2e m, %.2e rad\n", (pl.tip_position() - s.tip_position).norm(),
@@ -348,7 +348,7 @@ TEST(PlantConfig, TheVariationsLoad) {
       EXPECT_NO_THROW(config::load_plant(test::scene(scene), dir + name + ".yaml"));
     const plant::PlantModel v = config::load_plant(sc, dir + name + ".yaml");
     EXPECT_NE(v.rod.kelvin_voigt_time, def.rod.kelvin_voigt_time);
-    EXPECT_NE(v.rod.model.tip_mass, def.rod.model.tip_mass);
+    EXPECT_NE(v.rod.rod.tip_mass, def.rod.rod.tip_mass);
     ++n;
   }
   EXPECT_EQ(n, 3);

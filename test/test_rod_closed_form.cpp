@@ -40,7 +40,7 @@ TEST(RodClosedForm, PureTipMomentGivesCircularArc) {
 // Solved warm from a heavily loaded state so that Newton has real work to do.
 TEST(RodClosedForm, PrecurvatureOnlyGivesUnloadedArc) {
   rod::RodModel m = test::plain_rod();
-  m.rod.precurvature = Vec3(0.034, 0.88, 0.0) * 10.0;  // a visible bend (0.8 rad)
+  m.segments[0].precurvature = Vec3(0.034, 0.88, 0.0) * 10.0;  // a visible bend (0.8 rad)
   rod::RodSolver solver(m, test::rk8(32));
   rod::TipWrench loaded;
   loaded.force = Vec3(0.15, -0.1, 0.0);
@@ -48,13 +48,13 @@ TEST(RodClosedForm, PrecurvatureOnlyGivesUnloadedArc) {
   const rod::RodSolution sol = solver.solve(rod::TipWrench{});
   ASSERT_TRUE(sol.converged) << sol.message;
   EXPECT_GE(sol.iterations, 2);
-  const double L = m.rod.length, k = m.rod.precurvature.norm(), th = k * L;
-  const Mat3 U = so3::hat(m.rod.precurvature);
+  const double L = m.segments[0].length, k = m.segments[0].precurvature.norm(), th = k * L;
+  const Mat3 U = so3::hat(m.segments[0].precurvature);
   const Vec3 p_exact =
       (L * Mat3::Identity() + (1 - std::cos(th)) / (k * k) * U + (th - std::sin(th)) / (k * k * k) * U * U) *
       Vec3::UnitZ();
   EXPECT_LT((sol.tip_position - p_exact).norm(), 1e-10);
-  EXPECT_LT(rotation_angle_between(sol.tip_rotation, so3::exp(L * m.rod.precurvature)), 1e-10);
+  EXPECT_LT(rotation_angle_between(sol.tip_rotation, so3::exp(L * m.segments[0].precurvature)), 1e-10);
 }
 
 // A small lateral tip force on a straight cantilever: δ = FL³/(3EI), tip slope FL²/(2EI)
@@ -91,7 +91,7 @@ double tip_error(rod::IntegratorType type, int steps, const rod::RodModel& m, co
 
 // Halving the step divides the global error by 2^p: ~16 for RK4, ~256 for the 8th-order method.
 TEST(RodConvergenceOrder, Rk4AndRk8OnHydroJet) {
-  const rod::RodModel m = test::scene("hydrojet_30deg").model;
+  const rod::RodModel m = test::bare(test::scene("hydrojet_30deg"));
   rod::TipWrench w;
   w.force = test::jet_force(0.2, 0.05, 0.1);
   rod::RodSolver ref(m, test::rk8(256, 1e-14));
@@ -118,12 +118,12 @@ TEST(RodConvergenceOrder, Rk4AndRk8OnHydroJet) {
 TEST(RodAccuracy, DefaultsWithinOneMicronOnHydroJetScenes) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const config::Scene sc = test::scene(name);
-    rod::RodSolver def(sc.model, sc.solver);
-    rod::RodSolver ref8(sc.model, test::rk8(256, 1e-13));
+    rod::RodSolver def(test::bare(sc), sc.solver);
+    rod::RodSolver ref8(test::bare(sc), test::rk8(256, 1e-13));
     rod::ShootingOptions d5 = test::rk8(1, 1e-13);
     d5.integrator.type = rod::IntegratorType::kDopri5;
     d5.integrator.tolerance = 1e-13;
-    rod::RodSolver ref5(sc.model, d5);
+    rod::RodSolver ref5(test::bare(sc), d5);
     for (double q1 : {0.0, 0.243})
       for (double q2 : {0.0, 0.112, 0.224})
         for (double q3 : {0.0, 0.244}) {
@@ -141,7 +141,7 @@ TEST(RodAccuracy, DefaultsWithinOneMicronOnHydroJetScenes) {
 TEST(RodRobustness, ColdStartsConvergeAcrossWorkspace) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const config::Scene sc = test::scene(name);
-    rod::RodSolver solver(sc.model, sc.solver);
+    rod::RodSolver solver(test::bare(sc), sc.solver);
     for (double q1 = 0; q1 <= 0.2431; q1 += 0.0810)
       for (double q2 = 0; q2 <= 0.2241; q2 += 0.0747)
         for (double q3 = 0; q3 <= 0.2441; q3 += 0.0813) {
@@ -158,7 +158,7 @@ TEST(RodRobustness, ColdStartsConvergeAcrossWorkspace) {
 // A solve that cannot converge says so: a NaN wrench, and an iteration budget too small to finish.
 TEST(RodRobustness, NonConvergenceIsReported) {
   const config::Scene sc = test::scene("hydrojet_0deg");
-  rod::RodSolver solver(sc.model, sc.solver);
+  rod::RodSolver solver(test::bare(sc), sc.solver);
   rod::TipWrench bad;
   bad.force = Vec3(std::nan(""), 0, 0);
   const rod::RodSolution s = solver.solve(bad);
@@ -168,7 +168,7 @@ TEST(RodRobustness, NonConvergenceIsReported) {
   rod::ShootingOptions tight = sc.solver;
   tight.max_iterations = 1;
   tight.max_continuation_steps = 0;
-  rod::RodSolver limited(sc.model, tight);
+  rod::RodSolver limited(test::bare(sc), tight);
   rod::TipWrench big;
   big.force = test::jet_force(0.243, 0.0, 0.0);
   const rod::RodSolution t = limited.solve(big);

@@ -46,7 +46,7 @@ TEST(Compliance, MatchesCentralDifferencesOnHydroJet) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     config::Scene sc = test::scene(name);
     sc.solver.residual_tolerance = 1e-14;
-    rod::RodSolver solver(sc.model, sc.solver);
+    rod::RodSolver solver(test::bare(sc), sc.solver);
     for (const Vec3& f : {Vec3(0, 0, 0), test::jet_force(0.2, 0.05, 0.1), test::jet_force(0.0, 0.22, 0.0)}) {
       rod::TipWrench w;
       w.force = f;
@@ -79,7 +79,7 @@ TEST(Compliance, StraightRodMatchesBeamTheoryAndFollowerLoadBreaksSymmetry) {
   EXPECT_NEAR(C(2, 2), 0.0, 1e-12);  // inextensible
 
   const config::Scene sc = test::scene("hydrojet_0deg");
-  rod::RodSolver hj(sc.model, sc.solver);
+  rod::RodSolver hj(test::bare(sc), sc.solver);
   rod::TipWrench w;
   w.force = test::jet_force(0.2, 0.0, 0.1);
   ASSERT_TRUE(hj.solve(w).converged);
@@ -125,7 +125,7 @@ TEST(Stability, EulerColumnBucklesAtCriticalLoad) {
 TEST(Stability, HydroJetWorkspaceIsStableAtBothBaseAngles) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const config::Scene sc = test::scene(name);
-    rod::RodSolver solver(sc.model, sc.solver);
+    rod::RodSolver solver(test::bare(sc), sc.solver);
     double lowest = 1e300;
     const double qmax[3] = {0.243, 0.224, 0.244};
     const int n = 7;

@@ -42,23 +42,23 @@ std::string replace(std::string s, const std::string& from, const std::string& t
 
 TEST(Scene, ParsesAllKeys) {
   const auto s = parse_scene(kGood);
-  EXPECT_DOUBLE_EQ(s.model.rod.length, 0.09);
-  EXPECT_DOUBLE_EQ(s.model.rod.stiffness[0], 6.01e-4);
-  EXPECT_DOUBLE_EQ(s.model.rod.stiffness[1], 5.0e-4);
-  EXPECT_DOUBLE_EQ(s.model.rod.stiffness[2], 2.23e-4);
-  EXPECT_DOUBLE_EQ(s.model.rod.precurvature[1], 0.88);
-  EXPECT_DOUBLE_EQ(s.model.rod.linear_density, 0.01);
-  EXPECT_DOUBLE_EQ(s.model.tip_mass, 0.00258);
-  EXPECT_DOUBLE_EQ(s.model.gravity[2], 9.81);
+  EXPECT_DOUBLE_EQ(s.rod.segments[0].length, 0.09);
+  EXPECT_DOUBLE_EQ(s.rod.segments[0].stiffness[0], 6.01e-4);
+  EXPECT_DOUBLE_EQ(s.rod.segments[0].stiffness[1], 5.0e-4);
+  EXPECT_DOUBLE_EQ(s.rod.segments[0].stiffness[2], 2.23e-4);
+  EXPECT_DOUBLE_EQ(s.rod.segments[0].precurvature[1], 0.88);
+  EXPECT_DOUBLE_EQ(s.rod.segments[0].linear_density, 0.01);
+  EXPECT_DOUBLE_EQ(s.rod.tip_mass, 0.00258);
+  EXPECT_DOUBLE_EQ(s.rod.gravity[2], 9.81);
 }
 
 TEST(Scene, ShippedScenesLoad) {
   const auto a = hydrojet::test::scene("hydrojet_0deg");
   const auto b = hydrojet::test::scene("hydrojet_30deg");
-  EXPECT_NEAR(a.model.gravity.norm(), 9.81, 1e-9);
-  EXPECT_NEAR(b.model.gravity.norm(), 9.81, 1e-9);
+  EXPECT_NEAR(a.rod.gravity.norm(), 9.81, 1e-9);
+  EXPECT_NEAR(b.rod.gravity.norm(), 9.81, 1e-9);
   // 30° between the two gravity directions.
-  EXPECT_NEAR(std::acos(a.model.gravity.normalized().dot(b.model.gravity.normalized())), M_PI / 6, 1e-9);
+  EXPECT_NEAR(std::acos(a.rod.gravity.normalized().dot(b.rod.gravity.normalized())), M_PI / 6, 1e-9);
 }
 
 // Hollow cylinder: EI = E·π(D⁴ − d⁴)/64, GJ = G·π(D⁴ − d⁴)/32.
@@ -69,8 +69,8 @@ tip: {mass: 0.0}
 gravity: [0, 0, 0]
 )");
   const double I = M_PI * (std::pow(0.008, 4) - std::pow(0.006, 4)) / 64.0;
-  EXPECT_NEAR(s.model.rod.stiffness[0], 1.0e5 * I, 1e-15);
-  EXPECT_NEAR(s.model.rod.stiffness[2], 3.4e4 * 2 * I, 1e-15);
+  EXPECT_NEAR(s.rod.segments[0].stiffness[0], 1.0e5 * I, 1e-15);
+  EXPECT_NEAR(s.rod.segments[0].stiffness[2], 3.4e4 * 2 * I, 1e-15);
 }
 
 TEST(Scene, ErrorsNameTheKey) {
@@ -111,24 +111,24 @@ TEST(Scene, CosseratModelAndSolverKeys) {
   shooting_segments: 4
   accuracy_tolerance: 0
 )");
-  EXPECT_EQ(s.model.rod.kind, hydrojet::rod::RodKind::kKirchhoff);
+  EXPECT_EQ(s.rod.kind, hydrojet::rod::RodKind::kKirchhoff);
   EXPECT_EQ(s.solver.integrator.type, hydrojet::rod::IntegratorType::kCvodeBdf);
   EXPECT_EQ(s.solver.shooting_segments, 4);
   EXPECT_EQ(s.solver.accuracy_tolerance, 0.0);
   const auto c = parse_scene(
       replace(kGood, "  linear_density: 0.01\n",
               "  linear_density: 0.01\n  model: cosserat\n  shear_stiffness: 0.4\n  axial_stiffness: 1.3\n"));
-  EXPECT_EQ(c.model.rod.kind, hydrojet::rod::RodKind::kCosserat);
-  EXPECT_DOUBLE_EQ(c.model.rod.shear_stiffness, 0.4);
-  EXPECT_DOUBLE_EQ(c.model.rod.axial_stiffness, 1.3);
+  EXPECT_EQ(c.rod.kind, hydrojet::rod::RodKind::kCosserat);
+  EXPECT_DOUBLE_EQ(c.rod.segments[0].shear_stiffness, 0.4);
+  EXPECT_DOUBLE_EQ(c.rod.segments[0].axial_stiffness, 1.3);
   const auto m = parse_scene(R"(
 rod: {length: 0.09, model: cosserat, youngs_modulus: 1.0e5, shear_modulus: 3.4e4, outer_diameter: 0.008, inner_diameter: 0.006}
 tip: {mass: 0.0}
 gravity: [0, 0, 0]
 )");
   const double A = M_PI * (0.008 * 0.008 - 0.006 * 0.006) / 4.0;
-  EXPECT_NEAR(m.model.rod.axial_stiffness, 1.0e5 * A, 1e-12);
-  EXPECT_NEAR(m.model.rod.shear_stiffness, 3.4e4 * A, 1e-12);
+  EXPECT_NEAR(m.rod.segments[0].axial_stiffness, 1.0e5 * A, 1e-12);
+  EXPECT_NEAR(m.rod.segments[0].shear_stiffness, 3.4e4 * A, 1e-12);
   EXPECT_EQ(error_key(replace(kGood, "  linear_density: 0.01\n", "  linear_density: 0.01\n  model: timoshenko\n")),
             "rod.model");
   EXPECT_EQ(error_key(replace(kGood, "  linear_density: 0.01\n", "  linear_density: 0.01\n  model: cosserat\n")),
@@ -221,55 +221,52 @@ actuators:
 
 TEST(SceneGeneral, SegmentsLoadsAndActuators) {
   const hydrojet::config::Scene s = parse_scene(kGeneral);
-  ASSERT_EQ(s.body.segments.size(), 2u);
-  EXPECT_FALSE(s.uniform());
-  EXPECT_NEAR(s.body.length(), 0.09, 1e-15);
-  EXPECT_DOUBLE_EQ(s.model.rod.length, 0.09);  // the uniform view: total length
-  EXPECT_EQ(s.body.segments[0].stiffness, hydrojet::rod::Vec3(1.2e-3, 1.2e-3, 4.5e-4));
-  EXPECT_DOUBLE_EQ(s.body.segments[0].linear_density, 0.02);
+  ASSERT_EQ(s.rod.segments.size(), 2u);
+  EXPECT_FALSE(s.rod.tip_actuated_uniform());
+  EXPECT_NEAR(s.rod.length(), 0.09, 1e-15);
+  EXPECT_EQ(s.rod.segments[0].stiffness, hydrojet::rod::Vec3(1.2e-3, 1.2e-3, 4.5e-4));
+  EXPECT_DOUBLE_EQ(s.rod.segments[0].linear_density, 0.02);
   // Moduli and diameters: E·I and G·J = G·2I with I = π D⁴ / 64 (solid).
   const double I = M_PI * std::pow(0.008, 4) / 64.0;
-  EXPECT_NEAR(s.body.segments[1].stiffness.x(), 1.0e6 * I, 1e-15);
-  EXPECT_NEAR(s.body.segments[1].stiffness.z(), 3.4e5 * 2 * I, 1e-15);
-  EXPECT_EQ(s.body.segments[1].precurvature, hydrojet::rod::Vec3(0.0, 1.0, 0.0));
-  ASSERT_EQ(s.body.loads.size(), 2u);
-  EXPECT_EQ(s.body.loads[0].frame, hydrojet::rod::LoadFrame::kBody);  // the default
-  EXPECT_DOUBLE_EQ(s.body.loads[0].mass, 0.001);
-  EXPECT_EQ(s.body.loads[1].frame, hydrojet::rod::LoadFrame::kBase);
-  EXPECT_EQ(s.body.loads[1].moment, hydrojet::rod::Vec3(0.0, 0.0, 0.001));
-  ASSERT_EQ(s.body.actuators.size(), 2u);
-  EXPECT_TRUE(s.has_actuators);
-  EXPECT_FALSE(s.has_jets);
-  const hydrojet::rod::Actuator& a = s.body.actuators[0];
+  EXPECT_NEAR(s.rod.segments[1].stiffness.x(), 1.0e6 * I, 1e-15);
+  EXPECT_NEAR(s.rod.segments[1].stiffness.z(), 3.4e5 * 2 * I, 1e-15);
+  EXPECT_EQ(s.rod.segments[1].precurvature, hydrojet::rod::Vec3(0.0, 1.0, 0.0));
+  ASSERT_EQ(s.rod.loads.size(), 2u);
+  EXPECT_EQ(s.rod.loads[0].frame, hydrojet::rod::LoadFrame::kBody);  // the default
+  EXPECT_DOUBLE_EQ(s.rod.loads[0].mass, 0.001);
+  EXPECT_EQ(s.rod.loads[1].frame, hydrojet::rod::LoadFrame::kBase);
+  EXPECT_EQ(s.rod.loads[1].moment, hydrojet::rod::Vec3(0.0, 0.0, 0.001));
+  ASSERT_EQ(s.rod.actuators.size(), 2u);
+  EXPECT_FALSE(s.jets.has_value());  // actuators, not the HydroJet's jets section
+  const hydrojet::rod::Actuator& a = s.rod.actuators[0];
   EXPECT_EQ(a.name, "thruster1");
   EXPECT_DOUBLE_EQ(a.at, 0.05);
   // The unit wrench is (d, p × d): (0, 1, 0) at (0.004, 0, 0) gives the moment 0.004 e_z.
   EXPECT_NEAR((a.unit_wrench() - (hydrojet::rod::Vec6() << 0, 1, 0, 0, 0, 0.004).finished()).norm(), 0.0, 1e-15);
-  const hydrojet::rod::Actuator& b = s.body.actuators[1];
+  const hydrojet::rod::Actuator& b = s.rod.actuators[1];
   EXPECT_EQ(b.name, "actuator2");
   EXPECT_DOUBLE_EQ(b.at, 0.09);  // default: the tip
   EXPECT_DOUBLE_EQ(b.min_force, -0.2);
   EXPECT_EQ(b.type, hydrojet::rod::ActuatorType::kForce);
-  EXPECT_EQ(s.body.gravity, hydrojet::rod::Vec3(0.0, 0.0, -9.81));
-  EXPECT_DOUBLE_EQ(s.body.tip_mass, 0.001);
+  EXPECT_EQ(s.rod.gravity, hydrojet::rod::Vec3(0.0, 0.0, -9.81));
+  EXPECT_DOUBLE_EQ(s.rod.tip_mass, 0.001);
 }
 
 // A single-rod scene is one segment; a jets scene has the three jets of eq. (24) as actuators at L.
 TEST(SceneGeneral, SingleRodAndJetsScenesAreTheSpecialCase) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const hydrojet::config::Scene s = hydrojet::test::scene(name);
-    EXPECT_TRUE(s.uniform()) << name;
-    ASSERT_EQ(s.body.segments.size(), 1u);
-    EXPECT_EQ(s.body.segments[0].stiffness, s.model.rod.stiffness);
-    EXPECT_EQ(s.body.segments[0].precurvature, s.model.rod.precurvature);
-    EXPECT_DOUBLE_EQ(s.body.segments[0].length, s.model.rod.length);
-    ASSERT_EQ(s.body.actuators.size(), 3u);
-    const hydrojet::actuation::JetMap map(s.jets);
+    EXPECT_TRUE(s.rod.tip_actuated_uniform()) << name;
+    ASSERT_EQ(s.rod.segments.size(), 1u);
+    ASSERT_EQ(s.rod.actuators.size(), 3u);
+    ASSERT_TRUE(s.jets.has_value());
+    const hydrojet::actuation::JetMap map(*s.jets);
+    const double q_max[3] = {0.243, 0.224, 0.244};  // the scenes' jets.max_force (Table 1)
     for (int i = 0; i < 3; ++i) {
-      const hydrojet::rod::Actuator& a = s.body.actuators[i];
+      const hydrojet::rod::Actuator& a = s.rod.actuators[i];
       EXPECT_EQ(a.type, hydrojet::rod::ActuatorType::kJet);
-      EXPECT_DOUBLE_EQ(a.at, s.model.rod.length);
-      EXPECT_DOUBLE_EQ(a.max_force, s.max_jet_force[i]);
+      EXPECT_DOUBLE_EQ(a.at, s.rod.length());
+      EXPECT_DOUBLE_EQ(a.max_force, q_max[i]);
       EXPECT_LT((a.unit_wrench() - map.wrench_matrix().col(i)).norm(), 1e-15) << name << " jet " << i;
     }
   }
@@ -305,46 +302,20 @@ TEST(SceneGeneral, ErrorsNameTheKey) {
   for (const auto& c : cases) EXPECT_EQ(error_key(c.yaml), c.key) << c.yaml;
 }
 
-// The parts that solve one uniform rod with tip actuation refuse the rest by name (not silently
-// solving the first segment).
-TEST(SceneGeneral, UniformOnlyConsumersRefuseByName) {
-  const std::string jets =
-      "jets: {misalignment: [0, 0, 0], max_force: [0.2, 0.2, 0.2], inlet_area: 1.0e-5, outlet_area: 5.0e-6, "
-      "water_density: 1000}\n";
-  const std::string segments = replace(kGeneral, "actuators:\n", jets + "xactuators:\n");
-  const std::string loads = std::string(kGood) + jets + "loads:\n  - {at: 0.05, mass: 0.001}\n";
-  const std::string inside = std::string(kGood) + "actuators:\n  - {at: 0.05, direction: [1, 0, 0], max_force: 0.1}\n";
-  const struct {
-    std::string yaml;
-    const char* key;
-  } cases[] = {{segments, "rod.segments"}, {loads, "loads"}, {inside, "actuators[0].at"}};
-  for (const auto& c : cases) {
-    const hydrojet::config::Scene s = parse_scene(c.yaml);
-    try {
-      hydrojet::config::require_uniform(s, "the controller");
-      ADD_FAILURE() << "accepted:\n" << c.yaml;
-    } catch (const SceneError& e) {
-      EXPECT_EQ(e.key(), c.key);
-      EXPECT_NE(std::string(e.what()).find("the controller handles one uniform rod"), std::string::npos) << e.what();
-    }
-  }
-  EXPECT_NO_THROW(hydrojet::config::require_uniform(hydrojet::test::scene("hydrojet_0deg"), "the controller"));
-}
-
 // The second robot shipped with the package.
 TEST(SceneGeneral, TheSecondRobotLoads) {
   const hydrojet::config::Scene s = hydrojet::test::scene("two_segment_thrusters");
-  EXPECT_EQ(s.body.segments.size(), 2u);
-  EXPECT_GT(s.body.segments[0].stiffness.x(), s.body.segments[1].stiffness.x());  // stiffer proximal
-  EXPECT_GT(s.body.segments[1].precurvature.norm(), 0.0);                         // precurved distal
-  ASSERT_EQ(s.body.loads.size(), 1u);
-  EXPECT_DOUBLE_EQ(s.body.loads[0].mass, 0.001);
-  ASSERT_EQ(s.body.actuators.size(), 6u);
+  EXPECT_EQ(s.rod.segments.size(), 2u);
+  EXPECT_GT(s.rod.segments[0].stiffness.x(), s.rod.segments[1].stiffness.x());  // stiffer proximal
+  EXPECT_GT(s.rod.segments[1].precurvature.norm(), 0.0);                        // precurved distal
+  ASSERT_EQ(s.rod.loads.size(), 1u);
+  EXPECT_DOUBLE_EQ(s.rod.loads[0].mass, 0.001);
+  ASSERT_EQ(s.rod.actuators.size(), 6u);
   int at_tip = 0, with_arm = 0, mid = 0;
-  for (const auto& a : s.body.actuators) {
-    at_tip += a.at == s.body.length();
-    mid += a.at < s.body.length();
-    with_arm += a.at == s.body.length() && a.unit_wrench().tail<3>().norm() > 0.0;
+  for (const auto& a : s.rod.actuators) {
+    at_tip += a.at == s.rod.length();
+    mid += a.at < s.rod.length();
+    with_arm += a.at == s.rod.length() && a.unit_wrench().tail<3>().norm() > 0.0;
   }
   EXPECT_EQ(at_tip, 4);
   EXPECT_EQ(mid, 2);

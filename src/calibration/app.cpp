@@ -225,13 +225,14 @@ StartScene load_start_scene(const Args& a) {
   StartScene s;
   s.text = read_text(a.scene, "--scene");
   s.scene = config::parse_scene(s.text);
-  config::require_uniform(s.scene, "the calibration");
+  if (s.scene.rod.segments.size() > 1 || !s.scene.rod.loads.empty())
+    throw config::SceneError("rod.segments", "the calibration fits one uniform rod with its jets at the tip so far");
   s.cs = cross_section_from_scene_text(s.text, CrossSection());
   if (a.outer > 0) s.cs.outer_diameter = a.outer;
   if (a.inner >= 0) s.cs.inner_diameter = a.inner;
   const std::string cse = s.cs.validate();
   if (!cse.empty()) throw UsageError("cross-section: " + cse + " (--outer-diameter / --inner-diameter)");
-  if (!s.scene.has_jets) throw config::SceneError("jets", "missing (the calibration needs the jet geometry, eq. 24)");
+  if (!s.scene.jets) throw config::SceneError("jets", "missing (the calibration needs the jet geometry, eq. 24)");
   return s;
 }
 
@@ -398,7 +399,7 @@ int run_fit(const Args& a, const StartScene& s, const CalibrationOptions& opt, s
   std::ostringstream rep;  // the report; written to `out` only when the input was good
   const std::vector<Sample> samples = read_samples(a, s.scene, rep);
   if (!a.samples_out.empty()) write_text(a.samples_out, to_csv(samples), "--samples-out");
-  const Eigen::Vector3d& k = s.scene.model.rod.stiffness;
+  const Eigen::Vector3d& k = s.scene.rod.segments[0].stiffness;
   if (std::abs(k.x() - k.y()) > 1e-9 * std::abs(k.x()))
     rep << "note: the scene's EI_x and EI_y differ; E starts from their mean and the output is isotropic\n";
 

@@ -25,12 +25,18 @@ std::string fmt(const char* f, double v) {
   return b;
 }
 
+/// The robot without its actuators: the jets load it as a tip wrench of their geometry (eq. 24).
+rod::RodModel without_actuators(rod::RodModel m) {
+  m.actuators.clear();
+  return m;
+}
+
 /// Everything the per-sample residuals share.
 struct FitContext {
   FitContext(const config::Scene& scene, const CrossSection& cs, const ZetaVector& start)
-      : model(scene.model),
+      : model(without_actuators(scene.rod)),
         solver_options(scene.solver),
-        jets(scene.jets),
+        jets(scene.jets.value_or(actuation::JetGeometry())),
         E0(start[kE]),
         G0(start[kG]),
         I(cs.second_moment()),
@@ -60,9 +66,9 @@ struct FitContext {
 void build(const FitContext& c, const double* x, rod::RodModel* m, actuation::JetGeometry* g) {
   *m = c.model;
   const double E = c.E0 * std::exp(x[kE]), G = c.G0 * std::exp(x[kG]);
-  m->rod.stiffness = rod::Vec3(E * c.I, E * c.I, G * c.J);
-  m->rod.precurvature.x() = x[kUx];
-  m->rod.precurvature.y() = x[kUy];
+  m->segments[0].stiffness = rod::Vec3(E * c.I, E * c.I, G * c.J);
+  m->segments[0].precurvature.x() = x[kUx];
+  m->segments[0].precurvature.y() = x[kUy];
   *g = c.jets;
   g->misalignment = Eigen::Vector3d(x[kDa], x[kDb], x[kDg]);
 }
@@ -119,7 +125,8 @@ class SampleCost : public ceres::SizedCostFunction<3, 1, 1, 1, 1, 1, 1, 1> {
     // the solve starts from the unloaded precurved shape with load continuation as fallback: the
     // branch reached by loading the rod from rest, as the rig does.
     const rod::RodModel& cur = solver_.model();
-    if (!solver_.has_solution() || cur.rod.stiffness != m.rod.stiffness || cur.rod.precurvature != m.rod.precurvature)
+    if (!solver_.has_solution() || cur.segments[0].stiffness != m.segments[0].stiffness ||
+        cur.segments[0].precurvature != m.segments[0].precurvature)
       solver_.set_model(m);
     ++ctx_->solves;
     const rod::RodSolution sol = solver_.solve(tw);
@@ -186,7 +193,7 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 /// Throws for unusable input (see calibrate()); returns the number of fitted parameters.
 int check_inputs(const config::Scene& scene, const CrossSection& cs, const std::vector<Sample>& samples,
                  const CalibrationOptions& opt) {
-  if (!scene.has_jets) throw config::SceneError("jets", "missing (the calibration needs the jet geometry, eq. 24)");
+  if (!scene.jets) throw config::SceneError("jets", "missing (the calibration needs the jet geometry, eq. 24)");
   const std::string cse = cs.validate();
   if (!cse.empty()) throw std::invalid_argument("cross-section " + cse);
   int p = 0;
@@ -402,8 +409,8 @@ Eigen::Vector3d rotation_error(const Eigen::Matrix3d& R_meas, const Eigen::Matri
 }
 
 Eigen::Matrix3d predict_tip_rotation(const config::Scene& scene, const Eigen::Vector3d& q, bool* ok) {
-  rod::RodSolver solver(scene.model, scene.solver);
-  const actuation::Vec6 w = actuation::JetMap(scene.jets).wrench(q);
+  rod::RodSolver solver(without_actuators(scene.rod), scene.solver);
+  const actuation::Vec6 w = actuation::JetMap(scene.jets.value_or(actuation::JetGeometry())).wrench(q);
   rod::TipWrench tw;
   tw.force = w.head<3>();
   tw.moment = w.tail<3>();

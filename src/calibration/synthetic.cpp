@@ -13,12 +13,14 @@ std::vector<Sample> synthesize(const config::Scene& truth, const SyntheticOption
   std::mt19937 rng(o.seed);
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   std::normal_distribution<double> n01(0.0, 1.0);
-  rod::RodSolver solver(truth.model, truth.solver);
-  const actuation::JetMap jets(truth.jets);
+  rod::RodModel body = truth.rod;
+  body.actuators.clear();  // the jets load the tip as a wrench of their geometry (eq. 24)
+  rod::RodSolver solver(body, truth.solver);
+  const actuation::JetMap jets(truth.jets.value_or(actuation::JetGeometry()));
   std::vector<Sample> out;
   for (int k = 0; k < o.samples; ++k) {
     Sample s;
-    for (int i = 0; i < 3; ++i) s.jet_force[i] = o.max_force_fraction * truth.max_jet_force[i] * u01(rng);
+    for (int i = 0; i < 3; ++i) s.jet_force[i] = o.max_force_fraction * truth.rod.actuators[i].max_force * u01(rng);
     const actuation::Vec6 w = jets.wrench(s.jet_force);
     rod::TipWrench tw;
     tw.force = w.head<3>();

@@ -71,23 +71,29 @@ CrossSection cross_section_from_scene_text(const std::string& text, const CrossS
 }
 
 ZetaVector zeta_from_scene(const config::Scene& scene, const CrossSection& cs) {
-  const rod::ElasticRod& r = scene.model.rod;
+  const rod::RodSegment& r = scene.rod.segments.front();
   ZetaVector z;
   z[kUx] = r.precurvature.x();
   z[kUy] = r.precurvature.y();
   z[kE] = 0.5 * (r.stiffness.x() + r.stiffness.y()) / cs.second_moment();
   z[kG] = r.stiffness.z() / cs.polar_moment();
-  z.tail<3>() = scene.has_jets ? scene.jets.misalignment : Eigen::Vector3d::Zero();
+  z.tail<3>() = scene.jets ? scene.jets->misalignment : Eigen::Vector3d::Zero();
   return z;
 }
 
 config::Scene apply_zeta(const config::Scene& scene, const ZetaVector& z, const CrossSection& cs) {
   config::Scene s = scene;
   const double I = cs.second_moment();
-  s.model.rod.stiffness = rod::Vec3(z[kE] * I, z[kE] * I, z[kG] * cs.polar_moment());
-  s.model.rod.precurvature.x() = z[kUx];
-  s.model.rod.precurvature.y() = z[kUy];
-  s.jets.misalignment = z.tail<3>();
+  rod::RodSegment& r = s.rod.segments.front();
+  r.stiffness = rod::Vec3(z[kE] * I, z[kE] * I, z[kG] * cs.polar_moment());
+  r.precurvature.x() = z[kUx];
+  r.precurvature.y() = z[kUy];
+  actuation::JetGeometry jets = s.jets.value_or(actuation::JetGeometry());
+  jets.misalignment = z.tail<3>();
+  s.jets = jets;
+  Eigen::Vector3d q_max;
+  for (int i = 0; i < 3; ++i) q_max[i] = s.rod.actuators[i].max_force;
+  s.rod.actuators = control::jet_actuators(jets, q_max, s.rod.length());
   return s;
 }
 

@@ -68,7 +68,6 @@ void parse_dynamics_and_sensors(Tree& t, plant::PlantModel* p) {
       {D + "linear_drag", &p->rod.linear_drag},
       {D + "tip_drag", &p->rod.tip_drag},
       {D + "tip_angular_drag", &p->rod.tip_angular_drag},
-      {D + "linear_density", &p->rod.model.rod.linear_density},
       {D + "alpha", &p->rod.alpha},
       {D + "internal_dt", &p->internal_dt},
       {"plant.tracker.position_sigma", &p->tracker.position_sigma},
@@ -83,6 +82,13 @@ void parse_dynamics_and_sensors(Tree& t, plant::PlantModel* p) {
       {"plant.thruster_time_constant", &p->thruster_time_constant},
   };
   for (const auto& n : numbers) *n.second = t.number(n.first, *n.second);
+  // ρA of a one-segment rod (a robot of several segments keeps each segment's own).
+  if (p->rod.rod.segments.size() == 1) {
+    double& rho_a = p->rod.rod.segments[0].linear_density;
+    rho_a = t.number(D + "linear_density", rho_a);
+  } else if (t.has(D + "linear_density")) {
+    t.number(D + "linear_density", 0.0);  // checked, not used
+  }
   p->rod.tip_inertia = t.vec3(D + "tip_inertia", p->rod.tip_inertia);
   p->rod.nodes = t.integer(D + "nodes", p->rod.nodes);
 }
@@ -111,17 +117,15 @@ void parse_plant_section(const YAML::Node& root, plant::ModelMismatch* m, plant:
   p->external_tip_moment = t.vec3("plant.external_tip_moment", p->external_tip_moment);
 }
 
-/// The plant as the nominal scene describes it: its rod, jets and nozzles, and the base tilt read
-/// off its gravity vector (which must lie in the base y–z plane).
+/// The plant as the nominal scene describes it: its rod and nozzles, and the base tilt read off its
+/// gravity vector (which must lie in the base y–z plane).
 plant::PlantModel nominal_plant(const Scene& nominal) {
-  if (nominal.body.actuators.empty())
+  if (nominal.rod.actuators.empty())
     throw SceneError("jets", "missing (the plant needs the jets, or an actuators section)");
   plant::PlantModel p;
-  p.rod.model = nominal.model;
-  if (!nominal.has_jets || !nominal.uniform()) p.rod.body = nominal.body;  // a general robot
-  p.jets = nominal.jets;
+  p.rod.rod = nominal.rod;
   p.nozzle = nominal.nozzle;
-  const Eigen::Vector3d g = nominal.model.gravity;
+  const Eigen::Vector3d g = nominal.rod.gravity;
   if (std::abs(g.x()) > 1e-9 * (1.0 + g.norm()))
     throw SceneError("gravity", "the plant tilts its base about x only: gravity[0] must be 0");
   p.gravity = g.norm();
@@ -129,23 +133,28 @@ plant::PlantModel nominal_plant(const Scene& nominal) {
   return p;
 }
 
-/// The truth: the nominal plant with the mismatch applied.
-void apply_mismatch(const plant::ModelMismatch& m, plant::PlantModel* p) {
+/// The truth: the nominal plant with the mismatch applied. Every segment gets the same offsets; the
+/// HydroJet's jets (a `jets` section) their misalignment offset (δα, δβ, δγ), any other actuator i
+/// a turn about its body z-axis by misalignment_offset[i mod 3].
+void apply_mismatch(const plant::ModelMismatch& m, const Scene& nominal, plant::PlantModel* p) {
   p->base_tilt += m.base_tilt_offset;
-  p->rod.model.rod.precurvature += m.precurvature_offset;
-  p->rod.model.rod.stiffness.head<2>() *= m.bending_stiffness_scale;
-  p->rod.model.rod.stiffness[2] *= m.torsional_stiffness_scale;
-  p->rod.model.tip_mass *= m.tip_mass_scale;
-  p->jets.misalignment += m.misalignment_offset;
-  // A general robot: the same on every segment; actuator i turned about its body z-axis by
-  // misalignment_offset[i mod 3].
-  for (rod::RodSegment& sg : p->rod.body.segments) {
+  rod::RodModel& r = p->rod.rod;
+  r.tip_mass *= m.tip_mass_scale;
+  for (rod::RodSegment& sg : r.segments) {
     sg.precurvature += m.precurvature_offset;
     sg.stiffness.head<2>() *= m.bending_stiffness_scale;
     sg.stiffness[2] *= m.torsional_stiffness_scale;
   }
-  for (size_t i = 0; i < p->rod.body.actuators.size(); ++i) {
-    rod::Actuator& a = p->rod.body.actuators[i];
+  if (nominal.jets) {
+    actuation::JetGeometry truth = *nominal.jets;
+    truth.misalignment += m.misalignment_offset;
+    Eigen::Vector3d q_max;
+    for (int i = 0; i < 3; ++i) q_max[i] = r.actuators[i].max_force;
+    r.actuators = control::jet_actuators(truth, q_max, r.length());
+    return;
+  }
+  for (size_t i = 0; i < r.actuators.size(); ++i) {
+    rod::Actuator& a = r.actuators[i];
     a.direction = Eigen::AngleAxisd(m.misalignment_offset[i % 3], Eigen::Vector3d::UnitZ()) * a.direction;
   }
 }
@@ -156,7 +165,7 @@ plant::PlantModel make_plant(const Scene& nominal, const std::string& text) {
   plant::PlantModel p = nominal_plant(nominal);
   plant::ModelMismatch mismatch;
   if (!text.empty()) parse_plant_section(load_yaml(text), &mismatch, &p);
-  apply_mismatch(mismatch, &p);
+  apply_mismatch(mismatch, nominal, &p);
   const std::string e = p.validate();
   if (!e.empty())
     throw SceneError("plant." + e.substr(0, e.find(':')),

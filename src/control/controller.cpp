@@ -12,8 +12,7 @@ namespace {
 /// The reachable set of `model` with each actuator's bounds scaled by `force_fraction` (0, 1].
 std::shared_ptr<const ReachableSet> sweep_reachable_set(RobotModel model, const ControllerOptions& params,
                                                         double force_fraction) {
-  model.max_jet_force *= force_fraction;
-  for (rod::Actuator& a : model.body.actuators) {
+  for (rod::Actuator& a : model.rod.actuators) {
     a.min_force *= force_fraction;
     a.max_force *= force_fraction;
   }
@@ -37,8 +36,8 @@ const char* to_string(ControllerState s) {
 Controller::Controller(const RobotModel& model, const ControllerOptions& params)
     : params_(params),
       model_(model),
-      jets_(model_.body(), model.nozzle, model.flow),
-      monitor_(params, jets_.jet_count()),
+      jets_(model_.rod(), model.nozzle, model.flow),
+      monitor_(params, jets_.input_count()),
       previous_command_(jets_.zeros()),
       path_reachable_(sweep_reachable_set(model, params, 1.0)),
       reachable_(params.reachable_force_fraction == 1.0
@@ -169,14 +168,14 @@ ControllerOutput Controller::resting_output() const {
 // force (force actuators), and w_a = W q_obs.
 std::string Controller::observe_jets(const ControllerInputs& in, ControllerOutput& out) const {
   const InputVector none = jets_.zeros();
-  const bool have_forces = in.forces.size() == jets_.jet_count();
+  const bool have_forces = in.forces.size() == jets_.input_count();
   out.jet_force_observed = jets_.observed_forces(in.flows, have_forces ? in.forces : none);
-  for (int i = 0; i < jets_.jet_count(); ++i) {
+  for (int i = 0; i < jets_.input_count(); ++i) {
     if (jets_.is_jet(i)) continue;
-    if (!have_forces) return "force: no reading for actuator " + model_.body().actuators[i].name;
+    if (!have_forces) return "force: no reading for actuator " + model_.rod().actuators[i].name;
     if (!std::isfinite(in.forces[i]))
-      return "force: actuator " + model_.body().actuators[i].name + " reading invalid (" +
-             std::to_string(in.forces[i]) + " N)";
+      return "force: actuator " + model_.rod().actuators[i].name + " reading invalid (" + std::to_string(in.forces[i]) +
+             " N)";
   }
   out.wrench_observed = model_.tip_wrench(out.jet_force_observed);
   return "";
@@ -260,7 +259,7 @@ std::string Controller::command_inputs(const rod::RodSolution& sol, const Actuat
   o.allocation_weight = params_.allocation_weight;
   o.max_force_step = params_.max_force_rate * dt;
   o.max_force = params_.max_force;
-  o.length = model_.body().length();
+  o.length = model_.rod().length();
   const InputVector& base = params_.integrate_from_measured ? out.jet_force_observed : previous_command_;
   const InputStep step = input_step(sol.tip_rotation, lin, x_cntr, base, running_lower(dt), model_.upper(), o);
   if (!step.ok) return step.message;
@@ -281,7 +280,7 @@ InputVector Controller::running_lower(double dt) {
   idle_force_ = std::clamp(target, idle_force_ - step, idle_force_ + step);
   InputVector lower = model_.lower();
   if (idle_force_ > 0.0)
-    for (int i = 0; i < jets_.jet_count(); ++i)
+    for (int i = 0; i < jets_.input_count(); ++i)
       if (jets_.is_jet(i)) lower[i] = std::max(lower[i], std::min(idle_force_, 0.5 * model_.upper()[i]));
   return lower;
 }
@@ -300,13 +299,13 @@ InputVector Controller::round_corners(const InputVector& q, const ActuatedModel:
   double scale = 0.0;
   if (params_.allocation_smoothing > 0.0) {
     InputVector jets = jets_.zeros();
-    for (int i = 0; i < jets_.jet_count(); ++i) jets[i] = jets_.is_jet(i) ? 1.0 : 0.0;
+    for (int i = 0; i < jets_.input_count(); ++i) jets[i] = jets_.is_jet(i) ? 1.0 : 0.0;
     const InputVector mode = jet_common_mode(lin.actuation, jets);
     if (!mode.isZero()) {
       common_mode_ = mode;
       fresh = true;
       rod::Vec6 wrench = lin.wrenches * q;  // the mode adds none
-      wrench.tail<3>() /= model_.body().length();
+      wrench.tail<3>() /= model_.rod().length();
       scale = params_.allocation_smoothing * wrench.norm();  // [N]
     }
   }

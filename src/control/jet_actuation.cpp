@@ -19,8 +19,8 @@ JetActuation::JetActuation(const rod::RodModel& body, const actuation::Nozzle& n
 }
 
 InputVector JetActuation::observed_forces(const InputVector& flows, const InputVector& forces) const {
-  InputVector q(jet_count());
-  for (int i = 0; i < jet_count(); ++i) q[i] = jet_[i] ? actuation::force_from_flow(flows[i], nozzle_) : forces[i];
+  InputVector q(input_count());
+  for (int i = 0; i < input_count(); ++i) q[i] = jet_[i] ? actuation::force_from_flow(flows[i], nozzle_) : forces[i];
   return q;
 }
 
@@ -30,10 +30,10 @@ InputVector JetActuation::flows_for_forces(const InputVector& forces) const {
   return flows;
 }
 
-InputVector JetActuation::regulate(const InputVector& q, const InputVector& flow_command, const InputVector& measured_flows,
-                                 double dt) {
-  InputVector duty(jet_count());
-  for (int i = 0; i < jet_count(); ++i)
+InputVector JetActuation::regulate(const InputVector& q, const InputVector& flow_command,
+                                   const InputVector& measured_flows, double dt) {
+  InputVector duty(input_count());
+  for (int i = 0; i < input_count(); ++i)
     duty[i] = jet_[i] ? regulators_[i].update(flow_command[i], measured_flows[i], dt)
                       : (drive_scale_[i] > 0.0 ? std::clamp(q[i] / drive_scale_[i], -1.0, 1.0) : 0.0);
   return duty;

@@ -86,7 +86,8 @@ InputVector jet_common_mode(const rod::ActuationJacobian& actuation, const Input
   return mode;
 }
 
-AllocationRounding round_allocation(const InputVector& q, const InputVector& lower, const InputVector& mode, double scale) {
+AllocationRounding round_allocation(const InputVector& q, const InputVector& lower, const InputVector& mode,
+                                    double scale) {
   AllocationRounding r;
   double y0 = std::numeric_limits<double>::infinity();
   for (int i = 0; i < q.size(); ++i)
@@ -118,8 +119,8 @@ void step_qp(const Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxInputs>& M
 
 /// Scales the step q − base so that its tip-force change is at most max_step [N], then q so that its
 /// tip force is at most max_force [N] (toward 0, clamped into the box should 0 lie outside it).
-InputVector limit(InputVector q, const InputVector& base, const WrenchRows& W, const InputVector& lower, const InputVector& upper,
-                const InputStepOptions& o) {
+InputVector limit(InputVector q, const InputVector& base, const WrenchRows& W, const InputVector& lower,
+                  const InputVector& upper, const InputStepOptions& o) {
   const double step = (W.topRows<3>() * (q - base)).norm();
   if (step > o.max_force_step) q = base + (q - base) * (o.max_force_step / step);
   const double force = (W.topRows<3>() * q).norm();

@@ -45,7 +45,10 @@ ActuatedModel::Linearisation ActuatedModel::linearise() {
   lin.body_compliance = C.body;
   lin.actuation = C.actuation;
   // All actuators at the tip of one segment: J_q = C^b W, so W itself moves the tip as the inputs do.
-  lin.wrenches = rod().tip_actuated_uniform() ? tip_wrenches_ : rod::equivalent_tip_wrenches(C.body, C.actuation);
+  if (rod().tip_actuated_uniform())
+    lin.wrenches = tip_wrenches_;
+  else
+    lin.wrenches = rod::equivalent_tip_wrenches(C.body, C.actuation);
   lin.ok = C.ok && lin.body_compliance.allFinite() && lin.actuation.allFinite() && lin.wrenches.allFinite();
   return lin;
 }

@@ -10,10 +10,10 @@ std::string jet_name(int i) { return "jet " + std::to_string(i + 1); }
 
 }  // namespace
 
-SafetyMonitor::SafetyMonitor(const ControllerOptions& options, int jet_count)
+SafetyMonitor::SafetyMonitor(const ControllerOptions& options, int input_count)
     : options_(options),
-      flow_fault_integral_(InputVector::Zero(jet_count)),
-      last_flow_command_(InputVector::Zero(jet_count)) {}
+      flow_fault_integral_(InputVector::Zero(input_count)),
+      last_flow_command_(InputVector::Zero(input_count)) {}
 
 void SafetyMonitor::reset() {
   solver_failures_ = 0;

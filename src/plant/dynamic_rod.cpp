@@ -36,15 +36,7 @@ std::string bad_vec(const char* name, const char* what, const Vec3& v) {
 }  // namespace
 
 std::string DynamicRodModel::validate() const {
-  const rod::ElasticRod& r = model.rod;
-  if (!finite_pos(r.length)) return bad("model.rod.length", "must be positive and finite", r.length);
-  if (!r.stiffness.allFinite() || (r.stiffness.array() <= 0.0).any())
-    return bad_vec("model.rod.stiffness", "must be positive and finite", r.stiffness);
-  if (!r.precurvature.allFinite()) return bad_vec("model.rod.precurvature", "must be finite", r.precurvature);
-  if (!finite_nonneg(r.linear_density))
-    return bad("model.rod.linear_density", "must be non-negative and finite", r.linear_density);
-  if (!finite_nonneg(model.tip_mass)) return bad("model.tip_mass", "must be non-negative and finite", model.tip_mass);
-  if (!model.gravity.allFinite()) return bad_vec("model.gravity", "must be finite", model.gravity);
+  if (const std::string why = rod.validate(); !why.empty()) return "rod." + why;
   if (!finite_pos(shear_stiffness)) return bad("shear_stiffness", "must be positive and finite", shear_stiffness);
   if (!finite_pos(axial_stiffness)) return bad("axial_stiffness", "must be positive and finite", axial_stiffness);
   if (!finite_nonneg(kelvin_voigt_time))
@@ -66,11 +58,6 @@ std::string DynamicRodModel::validate() const {
   if (max_iterations < 1) return bad("max_iterations", "must be at least 1", max_iterations);
   if (max_substep_halvings < 0 || max_substep_halvings > 10)
     return bad("max_substep_halvings", "must be in [0, 10]", max_substep_halvings);
-  if (!body.segments.empty()) {
-    if (std::string why = body.validate(); !why.empty()) return "body." + why;
-  } else if (!body.loads.empty() || !body.actuators.empty()) {
-    return "body.segments: loads and actuators need the body's segments";
-  }
   return std::string();
 }
 
@@ -81,7 +68,7 @@ DynamicRod::DynamicRod(const DynamicRodModel& model) : model_(model) {
   kse_vstar_ = Vec3(0.0, 0.0, model_.axial_stiffness);  // K_se v*, v* = e_z
   b_se_ = model_.kelvin_voigt_time * k_se_;
   rho_j_ = model_.rotational_inertia_per_length * Vec3(1.0, 1.0, 2.0);
-  inputs_ = rod::InputVector::Zero(static_cast<int>(model_.body.actuators.size()));
+  inputs_ = rod::InputVector::Zero(static_cast<int>(model_.rod.actuators.size()));
   build_grid();
   slots_ = 4 * steps_ + 1;  // four RK4 stages per step, plus the tip
 
@@ -110,8 +97,7 @@ void DynamicRod::set_coefficients(const Coefficients& c) {
 }
 
 void DynamicRod::build_grid() {
-  const bool general = !model_.body.segments.empty();
-  const rod::RodModel body = general ? model_.body : rod::general_model(model_.model);
+  const rod::RodModel& body = model_.rod;
   length_ = body.length();
   // Breakpoints: base, segment ends, loads, actuators, tip.
   std::vector<double> cuts = {0.0, length_};
@@ -178,11 +164,11 @@ void DynamicRod::node_wrench(const NodeLoad& load, const Vec24& y, int slot, Vec
   const Eigen::Map<const Mat3> R(y.data() + 3);
   Vec3 fb = load.f_body, lb = load.l_body;
   for (int i : load.actuators) {
-    const Vec6 unit = model_.body.actuators[i].unit_wrench();
+    const Vec6 unit = model_.rod.actuators[i].unit_wrench();
     fb += inputs_[i] * unit.head<3>();
     lb += inputs_[i] * unit.tail<3>();
   }
-  *F = R * fb + load.f_base + load.mass * model_.model.gravity;
+  *F = R * fb + load.f_base + load.mass * model_.rod.gravity;
   *M = R * lb + load.l_base;
   if (load.mass > 0.0) {  // the point mass's inertia: −m R(ω̂q + q_t)
     const Vec3 q = y.segment<3>(18), w = y.segment<3>(21);
@@ -191,7 +177,7 @@ void DynamicRod::node_wrench(const NodeLoad& load, const Vec24& y, int slot, Vec
 }
 
 void DynamicRod::update_distributed_weight() {
-  for (Piece& p : pieces_) p.dist_weight = p.rho_a * model_.model.gravity;
+  for (Piece& p : pieces_) p.dist_weight = p.rho_a * model_.rod.gravity;
 }
 
 // Right-hand side of the semi-discretised rod ODE at one evaluation slot (Till eqs. for p_s, R_s,
@@ -289,7 +275,7 @@ Vec6 DynamicRod::pass(const Vec6& x, const rod::TipWrench& wr, Mat12X* rec, std:
   const double c0 = coef_.c0;
   const Vec3 qt = c0 * q + zh.segment<3>(6);
   const Vec3 wt = c0 * w + zh.segment<3>(9);
-  const double mt = model_.model.tip_mass;
+  const double mt = model_.rod.tip_mass;
   const Vec3& Jt = model_.tip_inertia;
   // n(L) = R f_b + m_t g − m_t R(ω̂q + q_t) − R c_t(q) q
   const Vec3 f_body = wr.force - mt * (w.cross(q) + qt) - (model_.tip_drag + model_.tip_quadratic_drag * q.norm()) * q;
@@ -298,7 +284,7 @@ Vec6 DynamicRod::pass(const Vec6& x, const rod::TipWrench& wr, Mat12X* rec, std:
   Vec3 F = Vec3::Zero(), M = Vec3::Zero();  // loads and actuators at s = L
   if (node_load_[steps_] >= 0) node_wrench(node_loads_[node_load_[steps_]], y, tip, &F, &M);
   Vec6 r;
-  r.head<3>() = n - R * f_body - mt * model_.model.gravity - F;
+  r.head<3>() = n - R * f_body - mt * model_.rod.gravity - F;
   r.tail<3>() = (m - R * l_body - M) / length_;
   // Size of the largest terms that cancel in r (sets the round-off floor of the residual).
   residual_scale_ = n.norm() + mt * (qt.norm() + w.norm() * q.norm()) + wr.force.norm() + F.norm() +
@@ -450,45 +436,12 @@ bool DynamicRod::newton(Vec6* x, const rod::TipWrench& w, bool full_newton, cons
   return true;
 }
 
-Vec6 DynamicRod::kirchhoff_guess(const rod::TipWrench& w, bool* ok) {
-  // Quasi-static Kirchhoff solution (rod::RodSolver), then n(0), m(0) from the global force
-  // and moment balance of the whole rod:
-  //   n(0) = R(L) f_b + m_t g + ρA g L
-  //   m(0) = R(L) l_b + p(L) × n(L) + ∫₀ᴸ p × ρA g ds
-  rod::ShootingOptions st;
-  st.integrator.type = rod::IntegratorType::kRk8;
-  st.integrator.steps = 8;
-  st.residual_tolerance = 1e-12;
-  rod::RodSolver solver(model_.model, st);
-  const rod::RodSolution sol = solver.solve(w);
-  Vec6 x;
-  const Vec3 g = model_.model.gravity;
-  const Vec3 nL = (sol.converged ? sol.tip_rotation * w.force : w.force) + model_.model.tip_mass * g;
-  const double rho_a = model_.model.rod.linear_density;
-  x.head<3>() = nL + rho_a * length_ * g;
-  x.tail<3>().setZero();
-  *ok = sol.converged;
-  if (!sol.converged) return x;
-  Vec3 m0 = sol.tip_rotation * w.moment + sol.tip_position.cross(nL);
-  if (rho_a > 0.0) {
-    const int K = 64;
-    const std::vector<Vec3> pts = solver.shape(K);
-    Vec3 integral = Vec3::Zero();
-    for (int k = 0; k < K; ++k) integral += 0.5 * (pts[k] + pts[k + 1]) * (length_ / K);
-    m0 += integral.cross(rho_a * g);
-  }
-  x.tail<3>() = m0 / length_;
-  return x;
-}
-
-// The general rod's static Kirchhoff solution (rod::RodSolver), then n(0), m(0) from the
-// force and moment balance of everything the rod carries: tip wrench and mass, the loads and
-// actuators at their nodes, the distributed weight.
-Vec6 DynamicRod::general_guess(const rod::TipWrench& w, bool* ok) {
-  rod::RodModel g = model_.body;
+// The rod's static Kirchhoff solution (rod::RodSolver), then n(0), m(0) from the force and moment
+// balance of everything the rod carries: tip wrench and mass, the loads and actuators at their
+// nodes, the distributed weight.
+Vec6 DynamicRod::static_guess(const rod::TipWrench& w, bool* ok) {
+  rod::RodModel g = model_.rod;
   g.kind = rod::RodKind::kKirchhoff;
-  g.tip_mass = model_.model.tip_mass;
-  g.gravity = model_.model.gravity;
   rod::ShootingOptions st;
   st.integrator.type = rod::IntegratorType::kRk8;
   st.residual_tolerance = 1e-12;
@@ -540,7 +493,7 @@ bool DynamicRod::reset_to_static(const rod::TipWrench& w) {
   // Static problem: all time derivatives zero (c0 = 0, y_h = 0) -> q ≡ ω ≡ 0.
   set_coefficients(Coefficients());
   zh_.setZero();
-  Vec6 x = model_.body.segments.empty() ? kirchhoff_guess(w, &kirchhoff_ok) : general_guess(w, &kirchhoff_ok);
+  Vec6 x = static_guess(w, &kirchhoff_ok);
   update_distributed_weight();
   drag_active_ = model_.linear_drag > 0.0 || model_.quadratic_drag > 0.0;
   const bool ok = newton(&x, w, true);
@@ -707,7 +660,7 @@ void DynamicRod::set_gravity(const Vec3& g) {
     last_error_ = "set_gravity: non-finite gravity ignored";
     return;
   }
-  model_.model.gravity = g;
+  model_.rod.gravity = g;
 }
 
 Mat3 DynamicRod::tip_rotation() const { return so3::orthonormalize(Eigen::Map<const Mat3>(nodes_.back().data() + 3)); }

@@ -8,11 +8,10 @@ namespace plant {
 
 namespace {
 
-/// The jets of the plant: the HydroJet's three, or rod.body's actuators of type jet.
-int jet_count(const PlantModel& p) {
-  if (p.rod.body.segments.empty()) return 3;
+/// The jets of the plant: its actuators of type jet.
+int valve_count(const PlantModel& p) {
   int n = 0;
-  for (const rod::Actuator& a : p.rod.body.actuators) n += a.type == rod::ActuatorType::kJet;
+  for (const rod::Actuator& a : p.rod.rod.actuators) n += a.type == rod::ActuatorType::kJet;
   return n;
 }
 
@@ -38,7 +37,7 @@ std::string PlantModel::validate() const {
     return "thruster_time_constant: must be finite and >= 0";
   if (!external_tip_force.allFinite()) return "external_tip_force: must be finite";
   if (!external_tip_moment.allFinite()) return "external_tip_moment: must be finite";
-  if (!rod.body.segments.empty() && rod.body.actuators.empty()) return "dynamics.body.actuators: the robot has none";
+  if (rod.rod.actuators.empty()) return "dynamics.rod.actuators: the robot has none";
   return "";
 }
 
@@ -48,8 +47,7 @@ Eigen::Matrix3d base_orientation(double tilt) {
 
 Plant::Plant(const PlantModel& p, unsigned seed)
     : model_(p),
-      jets_(p.jets),
-      hydraulics_(p.valves, jet_count(p)),
+      hydraulics_(p.valves, valve_count(p)),
       tracker_(
           p.sensor_noise ? p.tracker : TrackerNoise{0, 0, 0, 0, p.tracker.dropout_rate, p.tracker.dropout_duration},
           seed),
@@ -58,15 +56,14 @@ Plant::Plant(const PlantModel& p, unsigned seed)
   const std::string err = model_.validate();
   if (!err.empty()) throw std::invalid_argument("plant: " + err);
   // Gravity in the base frame from the base orientation (tracker z is up).
-  model_.rod.model.gravity = R_tracker_base_.transpose() * Eigen::Vector3d(0, 0, -model_.gravity);
-  general_ = !model_.rod.body.segments.empty();
-  const int n = general_ ? static_cast<int>(model_.rod.body.actuators.size()) : 3;
+  model_.rod.rod.gravity = R_tracker_base_.transpose() * Eigen::Vector3d(0, 0, -model_.gravity);
+  const int n = model_.rod.rod.input_count();
   drive_scale_ = thrust_ = duty_ = rod::InputVector::Zero(n);
   for (int i = 0, valve = 0; i < n; ++i) {
-    const rod::Actuator* a = general_ ? &model_.rod.body.actuators[i] : nullptr;
-    jet_.push_back(!a || a->type == rod::ActuatorType::kJet);
+    const rod::Actuator& a = model_.rod.rod.actuators[i];
+    jet_.push_back(a.type == rod::ActuatorType::kJet);
     valve_of_.push_back(jet_[i] ? valve++ : -1);
-    if (a) drive_scale_[i] = std::max(std::abs(a->min_force), std::abs(a->max_force));
+    drive_scale_[i] = std::max(std::abs(a.min_force), std::abs(a.max_force));
   }
   rod_.reset(new DynamicRod(model_.rod));
   reset();
@@ -78,7 +75,7 @@ bool Plant::reset() {
   duty_.setZero();
   thrust_.setZero();
   hydraulics_.reset();
-  if (general_) rod_->set_inputs(rod::InputVector::Zero(actuator_count()));
+  rod_->set_inputs(rod::InputVector::Zero(input_count()));
   error_.clear();
   if (!rod_->reset_to_static(rod::TipWrench{})) {
     error_ = "rod: " + rod_->last_error();
@@ -88,30 +85,29 @@ bool Plant::reset() {
 }
 
 void Plant::command(const rod::InputVector& duty, double t) {
-  const bool ok = duty.size() == actuator_count() && duty.allFinite();
-  duty_ = ok ? duty : rod::InputVector(rod::InputVector::Zero(actuator_count()));  // a broken command closes the valves
+  const bool ok = duty.size() == input_count() && duty.allFinite();
+  duty_ = ok ? duty : rod::InputVector(rod::InputVector::Zero(input_count()));  // a broken command closes the valves
   t_command_ = t;
 }
 
 rod::InputVector Plant::flows() const {
   const rod::InputVector valves = hydraulics_.flows();
-  rod::InputVector q = rod::InputVector::Zero(actuator_count());
-  for (int i = 0; i < actuator_count(); ++i)
+  rod::InputVector q = rod::InputVector::Zero(input_count());
+  for (int i = 0; i < input_count(); ++i)
     if (jet_[i]) q[i] = valves[valve_of_[i]];
   return q;
 }
 
 rod::InputVector Plant::jet_forces() const {
   const rod::InputVector q = flows();
-  rod::InputVector f(actuator_count());
-  for (int i = 0; i < actuator_count(); ++i)
-    f[i] = jet_[i] ? actuation::force_from_flow(q[i], model_.nozzle) : thrust_[i];
+  rod::InputVector f(input_count());
+  for (int i = 0; i < input_count(); ++i) f[i] = jet_[i] ? actuation::force_from_flow(q[i], model_.nozzle) : thrust_[i];
   return f;
 }
 
 void Plant::step_actuators(const rod::InputVector& duty, double dt) {
   rod::InputVector valve_duty(hydraulics_.size());
-  for (int i = 0; i < actuator_count(); ++i) {
+  for (int i = 0; i < input_count(); ++i) {
     if (jet_[i]) {
       valve_duty[valve_of_[i]] = duty[i];
       continue;
@@ -134,17 +130,11 @@ bool Plant::advance_to(double t) {
   for (int i = 1; i <= n; ++i) {
     // Command timeout: the valves close when the controller goes silent.
     timed_out_ = t_ - t_command_ > model_.command_timeout;
-    step_actuators(timed_out_ ? rod::InputVector(rod::InputVector::Zero(actuator_count())) : duty_, dt);
+    step_actuators(timed_out_ ? rod::InputVector(rod::InputVector::Zero(input_count())) : duty_, dt);
     rod::TipWrench tw;
     tw.force = model_.external_tip_force;
     tw.moment = model_.external_tip_moment;
-    if (general_) {
-      rod_->set_inputs(jet_forces());  // every actuator acts at its own node
-    } else {
-      const actuation::Vec6 w = jets_.wrench(Eigen::Vector3d(jet_forces()));
-      tw.force += w.head<3>();
-      tw.moment += w.tail<3>();
-    }
+    rod_->set_inputs(jet_forces());  // every actuator acts at its own node
     if (!rod_->step(tw, dt)) {
       error_ = "rod: " + rod_->last_error();
       return false;
@@ -165,7 +155,7 @@ TrackerSample Plant::tracker_sample() {
 
 rod::InputVector Plant::flow_sample() {
   rod::InputVector q = flow_sensors_.sample(flows());
-  for (int i = 0; i < actuator_count(); ++i)
+  for (int i = 0; i < input_count(); ++i)
     if (!jet_[i]) q[i] = 0.0;
   return q;
 }

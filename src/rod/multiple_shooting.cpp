@@ -49,6 +49,9 @@ struct RodSolver::MsEval {
   double log_det_scale = 0.0;                     ///< log |det| of J's node blocks
   bool ok = false;
 
+  /// Adds the sweep from node k+1 (the tip for k = M−1, with D = 3 directions; else 9) down to s_k:
+  /// its Δp, the residual rows of node k (of the base for k = 0) and their columns.
+  void add_sweep(const Nodes& x, int k, double Fs, int D, const SweepState<9>& y, const internal::SweepEnd<9>& end);
   /// det ∂r/∂x's sign with J's magnitude relative to its node blocks (fold tracking only).
   double det() const {
     const Eigen::PartialPivLU<Eigen::MatrixXd> lu(J);
@@ -84,9 +87,9 @@ struct RodSolver::MultipleShooting {
   Nodes x;
   double det = 0.0;
   Vec3 tip = Vec3::Zero();
-  MsEval e;                   ///< Newton's last evaluation
-  const Load* at = nullptr;   ///< the load of the Newton iteration under way
-  Eigen::VectorXd scale;      ///< of a step's parts, to rad
+  MsEval e;                  ///< Newton's last evaluation
+  const Load* at = nullptr;  ///< the load of the Newton iteration under way
+  Eigen::VectorXd scale;     ///< of a step's parts, to rad
 
   MultipleShooting(RodSolver& s, const Load& t, RodSolution* out, int segments)
       : solver(s), target(t), sol(out), M(segments) {
@@ -169,12 +172,8 @@ bool RodSolver::ms_nodes(const Mat3& R_tip, const Load& load, int M, Nodes* x) {
   internal::Recorder rec;
   for (int k = M - 1; k >= 1; --k) rec.at.push_back(x->s[k]);
   SweepState<0> y;
-  SweepCall<0> c;
-  c.load = &load;
-  c.integrator = options_.integrator;
-  c.cvode = workspace_.cvode(options_.integrator.type);
+  SweepCall<0> c(load, options_.integrator, workspace_.cvode(options_.integrator.type), &y);
   c.R_tip = R_tip;
-  c.y = &y;
   c.rec = &rec;
   if (!kernels_->run<0>(*this, c) || static_cast<int>(rec.R.size()) != M - 1) return false;
   x->R.assign(M + 1, Mat3::Identity());
@@ -190,12 +189,49 @@ bool RodSolver::ms_nodes(const Mat3& R_tip, const Load& load, int M, Nodes* x) {
   return true;
 }
 
+void RodSolver::MsEval::add_sweep(const Nodes& x, int k, double Fs, int D, const SweepState<9>& y,
+                                  const internal::SweepEnd<9>& end) {
+  using O9 = RodOde<9, CosseratGeneral>;
+  const int M = x.segments();
+  const double h = (x.s[M] - x.s[0]) / M;
+  const auto col = [M](int j) { return 3 + 9 * (M - 1 - j); };  // node j's unknowns (j = 1..M−1)
+  const auto eta = [&y](int d) { return Vec3(y.segment<3>(O9::kBase + O9::kPerDir * d)); };
+  sum_dp += y.segment<3>(0);
+  const Mat3 Rm = Eigen::Map<const Mat3>(y.data() + 3);
+  const int c0 = k == M - 1 ? 0 : col(k + 1);
+  for (int d = 0; d < D; ++d) dP_X.col(c0 + d) += y.segment<3>(O9::kBase + O9::kPerDir * d + 6);
+  if (k == 0) {
+    const int row = 9 * (M - 1);
+    const Vec3 r = so3::log(so3::orthonormalize(Rm));
+    F.segment<3>(row) = r;
+    const Mat3 Jri = so3::right_jacobian_inverse(r);
+    for (int d = 0; d < D; ++d) J.block<3, 1>(row, c0 + d) = Jri * eta(d);
+    R0 = Rm;
+    return;
+  }
+  const int row = 9 * (M - 1 - k);
+  const Vec3 r = so3::log(so3::orthonormalize(x.R[k].transpose() * Rm));
+  F.segment<3>(row) = r;
+  F.segment<3>(row + 3) = (end.n - x.n[k]) / Fs;
+  F.segment<3>(row + 6) = h * (y.segment<3>(12) - x.u[k]);
+  const Mat3 Jri = so3::right_jacobian_inverse(r);
+  for (int d = 0; d < D; ++d) {
+    J.block<3, 1>(row, c0 + d) = Jri * eta(d);
+    J.block<3, 1>(row + 3, c0 + d) = end.dn.col(d) / Fs;
+    J.block<3, 1>(row + 6, c0 + d) = h * y.segment<3>(O9::kBase + O9::kPerDir * d + 3);
+  }
+  const Mat3 node = -so3::right_jacobian_inverse(-r);
+  J.block<3, 3>(row, col(k)) = node;
+  J.block<3, 3>(row + 3, col(k) + 3) = -Mat3::Identity() / Fs;
+  J.block<3, 3>(row + 6, col(k) + 6) = -h * Mat3::Identity();
+  log_det_scale += std::log(std::abs(node.determinant())) + 3.0 * std::log(h / Fs);
+}
+
 // F, J, Σ Δp and its derivative, R⁻(0) at the node values x; every piece with step_multiplier times
 // its steps (the Richardson estimate's second integration).
 bool RodSolver::ms_evaluate(const Nodes& x, const Load& load, MsEval* e, int* rhs, int step_multiplier) {
-  using O9 = RodOde<9, CosseratGeneral>;
   const int M = x.segments(), N = 3 + 9 * (M - 1);
-  const double L = model_.length(), h = L / M;
+  const double L = model_.length();
   double ei = 0.0;
   for (const RodSegment& sg : model_.segments) ei = std::max(ei, sg.stiffness.maxCoeff());
   const double Fs = ei / (L * L);
@@ -205,7 +241,6 @@ bool RodSolver::ms_evaluate(const Nodes& x, const Load& load, MsEval* e, int* rh
   e->sum_dp.setZero();
   e->log_det_scale = 0.0;
   e->ok = false;
-  auto col = [M](int k) { return 3 + 9 * (M - 1 - k); };  // node k's unknowns (k = 1..M−1)
   Direction dirs[9];
   for (int i = 0; i < 3; ++i) {
     dirs[i].eta_tip = Vec3::Unit(i);
@@ -220,13 +255,9 @@ bool RodSolver::ms_evaluate(const Nodes& x, const Load& load, MsEval* e, int* rh
     if (D == 3) {
       SweepState<3> y3;
       internal::SweepEnd<3> end3;
-      SweepCall<3> c;
-      c.load = &load;
-      c.integrator = options_.integrator;
-      c.cvode = workspace_.cvode(options_.integrator.type);
+      SweepCall<3> c(load, options_.integrator, workspace_.cvode(options_.integrator.type), &y3);
       c.R_tip = x.R[M];
       c.dirs = dirs;
-      c.y = &y3;
       c.s_end = x.s[k];
       c.to = &end3;
       c.step_multiplier = step_multiplier;
@@ -238,12 +269,8 @@ bool RodSolver::ms_evaluate(const Nodes& x, const Load& load, MsEval* e, int* rh
       end.dn.leftCols<3>() = end3.dn;
     } else {
       const internal::SweepStart from{x.s[k + 1], x.R[k + 1], x.u[k + 1], x.n[k + 1]};
-      SweepCall<9> c;
-      c.load = &load;
-      c.integrator = options_.integrator;
-      c.cvode = workspace_.cvode(options_.integrator.type);
+      SweepCall<9> c(load, options_.integrator, workspace_.cvode(options_.integrator.type), &y);
       c.dirs = dirs;
-      c.y = &y;
       c.from = &from;
       c.s_end = x.s[k];
       c.to = &end;
@@ -252,35 +279,7 @@ bool RodSolver::ms_evaluate(const Nodes& x, const Load& load, MsEval* e, int* rh
       *rhs += c.rhs;
     }
     if (!ok || !y.allFinite()) return false;
-    e->sum_dp += y.segment<3>(0);
-    const Mat3 Rm = Eigen::Map<const Mat3>(y.data() + 3);
-    const int c0 = k == M - 1 ? 0 : col(k + 1);
-    for (int d = 0; d < D; ++d) e->dP_X.col(c0 + d) += y.segment<3>(O9::kBase + O9::kPerDir * d + 6);
-    if (k == 0) {
-      const int row = 9 * (M - 1);
-      const Vec3 r = so3::log(so3::orthonormalize(Rm));
-      e->F.segment<3>(row) = r;
-      const Mat3 Jri = so3::right_jacobian_inverse(r);
-      for (int d = 0; d < D; ++d) e->J.block<3, 1>(row, c0 + d) = Jri * y.segment<3>(O9::kBase + O9::kPerDir * d);
-      e->R0 = Rm;
-      continue;
-    }
-    const int row = 9 * (M - 1 - k);
-    const Vec3 r = so3::log(so3::orthonormalize(x.R[k].transpose() * Rm));
-    e->F.segment<3>(row) = r;
-    e->F.segment<3>(row + 3) = (end.n - x.n[k]) / Fs;
-    e->F.segment<3>(row + 6) = h * (y.segment<3>(12) - x.u[k]);
-    const Mat3 Jri = so3::right_jacobian_inverse(r);
-    for (int d = 0; d < D; ++d) {
-      e->J.block<3, 1>(row, c0 + d) = Jri * y.segment<3>(O9::kBase + O9::kPerDir * d);
-      e->J.block<3, 1>(row + 3, c0 + d) = end.dn.col(d) / Fs;
-      e->J.block<3, 1>(row + 6, c0 + d) = h * y.segment<3>(O9::kBase + O9::kPerDir * d + 3);
-    }
-    const Mat3 node = -so3::right_jacobian_inverse(-r);
-    e->J.block<3, 3>(row, col(k)) = node;
-    e->J.block<3, 3>(row + 3, col(k) + 3) = -Mat3::Identity() / Fs;
-    e->J.block<3, 3>(row + 6, col(k) + 6) = -h * Mat3::Identity();
-    e->log_det_scale += std::log(std::abs(node.determinant())) + 3.0 * std::log(h / Fs);
+    e->add_sweep(x, k, Fs, D, y, end);
   }
   e->ok = e->F.allFinite() && e->J.allFinite();
   return e->ok;
@@ -341,8 +340,8 @@ bool RodSolver::ms_solve(const Load& target, int M, RodSolution* sol) {
   sol->jacobian_det = ms.det;
   internal::report_folds(folds, sol);
   if (single.r.norm() > 1e-6)
-    sol->warning += std::string(sol->warning.empty() ? "" : "; ") + "multiple shooting at λL = " +
-                    std::to_string(growth_estimate(target.q, target.wrench)) +
+    sol->warning += std::string(sol->warning.empty() ? "" : "; ") +
+                    "multiple shooting at λL = " + std::to_string(growth_estimate(target.q, target.wrench)) +
                     ": C^b, J_q and the shape come from one sweep from the tip, which reaches the base only to " +
                     std::to_string(single.r.norm()) + " rad";
   commit(R_tip, target, single, *sol);

@@ -1,5 +1,5 @@
 // Internal to hydrojet_rod: integrating a RodOde with any integrator (Eigen Runge–Kutta methods or
-// CVODE(S)), shared by the single- and multiple-shooting code. Not installed.
+// CVODE(S)), for the sweeps of single and multiple shooting. Not installed.
 #pragma once
 
 #include <Eigen/Core>
@@ -177,15 +177,6 @@ IntegrationStats integrate_rod(const IntegratorOptions& is, CvodeWorkspace* ws, 
   IntegrationStats st;
   st.ok = false;
   return st;
-}
-
-/// Tip state of the tip-to-base integration: p = 0, R = R(L), u(L) = ũ + K⁻¹ l_b (eq. 16); all
-/// directions zero.
-template <class Ode>
-void init_tip_state(const Ode& ode, const Mat3& R_tip, const Vec3& moment, typename Ode::State* y) {
-  y->setZero();
-  Eigen::Map<Mat3>(y->data() + 3) = R_tip;
-  y->template segment<3>(12) = ode.u_tilde + ode.k_inv.cwiseProduct(moment);
 }
 
 }  // namespace internal

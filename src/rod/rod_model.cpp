@@ -62,14 +62,5 @@ bool RodModel::tip_actuated_uniform() const {
   return true;
 }
 
-RodModel uniform_rod(const RodSegment& segment, double tip_mass, const Vec3& gravity, RodKind kind) {
-  RodModel m;
-  m.segments = {segment};
-  m.kind = kind;
-  m.tip_mass = tip_mass;
-  m.gravity = gravity;
-  return m;
-}
-
 }  // namespace rod
 }  // namespace hydrojet

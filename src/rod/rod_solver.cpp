@@ -56,6 +56,15 @@ RodSolver::~RodSolver() = default;
 RodSolver::RodSolver(const RodSolver& other) = default;
 RodSolver& RodSolver::operator=(const RodSolver& other) = default;
 
+void RodSolver::set_model(const RodModel& model) {
+  if (const std::string why = model.validate(); !why.empty()) throw std::invalid_argument("rod model: " + why);
+  model_ = model;
+  build_stations();
+  select_kernels();
+  update_unloaded_shape();
+  reset();
+}
+
 void RodSolver::set_options(const ShootingOptions& options) {
   options_ = options;
   select_kernels();
@@ -151,13 +160,9 @@ RodSolver::Eval RodSolver::evaluate(const Mat3& R_tip, const Load& load, int* rh
   Direction dirs[3];
   for (int i = 0; i < 3; ++i) dirs[i].eta_tip = Vec3::Unit(i);
   SweepState<3> y;
-  SweepCall<3> c;
-  c.load = &load;
-  c.integrator = options_.integrator;
-  c.cvode = workspace_.cvode(options_.integrator.type);
+  SweepCall<3> c(load, options_.integrator, workspace_.cvode(options_.integrator.type), &y);
   c.R_tip = R_tip;
   c.dirs = dirs;
-  c.y = &y;
   Eval e;
   e.ok = kernels_->run<3>(*this, c);
   *rhs += c.rhs;
@@ -203,12 +208,8 @@ double RodSolver::error_estimate(const Mat3& R_tip, const Load& load, const Eval
   const double f = halve ? -1.0 / (q - 1.0)  // exact − fine ≈ (fine − coarse)/(2^p − 1)
                          : q / (q - 1.0);    // exact − coarse ≈ (fine − coarse)·2^p/(2^p − 1)
   SweepState<0> y;
-  SweepCall<0> c;
-  c.load = &load;
-  c.integrator = options_.integrator;
-  c.cvode = workspace_.cvode(options_.integrator.type);
+  SweepCall<0> c(load, options_.integrator, workspace_.cvode(options_.integrator.type), &y);
   c.R_tip = R_tip;
-  c.y = &y;
   (halve ? c.step_divisor : c.step_multiplier) = 2;
   if (!kernels_->run<0>(*this, c)) return std::numeric_limits<double>::infinity();
   const Mat3 R0o = Eigen::Map<const Mat3>(y.data() + 3);
@@ -261,7 +262,9 @@ struct RodSolver::Shooting : internal::TipOrientationShooting<Shooting, Load, Ev
   double length() const { return solver.model_.length(); }
   double growth() const { return solver.growth_estimate(target.q, target.wrench); }
   bool newton_at(Mat3* R, const Load& load, Eval* last) { return solver.newton(R, load, sol, last); }
-  Point unloaded() const { return {solver.unloaded_tip_, solver.no_load(), solver.unloaded_pos_, solver.unloaded_det_}; }
+  Point unloaded() const {
+    return {solver.unloaded_tip_, solver.no_load(), solver.unloaded_pos_, solver.unloaded_det_};
+  }
 };
 
 RodSolution RodSolver::solve(const InputVector& q, const TipWrench& tip) {
@@ -455,13 +458,9 @@ Compliance RodSolver::compliance() {
     Direction chunk[6];
     for (int k = 0; k < count; ++k) chunk[k] = dirs[first + k];
     SweepState<6> y;
-    SweepCall<6> c;
-    c.load = &load_;
-    c.integrator = options_.integrator;
-    c.cvode = workspace_.cvode(options_.integrator.type);
+    SweepCall<6> c(load_, options_.integrator, workspace_.cvode(options_.integrator.type), &y);
     c.R_tip = R_tip_;
     c.dirs = chunk;
-    c.y = &y;
     if (!kernels_->run<6>(*this, c)) return out;
     for (int k = 0; k < count; ++k) {
       const Vec3 eta0 = y.segment<3>(O::kBase + O::kPerDir * k);
@@ -474,8 +473,8 @@ Compliance RodSolver::compliance() {
   out.body = columns.leftCols<6>();
   out.actuation.resize(6, N);
   for (int j = 0; j < N; ++j)
-    out.actuation.col(j) = column_of[j] >= 0 ? Vec6(columns.col(column_of[j]))
-                                             : Vec6(out.body * model_.actuators[j].unit_wrench());
+    out.actuation.col(j) =
+        column_of[j] >= 0 ? Vec6(columns.col(column_of[j])) : Vec6(out.body * model_.actuators[j].unit_wrench());
   out.ok = columns.allFinite() && out.actuation.allFinite();
   return out;
 }
@@ -500,11 +499,8 @@ bool RodSolver::frame_at(double s, Mat3* R, Vec3* p) const {
   Recorder rec;
   rec.at = {s, 0.0};
   SweepState<0> y;
-  SweepCall<0> c;
-  c.load = &load_;
-  c.integrator = const_sweep_integrator(options_.integrator);
+  SweepCall<0> c(load_, const_sweep_integrator(options_.integrator), nullptr, &y);
   c.R_tip = R_tip_;
-  c.y = &y;
   c.rec = &rec;
   if (!kernels_->run<0>(*this, c) || rec.R.size() != 2) return false;
   *R = rec.R.back().transpose() * rec.R.front();
@@ -519,11 +515,8 @@ std::vector<Vec3> RodSolver::shape(int K) const {
   Recorder rec;
   for (int k = K; k >= 0; --k) rec.at.push_back(L * k / K);
   SweepState<0> y;
-  SweepCall<0> c;
-  c.load = &load_;
-  c.integrator = const_sweep_integrator(options_.integrator);
+  SweepCall<0> c(load_, const_sweep_integrator(options_.integrator), nullptr, &y);
   c.R_tip = R_tip_;
-  c.y = &y;
   c.rec = &rec;
   if (!kernels_->run<0>(*this, c) || static_cast<int>(rec.p.size()) != K + 1) return pts;
   const Mat3 R0 = rec.R.back();

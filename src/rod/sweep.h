@@ -60,6 +60,8 @@ using SweepState = typename RodOde<D, CosseratGeneral>::State;
 /// (0: the base); `to`, when given, receives n and δn at s_end; `rec` records frames on the way.
 template <int D>
 struct SweepCall {
+  SweepCall(const RodSolver::Load& l, const IntegratorOptions& is, CvodeWorkspace* cv, SweepState<D>* state)
+      : load(&l), integrator(is), cvode(cv), y(state) {}
   const RodSolver::Load* load = nullptr;
   IntegratorOptions integrator;
   CvodeWorkspace* cvode = nullptr;

@@ -108,7 +108,7 @@ class Recorder {
  public:
   Recorder(ros::NodeHandle& nh, ros::NodeHandle& pnh) : o_(read_options(pnh)), rng_(o_.seed), bank_(o_.flow) {
     scene_ = config::load_scene(o_.scene);
-    if (!scene_.has_jets) throw config::SceneError("jets", "missing (the recorder needs the jet geometry and nozzles)");
+    if (!scene_.jets) throw config::SceneError("jets", "missing (the recorder needs the jet geometry and nozzles)");
     make_targets();
     bag_.open(o_.bag, rosbag::bagmode::Write);
     cmd_pub_ = nh.advertise<hydrojet_control::JetCommand>(names::kJetCommand, 10);
@@ -130,13 +130,13 @@ class Recorder {
  private:
   /// Random jet forces q_i ∈ [0, fraction·q_max,i], kept when min ≤ |A q| ≤ max (nominal jet map).
   void make_targets() {
-    const actuation::JetMap map(scene_.jets);
+    const actuation::JetMap map(*scene_.jets);
     std::uniform_real_distribution<double> u01(0.0, 1.0);
     for (int k = 0; k < o_.samples; ++k) {
       for (int tries = 0;; ++tries) {
         if (tries > 100000) throw std::runtime_error("cannot draw jet forces within the net-force limits");
         Eigen::Vector3d q;
-        for (int i = 0; i < 3; ++i) q[i] = o_.max_jet_force_fraction * scene_.max_jet_force[i] * u01(rng_);
+        for (int i = 0; i < 3; ++i) q[i] = o_.max_jet_force_fraction * scene_.rod.actuators[i].max_force * u01(rng_);
         const double net = (map.planar() * q).norm();
         if (net >= o_.min_net_force && net <= o_.max_net_force) {
           targets_.push_back(q);

@@ -272,7 +272,7 @@ class ControllerNode {
   void close_valves() {
     hydrojet_control::JetCommand cmd;
     cmd.header.stamp = ros::Time::now();
-    const size_t n = static_cast<size_t>(controller_->jet_count());
+    const size_t n = static_cast<size_t>(controller_->input_count());
     cmd.valve_command.assign(n, 0.0);
     cmd.jet_force.assign(n, 0.0);
     cmd.flow.assign(n, 0.0);
@@ -573,7 +573,7 @@ class ControllerNode {
   void read_flows(control::ControllerInputs& in) const {
     if (!have_jets_) return;
     const int n =
-        std::min({static_cast<int>(rod::kMaxInputs), controller_->jet_count(), static_cast<int>(jets_.flow.size())});
+        std::min({static_cast<int>(rod::kMaxInputs), controller_->input_count(), static_cast<int>(jets_.flow.size())});
     in.flow_valid = true;
     in.flows.resize(n);
     for (int i = 0; i < n; ++i) {

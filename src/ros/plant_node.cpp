@@ -161,7 +161,7 @@ class PlantNode {
   /// On the way out (a signal, the end of `duration`): the simulated valves shut, and a last
   /// jets/state shows it (valve_command all zero unless a valve is stuck).
   void close_valves() {
-    plant_->command(rod::InputVector::Zero(plant_->actuator_count()), plant_->time());
+    plant_->command(rod::InputVector::Zero(plant_->input_count()), plant_->time());
     publish_sensors(plant_->time());
     ROS_INFO("plant: stopping (signal %d): valves closed", ros_bridge::shutdown_signal());
   }
@@ -195,9 +195,9 @@ class PlantNode {
       err = "kind: '" + m->kind + "' is not tracker_dropout, flow_nan, flow_negative, flow_silent or stuck_valve";
     else if (!(std::isfinite(m->duration) && m->duration > 0.0))
       err = "duration: must be finite and > 0 s";
-    else if (m->kind != "tracker_dropout" && (m->actuator < 0 || m->actuator >= plant_->actuator_count()))
-      err = "actuator: " + std::to_string(m->actuator) + " is not in [0, " + std::to_string(plant_->actuator_count()) +
-            ")";
+    else if (m->kind != "tracker_dropout" && (m->actuator < 0 || m->actuator >= plant_->input_count()))
+      err =
+          "actuator: " + std::to_string(m->actuator) + " is not in [0, " + std::to_string(plant_->input_count()) + ")";
     else if (m->kind == "stuck_valve" && !plant_->is_jet(m->actuator))
       err = "actuator: " + std::to_string(m->actuator) + " is not a jet (only a jet has a valve to stick)";
     else if (m->kind == "stuck_valve" && !(m->value >= 0.0 && m->value <= 1.0))
@@ -240,7 +240,7 @@ class PlantNode {
     // One duty per actuator; a wrong count or a non-finite entry closes the valves (Plant::command).
     rod::InputVector duty(std::min<int>(m->valve_command.size(), rod::kMaxInputs));
     for (int i = 0; i < duty.size(); ++i) duty[i] = m->valve_command[i];
-    if (static_cast<int>(m->valve_command.size()) != plant_->actuator_count()) duty.setZero(0);
+    if (static_cast<int>(m->valve_command.size()) != plant_->input_count()) duty.setZero(0);
     const double t = o_.lockstep ? m->header.stamp.toSec() - o_.start_time : plant_->time();
     plant_->command(duty, plant_->time());
     last_command_stamp_ = std::max(last_command_stamp_, t);
@@ -269,14 +269,13 @@ class PlantNode {
       q[0] = std::nan("");
       if (q.size() > 1) q[1] = -1e-6;
     }
-    const int n = plant_->actuator_count();
+    const int n = plant_->input_count();
     std::vector<uint8_t> valid(n, true);  // the plant reports what its sensors read; checks are the reader's job
     apply_faults(t, &q, &valid);
     hydrojet_control::JetState js;
     js.header.stamp = stamp;
-    const rod::InputVector duty = plant_->valves_closed_by_timeout()
-                                          ? rod::InputVector(rod::InputVector::Zero(n))
-                                          : plant_->valve_command();
+    const rod::InputVector duty =
+        plant_->valves_closed_by_timeout() ? rod::InputVector(rod::InputVector::Zero(n)) : plant_->valve_command();
     js.flow.resize(n);
     js.flow_valid.resize(n);
     js.force.resize(n);

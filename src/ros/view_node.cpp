@@ -106,18 +106,18 @@ class ViewNode {
     if (!pnh.getParam("scene", scene_path)) throw config::KeyError("~scene", "missing (path of the scene YAML)");
     const config::Scene scene = config::load_scene(scene_path);
     // Arrows for the actuators at the tip (the HydroJet's three jets): their directions, tip frame.
-    const double L = scene.body.length();
-    for (size_t i = 0; i < scene.body.actuators.size(); ++i)
-      if (scene.body.actuators[i].at >= L)
-        tip_actuators_.push_back({static_cast<int>(i), scene.body.actuators[i].direction});
-    if (scene.body.actuators.empty()) throw config::SceneError("jets", "the scene has no jets or actuators section");
+    const double L = scene.rod.length();
+    for (size_t i = 0; i < scene.rod.actuators.size(); ++i)
+      if (scene.rod.actuators[i].at >= L)
+        tip_actuators_.push_back({static_cast<int>(i), scene.rod.actuators[i].direction});
+    if (scene.rod.actuators.empty()) throw config::SceneError("jets", "the scene has no jets or actuators section");
     pnh.param("rod_diameter", rod_diameter_, 0.008);           // [m] (paper §6.2: 8 mm outer)
     pnh.param("capsule_length", capsule_length_, 0.028);       // [m] (§6.1: 28 mm)
     pnh.param("capsule_diameter", capsule_diameter_, 0.0098);  // [m] (§6.1: 9.8 mm)
     pnh.param("force_scale", force_scale_, 0.15);              // arrow length per jet force [m/N]
     // The reachable set is drawn on a sphere beyond the camera (2 L: the capsule's front stays within
     // L + 28 mm of the base), so that rviz's Publish Point on it gives a point the camera can look at.
-    pnh.param("reachable_radius", reachable_radius_, 2 * scene.model.rod.length);  // [m]
+    pnh.param("reachable_radius", reachable_radius_, 2 * scene.rod.length());  // [m]
     pnh.param<std::string>("world_frame", world_frame_, "world");
     pnh.param<std::string>("tracker_frame", tracker_frame_, "tracker");
     pnh.param<std::string>("base_frame", base_frame_, "base");

@@ -147,7 +147,7 @@ bool load_setup(const Args& a, Setup* s) {
       const config::Scene sc = config::load_scene(scenes[k]);
       s->model[k] = config::make_controller_model(sc, s->copt.flow_regulator);
       s->plant[k] = config::load_plant(sc, a.plant_file);
-      const Eigen::Vector3d g = sc.model.gravity;
+      const Eigen::Vector3d g = sc.rod.gravity;
       if (s->count == 1) s->tilt_deg[k] = static_cast<int>(std::lround(std::atan2(g.y(), g.z()) * 180.0 / M_PI));
     }
   } catch (const std::exception& e) {

@@ -138,26 +138,9 @@ std::vector<hydrojet::rod::TipWrench> read_batch(const std::string& src) {
   }
 }
 
-/// True when the scene is more than one uniform rod with its actuation at the tip: segments, point
-/// loads or actuators along the body. Those scenes are solved by RodSolver; the others by
-/// RodSolver's fast path, the actuators then entering as the tip wrench B q.
-bool needs_general_solver(const hydrojet::config::Scene& scene) {
-  if (!scene.uniform()) return true;
-  for (const auto& a : scene.body.actuators)
-    if (a.at < scene.body.length()) return true;
-  return false;
-}
-
-/// Column i: actuator i's tip body wrench per unit input (the actuators at the tip).
-Eigen::Matrix<double, 6, Eigen::Dynamic> actuator_wrenches(const hydrojet::config::Scene& scene) {
-  Eigen::Matrix<double, 6, Eigen::Dynamic> B(6, scene.body.actuators.size());
-  for (size_t i = 0; i < scene.body.actuators.size(); ++i) B.col(i) = scene.body.actuators[i].unit_wrench();
-  return B;
-}
-
 /// --actuators: one input per actuator, each within its [min_force, max_force].
 void check_inputs(const hydrojet::config::Scene& scene, const std::vector<double>& q) {
-  const auto& acts = scene.body.actuators;
+  const auto& acts = scene.rod.actuators;
   if (q.size() != acts.size())
     throw BadInput{"--actuators: the scene has " + std::to_string(acts.size()) + " actuator(s), got " +
                    std::to_string(q.size()) + " input(s)"};
@@ -168,8 +151,7 @@ void check_inputs(const hydrojet::config::Scene& scene, const std::vector<double
                      std::to_string(acts[i].min_force) + ", " + std::to_string(acts[i].max_force) + "] N"};
 }
 
-/// The scene with the command line's integrator overrides; --jets turned into opt->wrench through
-/// the scene's jet map.
+/// The scene with the command line's integrator overrides; --jets are the inputs of its three jets.
 hydrojet::config::Scene load_scene(Options* opt) {
   hydrojet::config::Scene scene = hydrojet::config::load_scene(opt->scene);
   if (!opt->integrator.empty() && !hydrojet::rod::parse_integrator(opt->integrator, &scene.solver.integrator.type))
@@ -178,23 +160,19 @@ hydrojet::config::Scene load_scene(Options* opt) {
   if (opt->steps) scene.solver.integrator.steps = opt->steps;
   if (opt->tol > 0.0) scene.solver.integrator.tolerance = opt->tol;
   if (opt->have_jets) {
-    if (!scene.has_jets) throw BadInput{"--jets: scene " + opt->scene + " has no jets section"};
+    if (!scene.jets) throw BadInput{"--jets: scene " + opt->scene + " has no jets section"};
     opt->actuators.assign(opt->jets.data(), opt->jets.data() + 3);
   }
   if (opt->have_actuators) check_inputs(scene, opt->actuators);
-  if ((opt->have_jets || opt->have_actuators) && !needs_general_solver(scene)) {
-    const hydrojet::rod::Vec6 w =
-        actuator_wrenches(scene) * Eigen::Map<const Eigen::VectorXd>(opt->actuators.data(), opt->actuators.size());
-    opt->wrench.force = w.head<3>();
-    opt->wrench.moment = w.tail<3>();
-  }
   return scene;
 }
 
-/// --compliance: the body compliance C^b and the stability margin (null when not converged).
+/// --compliance: C^b, J_q and the stability of eq. (23): on the scene's tip.actuated for a rod with
+/// its actuators at the tip (the paper's σ_c), else on the block of C^b on the actuators' equivalent
+/// tip wrenches. Null when not converged.
 void add_compliance(hydrojet::rod::RodSolver& solver, const hydrojet::config::Scene& scene, bool converged,
                     JsonObject* j) {
-  const bool actuated = !scene.body.actuators.empty();
+  const bool actuated = solver.input_count() > 0;
   if (!converged) {
     j->add_null("compliance").add_null("stability_margin").add_null("stability_eig_min");
     if (actuated) j->add_null("actuation_jacobian");
@@ -203,14 +181,15 @@ void add_compliance(hydrojet::rod::RodSolver& solver, const hydrojet::config::Sc
   const auto tc0 = std::chrono::steady_clock::now();
   const hydrojet::rod::Compliance c = solver.compliance();
   const auto tc1 = std::chrono::steady_clock::now();
-  const auto st = hydrojet::rod::stability(c.body, scene.actuated);
+  const auto st = actuated && !scene.rod.tip_actuated_uniform()
+                      ? hydrojet::rod::stability(c.body, hydrojet::rod::equivalent_tip_wrenches(c.body, c.actuation),
+                                                 scene.rod.length())
+                      : hydrojet::rod::stability(c.body, scene.actuated);
   j->add("compliance", c.body)
       .add("stability_margin", st.margin)
       .add("stability_eig_min", st.eig_min)
       .add("compliance_time_us", std::chrono::duration<double, std::micro>(tc1 - tc0).count());
-  // J_q = ∂(v, ω)/∂q: the actuators act at the tip (require_uniform), so by the chain rule through the
-  // converged solve (implicit function theorem) J_q = C^b · ∂w/∂q, ∂w/∂q = the unit wrenches.
-  if (actuated) j->add("actuation_jacobian", Eigen::MatrixXd(c.body * actuator_wrenches(scene)));
+  if (actuated) j->add("actuation_jacobian", Eigen::MatrixXd(c.actuation));
 }
 
 /// The fields of every solve's JSON line.
@@ -233,8 +212,7 @@ JsonObject solution_json(const hydrojet::rod::RodSolution& sol, const hydrojet::
 }
 
 /// --shape K: K+1 backbone points from base to tip over all segments (null when not converged).
-template <class Solver>
-void add_shape(const Solver& solver, bool converged, int K, JsonObject* j) {
+void add_shape(const hydrojet::rod::RodSolver& solver, bool converged, int K, JsonObject* j) {
   if (!converged) {
     j->add_null("shape");
     return;
@@ -245,11 +223,13 @@ void add_shape(const Solver& solver, bool converged, int K, JsonObject* j) {
   j->raw("shape", pts + "]");
 }
 
-/// One solve for the tip wrench w as its JSON line.
+/// One solve: the actuators' inputs (--jets, --actuators; zero otherwise) and the tip wrench w.
 std::string solve_json(hydrojet::rod::RodSolver& solver, const hydrojet::config::Scene& scene, const Options& opt,
                        const hydrojet::rod::TipWrench& w, bool* converged) {
+  hydrojet::rod::InputVector q = hydrojet::rod::InputVector::Zero(solver.input_count());
+  for (int i = 0; i < q.size() && i < static_cast<int>(opt.actuators.size()); ++i) q[i] = opt.actuators[i];
   const auto t0 = std::chrono::steady_clock::now();
-  const hydrojet::rod::RodSolution sol = solver.solve(w);
+  const hydrojet::rod::RodSolution sol = solver.solve(q, w);
   const auto t1 = std::chrono::steady_clock::now();
   *converged = sol.converged;
   JsonObject j = solution_json(sol, scene, std::chrono::duration<double, std::micro>(t1 - t0).count());
@@ -258,65 +238,18 @@ std::string solve_json(hydrojet::rod::RodSolver& solver, const hydrojet::config:
   return j.str();
 }
 
-/// --compliance on a general scene: C^b, J_q from the sensitivities, and the stability of the block
-/// of C^b on the actuators' equivalent tip wrenches (the scene's tip.actuated when it has none).
-void add_general_compliance(hydrojet::rod::RodSolver& solver, const hydrojet::config::Scene& scene,
-                            bool converged, JsonObject* j) {
-  const bool actuated = solver.actuator_count() > 0;
-  if (!converged) {
-    j->add_null("compliance").add_null("stability_margin").add_null("stability_eig_min");
-    if (actuated) j->add_null("actuation_jacobian");
-    return;
-  }
-  const auto tc0 = std::chrono::steady_clock::now();
-  const hydrojet::rod::Compliance c = solver.compliance();
-  const auto tc1 = std::chrono::steady_clock::now();
-  const auto st = actuated
-                      ? hydrojet::rod::stability(c.body, hydrojet::rod::equivalent_tip_wrenches(c.body, c.actuation),
-                                                 scene.body.length())
-                      : hydrojet::rod::stability(c.body, scene.actuated);
-  j->add("compliance", c.body)
-      .add("stability_margin", st.margin)
-      .add("stability_eig_min", st.eig_min)
-      .add("compliance_time_us", std::chrono::duration<double, std::micro>(tc1 - tc0).count());
-  if (actuated) j->add("actuation_jacobian", Eigen::MatrixXd(c.actuation));
-}
-
-/// One solve of a general scene: the actuators' inputs q and the tip wrench w.
-std::string solve_general_json(hydrojet::rod::RodSolver& solver, const hydrojet::config::Scene& scene,
-                               const Options& opt, const hydrojet::rod::TipWrench& w, bool* converged) {
-  hydrojet::rod::InputVector q = hydrojet::rod::InputVector::Zero(solver.actuator_count());
-  for (int i = 0; i < q.size() && i < static_cast<int>(opt.actuators.size()); ++i) q[i] = opt.actuators[i];
-  const auto t0 = std::chrono::steady_clock::now();
-  const hydrojet::rod::RodSolution sol = solver.solve(q, w);
-  const auto t1 = std::chrono::steady_clock::now();
-  *converged = sol.converged;
-  JsonObject j = solution_json(sol, scene, std::chrono::duration<double, std::micro>(t1 - t0).count());
-  if (opt.compliance) add_general_compliance(solver, scene, sol.converged, &j);
-  if (opt.shape > 0) add_shape(solver, sol.converged, opt.shape, &j);
-  return j.str();
-}
-
-/// Solves every wrench with the solver the scene needs, one JSON line each; true when all converged.
+/// Solves every wrench, one JSON line each; true when all converged.
 bool run_all(const hydrojet::config::Scene& scene, const Options& opt,
              const std::vector<hydrojet::rod::TipWrench>& wrenches) {
-  const auto each = [&](auto&& solve_one) {
-    bool all_converged = true;
-    for (const auto& w : wrenches) {
-      bool converged = false;
-      std::cout << solve_one(w, &converged) << "\n";
-      all_converged = all_converged && converged;
-    }
-    std::cout.flush();
-    return all_converged;
-  };
-  if (needs_general_solver(scene)) {
-    hydrojet::rod::RodSolver solver(scene.body, scene.solver);
-    return each(
-        [&](const hydrojet::rod::TipWrench& w, bool* c) { return solve_general_json(solver, scene, opt, w, c); });
+  hydrojet::rod::RodSolver solver(scene.rod, scene.solver);
+  bool all_converged = true;
+  for (const auto& w : wrenches) {
+    bool converged = false;
+    std::cout << solve_json(solver, scene, opt, w, &converged) << "\n";
+    all_converged = all_converged && converged;
   }
-  hydrojet::rod::RodSolver solver(scene.model, scene.solver);
-  return each([&](const hydrojet::rod::TipWrench& w, bool* c) { return solve_json(solver, scene, opt, w, c); });
+  std::cout.flush();
+  return all_converged;
 }
 
 }  // namespace

@@ -66,8 +66,15 @@ TEST(CalibrationPlant, RecoversPlantZeta) {
   ASSERT_NO_THROW(fitted = hydrojet::config::load_scene(out)) << out;
 
   const std::string est = object_field(json, "parameters"), sd = object_field(json, "std");
-  const auto& tr = truth.rod.model.rod;
-  const auto& fr = fitted.model.rod;
+  const auto& tr = truth.rod.rod.segments.at(0);
+  const auto& fr = fitted.rod.segments.at(0);
+  // The true jets' misalignments, read back from their directions (eq. 24: jet 1 points along
+  // (sin(π/3 − δβ), cos(π/3 − δβ)), jet 2 along (sin δα, −cos δα), jet 3 along (−sin(π/3 − δγ), cos(π/3 − δγ))).
+  const auto& ta = truth.rod.rod.actuators;
+  const double p3 = M_PI / 3.0;
+  const Eigen::Vector3d true_misalignment(std::atan2(ta.at(1).direction.x(), -ta.at(1).direction.y()),
+                                          p3 - std::atan2(ta.at(0).direction.x(), ta.at(0).direction.y()),
+                                          p3 - std::atan2(-ta.at(2).direction.x(), ta.at(2).direction.y()));
   struct Row {
     const char* name;
     double truth, fitted, std, useful;
@@ -82,9 +89,9 @@ TEST(CalibrationPlant, RecoversPlantZeta) {
       {"EI", tr.stiffness.x(), fr.stiffness.x(), fr.stiffness.x() * number_field(sd, "E") / E,
        0.005 * tr.stiffness.x()},
       {"GJ", tr.stiffness.z(), fr.stiffness.z(), fr.stiffness.z() * number_field(sd, "G") / G, 0.05 * tr.stiffness.z()},
-      {"da", truth.jets.misalignment[0], fitted.jets.misalignment[0], number_field(sd, "da"), 0.003},
-      {"db", truth.jets.misalignment[1], fitted.jets.misalignment[1], number_field(sd, "db"), 0.003},
-      {"dg", truth.jets.misalignment[2], fitted.jets.misalignment[2], number_field(sd, "dg"), 0.003},
+      {"da", true_misalignment[0], fitted.jets->misalignment[0], number_field(sd, "da"), 0.003},
+      {"db", true_misalignment[1], fitted.jets->misalignment[1], number_field(sd, "db"), 0.003},
+      {"dg", true_misalignment[2], fitted.jets->misalignment[2], number_field(sd, "dg"), 0.003},
   };
   std::printf("%-4s %14s %14s %12s %12s %8s\n", "", "truth", "fitted", "error", "std", "err/std");
   for (const Row& r : rows) {
@@ -95,12 +102,12 @@ TEST(CalibrationPlant, RecoversPlantZeta) {
     EXPECT_LE(std::abs(r.fitted - r.truth), 4.0 * r.std) << r.name;
   }
   // The nominal scene is far off (that is what the calibration is for): the fit must have moved.
-  EXPECT_GT(std::abs(nominal.model.rod.precurvature.x() - tr.precurvature.x()),
+  EXPECT_GT(std::abs(nominal.rod.segments[0].precurvature.x() - tr.precurvature.x()),
             10 * std::abs(fr.precurvature.x() - tr.precurvature.x()));
 
   // Not fitted, copied from the scene: tip, gravity, nozzles.
-  EXPECT_EQ(fitted.model.tip_mass, nominal.model.tip_mass);
-  EXPECT_TRUE(fitted.model.gravity.isApprox(nominal.model.gravity));
+  EXPECT_EQ(fitted.rod.tip_mass, nominal.rod.tip_mass);
+  EXPECT_TRUE(fitted.rod.gravity.isApprox(nominal.rod.gravity));
   EXPECT_EQ(fitted.nozzle.outlet_area, nominal.nozzle.outlet_area);
 
   std::remove(out.c_str());

@@ -73,7 +73,7 @@ class Controller {
   /// Why it aborted (empty unless aborted).
   const std::string& abort_reason() const { return abort_reason_; }
   /// Number of jets (entries of every InputVector in and out).
-  int jet_count() const { return jets_.jet_count(); }
+  int input_count() const { return jets_.input_count(); }
 
   /// One cycle of Algorithm 1. Call at the control rate with the latest samples.
   ControllerOutput update(const ControllerInputs& in);
@@ -115,11 +115,11 @@ class Controller {
   SafetyMonitor monitor_;
   DirectionPd pd_;
   DisturbanceObserver observer_;
-  bool predicted_ = false;      ///< this cycle closes on the observer's prediction (observer_prediction)
+  bool predicted_ = false;        ///< this cycle closes on the observer's prediction (observer_prediction)
   InputVector previous_command_;  ///< the last step's inputs [N], before the rounding (the base of the next step)
-  double common_force_ = 0.0;   ///< a: the rounding's offset along common_mode_ now [N] (round_corners)
+  double common_force_ = 0.0;     ///< a: the rounding's offset along common_mode_ now [N] (round_corners)
   InputVector common_mode_;       ///< the jets' common mode last found (empty: none yet)
-  double idle_force_ = 0.0;     ///< the jets' idle force now [N] (running_lower; limits/min_jet_force)
+  double idle_force_ = 0.0;       ///< the jets' idle force now [N] (running_lower; limits/min_jet_force)
   std::shared_ptr<const ReachableSet> path_reachable_;  ///< full q_max: path points
   std::shared_ptr<const ReachableSet> reachable_;       ///< with reserve: operator targets
   Reference reference_;

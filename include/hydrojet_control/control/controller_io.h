@@ -23,7 +23,7 @@ struct ControllerInputs {
   Mat3 tip_rotation = Mat3::Identity();  ///< measured tip frame in the base frame
   bool flow_valid = false;
   double flow_stamp = -1e300;  ///< [s]
-  InputVector flows;             ///< measured flow per jet [m^3/s] (one entry per actuator; 0 for force actuators)
+  InputVector flows;           ///< measured flow per jet [m^3/s] (one entry per actuator; 0 for force actuators)
   /// Measured force per actuator [N] (same stamp as the flows): read for actuators of type force only
   /// (a jet's force comes from its flow); may stay empty when the robot has none.
   InputVector forces;
@@ -32,10 +32,10 @@ struct ControllerInputs {
 /// One control cycle's result. valve_command is what goes to the valves.
 struct ControllerOutput {
   ControllerState state = ControllerState::kIdle;
-  std::string reason;       ///< why it aborted (empty otherwise)
+  std::string reason;         ///< why it aborted (empty otherwise)
   InputVector valve_command;  ///< per actuator: valve duty [0, 1] (jets), drive [−1, 1] (force actuators)
   InputVector
-      jet_force_command;   ///< inputs q [N] of the step on J_q (eqs. 19–20), corners rounded (allocation_smoothing)
+      jet_force_command;     ///< inputs q [N] of the step on J_q (eqs. 19–20), corners rounded (allocation_smoothing)
   InputVector flow_command;  ///< flow for q by the thrust equation (26) [m^3/s]; 0 for force actuators
   InputVector jet_force_observed;  ///< q_obs [N] from measured flow (jets) or force (force actuators)
   /// w_a = W q_obs: tip body wrench of the actuators at the tip (Algorithm 1, line 4) [N, N m]

@@ -17,14 +17,13 @@ namespace control {
 class JetActuation {
  public:
   /// The actuators of `body` (at least one), the jets' nozzle and flow regulator.
-  JetActuation(const rod::RodModel& body, const actuation::Nozzle& nozzle,
-               const actuation::FlowRegulatorOptions& flow);
+  JetActuation(const rod::RodModel& body, const actuation::Nozzle& nozzle, const actuation::FlowRegulatorOptions& flow);
 
-  int jet_count() const { return static_cast<int>(jet_.size()); }
+  int input_count() const { return static_cast<int>(jet_.size()); }
   /// Actuator i is a water jet (flow-driven, eq. 26); else it takes its force directly.
   bool is_jet(int i) const { return jet_[i]; }
   /// A zero entry per actuator.
-  InputVector zeros() const { return InputVector::Zero(jet_count()); }
+  InputVector zeros() const { return InputVector::Zero(input_count()); }
 
   /// Inputs q_obs [N]: jets from their measured flows [m^3/s] by eq. (26), force actuators their
   /// measured forces [N].
@@ -34,14 +33,15 @@ class JetActuation {
 
   /// One step of the drives: jets by their PI flow regulators (valve duty [0, 1] for the commanded
   /// and measured flows [m^3/s] after dt [s]); force actuators the drive of the commanded input q.
-  InputVector regulate(const InputVector& q, const InputVector& flow_command, const InputVector& measured_flows, double dt);
+  InputVector regulate(const InputVector& q, const InputVector& flow_command, const InputVector& measured_flows,
+                       double dt);
   /// Zeroes the regulators' integrators.
   void reset();
 
  private:
   actuation::Nozzle nozzle_;
   std::vector<bool> jet_;
-  InputVector drive_scale_;                             ///< max(|q_min|, |q_max|) [N] per actuator
+  InputVector drive_scale_;                           ///< max(|q_min|, |q_max|) [N] per actuator
   std::vector<actuation::FlowRegulator> regulators_;  ///< one per actuator (used by the jets)
 };
 

@@ -35,7 +35,7 @@ struct LookAtResult {
   Vec3 direction = Vec3::UnitZ();    ///< unit, base frame
   Vec3 tip_position = Vec3::Zero();  ///< model tip position [m] for that direction, base frame
   double miss_distance = 0.0;        ///< distance of P from the line through the tip along direction [m]
-  InputVector inputs;                  ///< actuator inputs q [N] of that model solution, within their bounds
+  InputVector inputs;                ///< actuator inputs q [N] of that model solution, within their bounds
   /// Lateral tip force (f_x, f_y) [N], tip frame, of the actuators at the tip at those inputs.
   Eigen::Vector2d tip_force = Eigen::Vector2d::Zero();
   int iterations = 0;

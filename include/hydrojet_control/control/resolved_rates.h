@@ -80,7 +80,8 @@ struct AllocationRounding {
   double excess = 0.0;  ///< max(0, y₀): q's common mode above its least [N]
   double amount = 0.0;  ///< c [N]
 };
-AllocationRounding round_allocation(const InputVector& q, const InputVector& lower, const InputVector& mode, double scale);
+AllocationRounding round_allocation(const InputVector& q, const InputVector& lower, const InputVector& mode,
+                                    double scale);
 
 /// Limits and weights of one step of the law on the actuation Jacobian (ControllerOptions' names).
 struct InputStepOptions {

@@ -17,8 +17,8 @@ namespace control {
 class SafetyMonitor {
  public:
   /// Thresholds from options (max_oscillation, sample_period, stale_periods, max_solver_failures,
-  /// min_stability_margin, flow_fault_tolerance, flow_fault_time) for jet_count jets.
-  SafetyMonitor(const ControllerOptions& options, int jet_count);
+  /// min_stability_margin, flow_fault_tolerance, flow_fault_time) for input_count inputs.
+  SafetyMonitor(const ControllerOptions& options, int input_count);
 
   /// New thresholds; the history is kept.
   void set_options(const ControllerOptions& options) { options_ = options; }

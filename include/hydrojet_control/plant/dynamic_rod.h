@@ -42,7 +42,7 @@
 // that start is poor). If a step still fails, the interval is retried as 2, 4, ..., 16 substeps.
 // No heap allocation per step: all arrays are sized in the constructor.
 //
-// Any follower-actuated rod: DynamicRodModel::body gives segments (each with its own
+// Any follower-actuated rod: DynamicRodModel::rod gives segments (each with its own
 // stiffness, precurvature and ρA), point loads and actuators. The grid then has a node on every
 // segment end, load and actuator (the pieces between them get steps in proportion to their length,
 // about `nodes` − 1 in all), and at such a node s_k the internal force and moment drop by the
@@ -70,7 +70,6 @@
 #include <vector>
 
 #include "hydrojet_control/rod/rod_model.h"
-#include "hydrojet_control/rod/rod_model.h"
 #include "hydrojet_control/rod/rod_solver.h"
 
 namespace hydrojet {
@@ -90,11 +89,8 @@ using rod::Vec6;
 /// slaved to the capsule, whose mass and tip_inertia carry the dynamics. A small positive ρA (e.g.
 /// 1e-3 kg/m) adds the body's own (higher) modes; either way the per-step problem is well posed.
 struct DynamicRodModel {
-  rod::RodModel model;  ///< statics: geometry, stiffness, ũ, ρA, m_t, gravity
-  /// A general rod: its segments, point loads and actuators replace model.rod's uniform
-  /// material and length (model.tip_mass and model.gravity still apply; body.tip_mass and
-  /// body.gravity are not used). Empty segments (the default): the uniform model.rod.
-  rod::RodModel body;
+  /// The robot's statics: segments (geometry, stiffness, ũ, ρA), point loads, actuators, m_t, gravity.
+  rod::RodModel rod;
   double shear_stiffness = 1e5;  ///< GA [N]; stiff by default (≈1e6·EI/L² for HydroJet)
   double axial_stiffness = 1e5;  ///< EA [N]; stiff by default (nearly inextensible)
   /// τ_kv [s]: B_se = τ_kv K_se, B_bt = τ_kv K_bt. Mode damping ratio ζ ≈ τ_kv ω/2: with 0.01 s
@@ -160,7 +156,7 @@ class DynamicRod {
   /// Sets g [m/s²] in the base frame (a tilted base); takes effect from the next step. A
   /// non-finite vector is ignored and reported through last_error().
   void set_gravity(const Vec3& g);
-  Vec3 gravity() const { return model_.model.gravity; }
+  Vec3 gravity() const { return model_.rod.gravity; }
 
   int last_iterations() const { return last_iterations_; }    ///< Newton iterations, last call
   int last_substeps() const { return last_substeps_; }        ///< substeps the last step() used
@@ -212,8 +208,7 @@ class DynamicRod {
   /// One implicit time step of size dt; commits the state only on success.
   bool advance(const rod::TipWrench& w, double dt);
   void set_coefficients(const Coefficients& c);
-  Vec6 kirchhoff_guess(const rod::TipWrench& w, bool* ok);
-  Vec6 general_guess(const rod::TipWrench& w, bool* ok);
+  Vec6 static_guess(const rod::TipWrench& w, bool* ok);
   /// The grid: pieces between segment ends, loads and actuators; the loads at the nodes.
   void build_grid();
   /// ρA g [N/m] of every piece for the current gravity.

@@ -33,11 +33,9 @@ struct ModelMismatch {
 
 /// The simulated HydroJet (or any robot a scene describes) as it truly is.
 struct PlantModel {
-  /// The true rod (its model.gravity is set from base_tilt). A general robot in rod.body:
-  /// its segments, point loads and actuators; its jets then each have a valve (valves in turn), its
-  /// force actuators a drive. Empty rod.body: the HydroJet's uniform rod with the three jets below.
+  /// The true robot (its rod.gravity is set from base_tilt): segments, point loads and actuators;
+  /// its jets each have a valve (valves in turn), its force actuators a drive.
   DynamicRodModel rod;
-  actuation::JetGeometry jets;  ///< the true jet misalignments
   actuation::Nozzle nozzle;
   std::array<ValveModel, 3> valves = hydrojet_valves();
   TrackerNoise tracker;
@@ -67,7 +65,7 @@ class Plant {
 
   /// At rest, jets off, time 0. False (with error()) if the rod could not be initialised.
   bool reset();
-  /// One entry per actuator (the HydroJet's three jets, or rod.body's actuators).
+  /// One entry per actuator of the robot.
 
   /// The latest command received at time t [s]: per actuator the valve duty [0, 1] (jets) or the
   /// drive [−1, 1] (force actuators: force = drive · max(|min_force|, |max_force|)). A wrong count or
@@ -84,7 +82,7 @@ class Plant {
   /// The actuators' forces as an exact force sensor reports them [N] (the controller reads it for
   /// force actuators; a jet's force it computes from the flow).
   rod::InputVector force_sample();
-  int actuator_count() const { return static_cast<int>(duty_.size()); }
+  int input_count() const { return static_cast<int>(duty_.size()); }
   /// Actuator i is a water jet (valve and flow); else a force actuator.
   bool is_jet(int i) const { return jet_[i]; }
   /// The index in hydraulics() of actuator i's valve, or −1 for a force actuator.
@@ -109,12 +107,10 @@ class Plant {
 
   PlantModel model_;
   std::unique_ptr<DynamicRod> rod_;
-  actuation::JetMap jets_;
-  bool general_ = false;       ///< rod.body describes the robot
-  std::vector<bool> jet_;      ///< per actuator: a jet (else a force actuator)
-  std::vector<int> valve_of_;  ///< per actuator: its valve in hydraulics_ (jets), or −1
-  rod::InputVector drive_scale_;         ///< force actuators: force per unit drive [N]
-  rod::InputVector thrust_;              ///< force actuators: their force now [N]
+  std::vector<bool> jet_;         ///< per actuator: a jet (else a force actuator)
+  std::vector<int> valve_of_;     ///< per actuator: its valve in hydraulics_ (jets), or −1
+  rod::InputVector drive_scale_;  ///< force actuators: force per unit drive [N]
+  rod::InputVector thrust_;       ///< force actuators: their force now [N]
   Hydraulics hydraulics_;
   TrackerModel tracker_;
   FlowSensorModel flow_sensors_;

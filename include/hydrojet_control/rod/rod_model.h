@@ -1,35 +1,36 @@
-// The Kirchhoff rod of Campisano et al. 2021, §3, under a tip follower wrench, gravity and
-// precurvature, written for integration from the tip (s = L) back to the base (s = 0) as in §7.2.
-// ROS-free (Eigen only).
+// The robot's description (RodModel: segments, point loads, actuators, tip mass, gravity) and the
+// Kirchhoff rod of Campisano et al. 2021, §3, between two of its stations, written for integration
+// from the tip (s = L) back to the base (s = 0) as in §7.2. ROS-free (Eigen only).
 //
 // Paper equations and where they live here:
 //   (6)  p' = R e_z                                 -> RodOde::operator(), "p'"
 //   (8)  R' = R û                                    -> RodOde::operator(), "R'"
 //   (9)  M_b = K (u − ũ)                             -> RodOde (moment from curvature)
 //   (12) Q_b' = −û Q_b − f_b   (body frame)          -> closed form in the base frame: n(s) below
-//   (13) f = m_b g, P = m_t g                        -> setup_ode() (src/rod/solver_templates.h): n_tip, w_dist
+//   (13) f = m_b g, P = m_t g                        -> w_dist here; the masses at the stations
+//                                                       (src/rod/kernels/sweep_impl.h, apply_station)
 //   (14) u' = ũ' − K⁻¹((ûK + K')(u − ũ) + m_b + ê_z Q_b)   -> RodOde::operator(), "u'"
-//   (15) p(0) = 0, R(0) = I                          -> the shooting residual (ShootingSolver)
-//   (16)/(25) Q_b(L) = w_f + R(L)ᵀ m_t g, u(L) − ũ = K⁻¹ w_m -> RodOde tip values
+//   (15) p(0) = 0, R(0) = I                          -> the shooting residual (RodSolver)
+//   (16)/(25) Q_b(L) = w_f + R(L)ᵀ m_t g, u(L) − ũ = K⁻¹ w_m -> the tip station (apply_station)
 //
 // Internal force in the base frame: n(s) = R(s) Q_b(s). Because the only distributed force is the
-// body weight ρA·g (constant in the base frame), n' = −ρA g integrates in closed form:
-//   n(s) = n(L) + ρA g (L − s),   n(L) = R(L) f_b + m_t g.
+// body weight ρA·g (constant in the base frame on a segment), n' = −ρA g integrates in closed form
+// between two stations:  n(σ) = n(s) + ρA g (s − σ),  n(L) = R(L) f_b + m_t g.
 // So the state is y = [p, R, u] (15 numbers) and the only shooting unknown is the tip orientation
 // R(L) (3 numbers): integrate back to the base and require R(0) = I.
 //
-// Shearable and extensible (Cosserat) variant, rod.kind = kCosserat: the strains v (shear and
+// Shearable and extensible (Cosserat) variant, kind = kCosserat: the strains v (shear and
 // extension) follow from the same closed-form n(s) through K_se = diag(GA, GA, EA):
 //   v = e_z + K_se⁻¹ Rᵀ n,   p' = R v,   u' = −K⁻¹(u × K(u − ũ) + v × Q_b)
 // (the moment balance m' = −p' × n in the body frame). As EA, GA → ∞, v → e_z: the Kirchhoff rod.
 //
-// Scene specialization ("leave out what the scene does not need"): RodOde is a template over
+// Model specialization ("leave out what the model does not need"): RodOde is a template over
 // RodTerms, compile-time switches for the Cosserat strains, the distributed load ρA·g and the
-// precurvature. The solver picks the smallest variant that holds the scene's terms once, at model
-// load (ShootingSolver::set_model); the hot loop has no branches on them. RodOde<D> without a
-// second argument is the general Kirchhoff variant (every Kirchhoff term). Isotropic bending
-// (EIx = EIy) is not a variant: K is a diagonal held as a vector, so isotropy saves nothing (a
-// rewritten u × K(u − ũ) for K = diag(k, k, GJ) measured slower).
+// precurvature. The solver picks the smallest variant that holds the model's terms once, at model
+// load; the hot loop has no branches on them. RodOde<D> without a second argument is the general
+// Kirchhoff variant (every Kirchhoff term). Isotropic bending (EIx = EIy) is not a variant: K is a
+// diagonal held as a vector, so isotropy saves nothing (a rewritten u × K(u − ũ) for
+// K = diag(k, k, GJ) measured slower).
 #pragma once
 
 #include <Eigen/Core>
@@ -137,10 +138,6 @@ struct RodModel {
   /// Empty when valid, else a message naming the offending field ("segments[1].length: ...").
   std::string validate() const;
 };
-
-/// A uniform rod of one segment, no point loads, no actuators.
-RodModel uniform_rod(const RodSegment& segment, double tip_mass = 0.0, const Vec3& gravity = Vec3::Zero(),
-                     RodKind kind = RodKind::kKirchhoff);
 
 /// Follower wrench at the tip, expressed in the tip frame (w_a of eq. 16).
 struct TipWrench {

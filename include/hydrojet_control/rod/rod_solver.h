@@ -144,7 +144,9 @@ class RodSolver {
 
   const RodModel& model() const { return model_; }
   const ShootingOptions& options() const { return options_; }
-  /// New options: the compiled variant and the unloaded shape are recomputed (one integration).
+  /// A new model (validated as by the constructor) or new options: the stations, the compiled variant
+  /// and the unloaded shape are recomputed (one integration); set_model() also forgets the warm start.
+  void set_model(const RodModel& model);
   void set_options(const ShootingOptions& options);
   int input_count() const { return model_.input_count(); }
   bool has_solution() const { return have_solution_; }
@@ -154,9 +156,7 @@ class RodSolver {
   /// Estimated growth rate λL = L·√(|n|max / EI_min) of the shooting sensitivities for these loads
   /// (single shooting loses ~λL/ln 10 digits).
   double growth_estimate(const InputVector& q, const TipWrench& tip) const;
-  double growth_estimate(const TipWrench& tip) const {
-    return growth_estimate(InputVector::Zero(input_count()), tip);
-  }
+  double growth_estimate(const TipWrench& tip) const { return growth_estimate(InputVector::Zero(input_count()), tip); }
   /// Above this λL the automatic mode (shooting_segments = 0) starts with multiple shooting.
   static constexpr double kSingleShootingGrowthLimit = 12.0;
 

@@ -15,13 +15,13 @@ namespace sim {
 
 /// One control cycle as recorded.
 struct RunSample {
-  double t = 0.0;                  ///< path time [s]
-  Eigen::Vector3d desired;         ///< x_des, tip z-axis (base frame)
-  Eigen::Vector3d measured;        ///< from the tracker
-  Eigen::Vector3d tip_position;    ///< true tip position [m], base frame
-  double error_geodesic = 0.0;     ///< [rad]
-  double error_pitch_yaw = 0.0;    ///< [rad]
-  plant::Plant::Vector jet_force;  ///< true actuator forces [N], one per actuator
+  double t = 0.0;                ///< path time [s]
+  Eigen::Vector3d desired;       ///< x_des, tip z-axis (base frame)
+  Eigen::Vector3d measured;      ///< from the tracker
+  Eigen::Vector3d tip_position;  ///< true tip position [m], base frame
+  double error_geodesic = 0.0;   ///< [rad]
+  double error_pitch_yaw = 0.0;  ///< [rad]
+  rod::InputVector jet_force;    ///< true actuator forces [N], one per actuator
 };
 
 struct RunResult {

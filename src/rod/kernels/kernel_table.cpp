@@ -6,10 +6,10 @@ namespace rod {
 
 void RodSolver::select_kernels() {
   using internal::Sweep;
-#define HJ_KERNEL(C, W, P, NAME)                                                                            \
-  Kernels {                                                                                                 \
+#define HJ_KERNEL(C, W, P, NAME)                                                                              \
+  Kernels {                                                                                                   \
     {&Sweep<0, RodTerms<C, W, P>>::run, &Sweep<3, RodTerms<C, W, P>>::run, &Sweep<6, RodTerms<C, W, P>>::run, \
-     &Sweep<9, RodTerms<C, W, P>>::run, NAME},                                                              \
+     &Sweep<9, RodTerms<C, W, P>>::run, NAME},                                                                \
   }
   static const Kernels table[8] = {
       HJ_KERNEL(false, false, false, "kirchhoff"),       HJ_KERNEL(false, false, true, "kirchhoff+precurved"),

@@ -46,7 +46,8 @@ struct SweepBody {
       const Vec3 eta = c.y->template segment<3>(Ode::kBase + Ode::kPerDir * d);
       dn->col(d) += R * eta.cross(f_fol);
       dM->col(d) -= eta.cross(l_dead_body);
-      if (dir.actuator >= 0 && std::find(st.actuators.begin(), st.actuators.end(), dir.actuator) != st.actuators.end()) {
+      if (dir.actuator >= 0 &&
+          std::find(st.actuators.begin(), st.actuators.end(), dir.actuator) != st.actuators.end()) {
         const Vec6 w = m.actuators[dir.actuator].unit_wrench();
         dn->col(d) += R * w.template head<3>();
         dM->col(d) += w.template tail<3>();
@@ -161,14 +162,14 @@ bool Sweep<D, T>::run(const RodSolver& solver, SweepCall<D>& c) {
 }  // namespace hydrojet
 
 /// Explicit instantiation of one variant's sweeps (in a kernel_*.cpp).
-#define HYDROJET_ROD_KERNELS(C, W, P)                         \
-  namespace hydrojet {                                        \
-  namespace rod {                                             \
-  namespace internal {                                        \
-  template struct Sweep<0, RodTerms<C, W, P>>;                \
-  template struct Sweep<3, RodTerms<C, W, P>>;                \
-  template struct Sweep<6, RodTerms<C, W, P>>;                \
-  template struct Sweep<9, RodTerms<C, W, P>>;                \
-  }                                                           \
-  }                                                           \
+#define HYDROJET_ROD_KERNELS(C, W, P)          \
+  namespace hydrojet {                         \
+  namespace rod {                              \
+  namespace internal {                         \
+  template struct Sweep<0, RodTerms<C, W, P>>; \
+  template struct Sweep<3, RodTerms<C, W, P>>; \
+  template struct Sweep<6, RodTerms<C, W, P>>; \
+  template struct Sweep<9, RodTerms<C, W, P>>; \
+  }                                            \
+  }                                            \
   }
