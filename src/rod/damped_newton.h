@@ -23,7 +23,8 @@ constexpr int kLineSearchHalvings = 12;
 ///   double residual(const E&)                   the residual's norm
 ///   bool step(const E&, Step* dx)               the Newton step; false when the Jacobian is singular
 ///   double size(const Step&)                    the step's size compared with max_step
-///   X moved(const X&, const Step&, double a)    the unknowns moved by a·dx
+///   X moved(const X&, const Step&, double a)    the unknowns moved by a·dx (evaluated as they are)
+///   X accepted(X)                               the unknowns of an accepted step, tidied (re-orthonormalised)
 /// True when the residual ≤ options.residual_tolerance; *x then holds the root and *last its
 /// evaluation. sol gets the iterations, the residual and, on failure, the reason.
 template <class P, class X, class E>
@@ -59,7 +60,7 @@ bool damped_newton(P& p, const ShootingOptions& options, X* x, RodSolution* sol,
       X trial = p.moved(*x, step, alpha);
       E t = p.evaluate(trial);
       if (t.ok && p.residual(t) < (1.0 - 1e-4 * alpha) * sol->residual) {
-        *x = std::move(trial);
+        *x = p.accepted(std::move(trial));
         e = std::move(t);
         accepted = true;
         break;

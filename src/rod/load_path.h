@@ -216,14 +216,16 @@ void prefer_load_path(Problem& p, const typename Problem::Point& start, bool war
 }
 
 /// The load-path part of the robustness ladder: Newton from the start (the warm solution, or the
-/// unloaded shape when p allows it), preferring the load path when Newton went far or crossed a
+/// unloaded shape when p allows it; from `guess` instead when given, a predictor's first-order
+/// step from the warm solution), preferring the load path when Newton went far or crossed a
 /// fold; else load continuation from the warm solution, then from the unloaded shape. True when
 /// p.x holds an equilibrium at the target load; *folds counts the folds of the path taken.
 template <class Problem>
 bool reach_equilibrium(Problem& p, const typename Problem::Point& start, bool warm,
-                       const typename Problem::Point& unloaded, FoldTracker* folds) {
+                       const typename Problem::Point& unloaded, FoldTracker* folds,
+                       const typename Problem::Unknowns* guess = nullptr) {
   folds->start(start.det);
-  p.x = start.x;
+  p.x = guess ? *guess : start.x;
   bool ok = (warm || Problem::kNewtonFromUnloaded) && p.newton(&p.x, p.target, &p.det, &p.tip);
   if (ok) prefer_load_path(p, start, warm, folds);
   if (!ok && warm) {

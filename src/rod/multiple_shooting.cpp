@@ -138,6 +138,7 @@ struct RodSolver::MultipleShooting {
     return dx->allFinite();
   }
   double size(const Step& dx) const { return dx.cwiseProduct(scale).cwiseAbs().maxCoeff(); }
+  static Nodes accepted(Nodes n) { return n; }
   Nodes moved(const Nodes& n, const Step& dX, double a) const {
     Nodes y = n;
     y.R[M] = so3::orthonormalize(n.R[M] * so3::exp(a * dX.head<3>()));

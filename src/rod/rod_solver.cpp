@@ -71,7 +71,7 @@ void RodSolver::set_options(const ShootingOptions& options) {
   update_unloaded_shape();
 }
 
-void RodSolver::reset() { have_solution_ = false; }
+void RodSolver::reset() { have_solution_ = have_tangent_ = false; }
 
 Load RodSolver::no_load() const {
   Load l;
@@ -232,7 +232,8 @@ struct TipOrientationNewton {
     return dx->allFinite() && std::abs(e.J.determinant()) >= 1e-300;
   }
   static double size(const Vec3& dx) { return dx.norm(); }
-  static Mat3 moved(const Mat3& R, const Vec3& dx, double a) { return so3::orthonormalize(R * so3::exp(a * dx)); }
+  static Mat3 moved(const Mat3& R, const Vec3& dx, double a) { return R * so3::exp(a * dx); }
+  static Mat3 accepted(const Mat3& R) { return so3::orthonormalize(R); }
 };
 
 template <class Evaluate>
@@ -297,7 +298,9 @@ RodSolution RodSolver::solve(const InputVector& q, const TipWrench& tip) {
   Shooting p{*this, target, &sol};
   const Shooting::Point unloaded = p.unloaded();
   const Shooting::Point start = have_solution_ ? Shooting::Point{R_tip_, load_, tip_pos_, det_} : unloaded;
-  const bool ok = internal::reach_equilibrium(p, start, have_solution_, unloaded, &folds);
+  Mat3 guess;
+  const bool predicted = predict(target, &guess);
+  const bool ok = internal::reach_equilibrium(p, start, have_solution_, unloaded, &folds, predicted ? &guess : nullptr);
   if (finish(&p, ok, &folds)) {
     if (cold) load_from_rest_if_unstable(target, &sol);
     return remember(sol);
@@ -313,6 +316,20 @@ RodSolution RodSolver::solve(const InputVector& q, const TipWrench& tip) {
   if (ms_solve(target, M, &ms)) return remember(ms);
   sol.message += "; multiple shooting (" + std::to_string(M) + " segments): " + ms.message;
   return remember(sol);
+}
+
+// The first-order prediction of the tip rotation at `target` from the stored solution and its tangent
+// (the compliance's ω rows): R(L)·exp(dx/dw Δw + dx/dq Δq). None without a tangent, at a changed
+// gravity scale, or for a step longer than max_step (the load path's business).
+bool RodSolver::predict(const Load& target, Mat3* guess) const {
+  if (!have_solution_ || !have_tangent_ || target.gravity_scale != load_.gravity_scale) return false;
+  Vec6 dw;
+  dw << target.wrench.force - load_.wrench.force, target.wrench.moment - load_.wrench.moment;
+  Vec3 dx = dx_dw_ * dw;
+  if (dx_dq_.cols() > 0) dx += dx_dq_ * (target.q - load_.q);
+  if (!dx.allFinite() || dx.norm() > options_.max_step) return false;
+  *guess = R_tip_ * so3::exp(dx);
+  return true;
 }
 
 bool RodSolver::multiple_shooting_first(const Load& target) const {
@@ -366,6 +383,7 @@ bool RodSolver::accurate_enough(RodSolution* sol, int segments) const {
 
 void RodSolver::commit(const Mat3& R_tip, const Load& load, const Eval& e, const RodSolution& sol) {
   have_solution_ = true;
+  have_tangent_ = false;
   R_tip_ = R_tip;
   load_ = load;
   eval_ = e;
@@ -440,27 +458,25 @@ Compliance RodSolver::compliance() {
   Compliance out;
   if (!have_solution_) return out;
   const int N = input_count();
-  std::vector<Direction> dirs(6);
+  // Fixed capacity: no heap allocation per call.
+  Direction dirs[6 * ((6 + kMaxInputs + 5) / 6)];  // whole sweeps of six (the unused ones: zero)
+  int column_of[kMaxInputs];
+  int total = 6;
   for (int i = 0; i < 6; ++i) dirs[i].tip_wrench[i] = 1.0;
-  std::vector<int> column_of(N, -1);
-  for (int j = 0; j < N; ++j)
-    if (model_.actuators[j].at < model_.length()) {
-      column_of[j] = static_cast<int>(dirs.size());
-      dirs.emplace_back().actuator = j;
-    }
-  const int total = static_cast<int>(dirs.size());
-  Eigen::Matrix<double, 6, Eigen::Dynamic> columns(6, total);
+  for (int j = 0; j < N; ++j) {
+    column_of[j] = model_.actuators[j].at < model_.length() ? total++ : -1;
+    if (column_of[j] >= 0) dirs[column_of[j]].actuator = j;
+  }
+  Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6 + kMaxInputs> columns(6, total);
   const Mat3 Jr_inv = so3::right_jacobian_inverse(eval_.r);
   const Eigen::PartialPivLU<Mat3> lu(eval_.J);
   using O = RodOde<6, CosseratGeneral>;
   for (int first = 0; first < total; first += 6) {
     const int count = std::min(6, total - first);
-    Direction chunk[6];
-    for (int k = 0; k < count; ++k) chunk[k] = dirs[first + k];
     SweepState<6> y;
     SweepCall<6> c(load_, options_.integrator, workspace_.cvode(options_.integrator.type), &y);
     c.R_tip = R_tip_;
-    c.dirs = chunk;
+    c.dirs = dirs + first;
     if (!kernels_->run<6>(*this, c)) return out;
     for (int k = 0; k < count; ++k) {
       const Vec3 eta0 = y.segment<3>(O::kBase + O::kPerDir * k);
@@ -476,6 +492,11 @@ Compliance RodSolver::compliance() {
     out.actuation.col(j) =
         column_of[j] >= 0 ? Vec6(columns.col(column_of[j])) : Vec6(out.body * model_.actuators[j].unit_wrench());
   out.ok = columns.allFinite() && out.actuation.allFinite();
+  if (out.ok) {  // the tangent of this solution: the next warm solve's predictor
+    dx_dw_ = out.body.bottomRows<3>();
+    dx_dq_ = out.actuation.bottomRows<3>();
+    have_tangent_ = true;
+  }
   return out;
 }
 

@@ -234,6 +234,7 @@ class RodSolver {
   void commit(const Mat3& R_tip, const Load& load, const Eval& e, const RodSolution& sol);
   RodSolution remember(const RodSolution& sol);
   bool multiple_shooting_first(const Load& target) const;
+  bool predict(const Load& target, Mat3* guess) const;
 
   // Multiple shooting (multiple_shooting.cpp).
   int auto_segments(const Load& load) const;
@@ -259,6 +260,11 @@ class RodSolver {
   double det_ = 0.0;             ///< det ∂r/∂x of the stored solution (fold tracking)
   Vec3 tip_pos_ = Vec3::Zero();  ///< tip position of the stored solution (jump detection)
   RodSolution last_;             ///< the result of the last solve (converged or not)
+  /// The tangent of the stored solution, from its compliance(): d x / d(f_b, l_b) and d x / dq, the
+  /// tip rotation's change per unit load. The next warm solve starts from the first-order prediction.
+  bool have_tangent_ = false;
+  Eigen::Matrix<double, 3, 6> dx_dw_ = Eigen::Matrix<double, 3, 6>::Zero();
+  Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, kMaxInputs> dx_dq_;
 };
 
 }  // namespace rod
