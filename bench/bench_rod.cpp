@@ -4,7 +4,7 @@
 //   BM_WarmSolveCompliance   the same plus C^b
 //   BM_WarmSolveGeneral, BM_WarmSolveComplianceGeneral
 //                            the same with the general right-hand side (every term, Cosserat form)
-//                            instead of the one compiled for the scene's terms: the specialization gain
+//                            instead of the one compiled for the scene's terms: the specialisation gain
 //   BM_GeneralWarmSolveJacobian  the second robot (config/scenes/two_segment_thrusters.yaml, RodSolver):
 //                            warm solve + C^b and J_q along a 200-point input path
 //   BM_GeneralWarmSolveJacobianHydroJet  the HydroJet's 30° scene on RodSolver (its three jets
@@ -119,7 +119,7 @@ void BM_WarmSolveCompliance(benchmark::State& state) {
 }
 
 hydrojet::rod::ShootingOptions general(hydrojet::rod::ShootingOptions s) {
-  s.specialize_model = false;
+  s.specialise_model = false;
   return s;
 }
 

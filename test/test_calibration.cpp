@@ -65,7 +65,7 @@ std::vector<Sample> data(const config::Scene& truth, int n, double noise_deg, un
   o.samples = n;
   o.noise_rad = noise_deg * kDeg;
   o.seed = seed;
-  return synthesize(truth, o);
+  return synthesise(truth, o);
 }
 
 /// RMS angle [rad] between a scene's model and the samples.
@@ -273,7 +273,7 @@ TEST(CalibrationIdentifiability, SmallForcesLeaveTorsionPoorlyDetermined) {
   SyntheticOptions o;
   o.samples = 40, o.noise_rad = 0.5 * kDeg, o.seed = 8, o.max_force_fraction = 0.1;
   const CalibrationResult r =
-      calibrate(shipped("hydrojet_0deg"), CrossSection(), synthesize(truth, o), CalibrationOptions());
+      calibrate(shipped("hydrojet_0deg"), CrossSection(), synthesise(truth, o), CalibrationOptions());
   EXPECT_FALSE(r.identifiable[kG]);
   bool warned = false;
   for (const std::string& w : r.warnings) warned |= w.find("G is ") == 0;

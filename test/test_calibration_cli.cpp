@@ -75,7 +75,7 @@ const double kI = M_PI * (std::pow(0.008, 4) - std::pow(0.006, 4)) / 64.0;
 const double kTruth[7] = {0.634, 0.48, 4.808e-4 / kI, 2.7875e-4 / (2 * kI), 0.18, 0.0, -0.03};
 const char* kNames[7] = {"ux", "uy", "E", "G", "da", "db", "dg"};
 
-std::string synthesized_csv(int n, unsigned seed) {
+std::string synthesised_csv(int n, unsigned seed) {
   const std::string truth = write("truth.yaml", kTruthScene), csv = tmp("data_" + std::to_string(seed) + ".csv");
   const CliRun r = run("--scene " + truth + " --synthesize " + std::to_string(n) + " --seed " + std::to_string(seed) +
                        " --noise-deg 0.5 --out " + csv);
@@ -84,7 +84,7 @@ std::string synthesized_csv(int n, unsigned seed) {
 }
 
 TEST(CalibrateCli, FitsCsvWritesSceneAndEndsWithJson) {
-  const std::string csv = synthesized_csv(40, 4), out = tmp("fit.yaml");
+  const std::string csv = synthesised_csv(40, 4), out = tmp("fit.yaml");
   std::remove(out.c_str());
   const CliRun r = run("--scene " + scene("hydrojet_0deg") + " --data " + csv + " --out " + out);
   ASSERT_EQ(r.status, 0) << r.err << r.out;
@@ -129,7 +129,7 @@ TEST(CalibrateCli, FitsCsvWritesSceneAndEndsWithJson) {
 }
 
 TEST(CalibrateCli, FitSubsetKeepsTheOthersAndReportsNullStd) {
-  const std::string csv = synthesized_csv(20, 6);
+  const std::string csv = synthesised_csv(20, 6);
   const CliRun r = run("--scene " + scene("hydrojet_0deg") + " --data " + csv + " --fit E,ux --out " + tmp("sub.yaml"));
   ASSERT_NE(r.status, 2) << r.err;
   const std::string json = r.last_line();
@@ -142,7 +142,7 @@ TEST(CalibrateCli, FitSubsetKeepsTheOthersAndReportsNullStd) {
 }
 
 TEST(CalibrateCli, CrossSectionOptionsRescaleTheModuli) {
-  const std::string csv = synthesized_csv(40, 4);
+  const std::string csv = synthesised_csv(40, 4);
   const CliRun a = run("--scene " + scene("hydrojet_0deg") + " --data " + csv + " --out " + tmp("a.yaml"));
   const CliRun b = run("--scene " + scene("hydrojet_0deg") + " --data " + csv +
                        " --outer-diameter 0.01 --inner-diameter 0.0 --out " + tmp("b.yaml"));
@@ -157,7 +157,7 @@ TEST(CalibrateCli, CrossSectionOptionsRescaleTheModuli) {
 
 TEST(CalibrateCli, BoundHitIsWarned) {
   // The truth's E (3.5 MPa) lies below the allowed range: the fit stops at the bound and says so.
-  const std::string csv = synthesized_csv(40, 4);
+  const std::string csv = synthesised_csv(40, 4);
   const CliRun r =
       run("--scene " + scene("hydrojet_0deg") + " --data " + csv + " --bound E=4.2e6:5e6 --out " + tmp("bd.yaml"));
   ASSERT_NE(r.status, 2) << r.err;
@@ -167,7 +167,7 @@ TEST(CalibrateCli, BoundHitIsWarned) {
 }
 
 TEST(CalibrateCli, NotConvergedExitsOneAndWritesNoScene) {
-  const std::string csv = synthesized_csv(40, 4), out = tmp("nc.yaml");
+  const std::string csv = synthesised_csv(40, 4), out = tmp("nc.yaml");
   std::remove(out.c_str());
   const CliRun r = run("--scene " + scene("hydrojet_0deg") + " --data " + csv + " --max-iterations 1 --out " + out);
   EXPECT_EQ(r.status, 1);
@@ -209,7 +209,7 @@ TEST(CalibrateCli, BadInputExitsTwoNamingTheProblem) {
   check("--scene " + s0 + " --data " + zero + " --out " + out + " --outer-diameter 0.005", "inner_diameter");
   check("--scene " + s0 + " --data " + zero + " --out " + out + " --bound E=1", "--bound: 'E=1' is not NAME=LO:HI");
   check("--scene " + s0 + " --data " + zero + " --out " + out + " --bound EI=1:2", "--bound: unknown parameter 'EI'");
-  const std::string good = synthesized_csv(20, 6);
+  const std::string good = synthesised_csv(20, 6);
   check("--scene " + s0 + " --data " + good + " --out " + out + " --bound E=1e7:2e7", "bounds of E: the start");
   const std::string nojets = write("nojets.yaml",
                                    "rod: {length: 0.09, bending_stiffness: [6e-4, 6e-4], torsional_stiffness: 2e-4}\n"

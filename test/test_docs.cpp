@@ -1,10 +1,12 @@
 // The documentation against the code: docs/rod_model.md names only symbols that exist where it says,
-// docs/ros_api.md lists exactly the topics and services of include/hydrojet_control/ros/names.h, the
-// README stays short, and every relative link in README.md and docs/*.md resolves.
+// docs/architecture.md only names and paths that exist, docs/ros_api.md lists exactly the topics and
+// services of include/hydrojet_control/ros/names.h, the README stays short, and every relative link
+// in README.md and docs/*.md resolves.
 #include <gtest/gtest.h>
 
 #include <dirent.h>
 
+#include <filesystem>
 #include <fstream>
 #include <regex>
 #include <set>
@@ -139,3 +141,65 @@ TEST(Docs, RelativeLinksResolve) {
 }
 
 }  // namespace
+
+namespace {
+
+/// The text the code names live in: sources, headers, configuration, launch files, messages, scripts.
+const std::string& code_corpus() {
+  static const std::string corpus = [] {
+    std::string all;
+    for (const char* dir : {"src", "include", "config", "launch", "cfg", "msg", "action", "scripts"})
+      for (const auto& e : std::filesystem::recursive_directory_iterator(kRoot + "/" + dir))
+        if (e.is_regular_file()) all += read_file(e.path().string()) + "\n";
+    return all + read_file(kRoot + "/CMakeLists.txt");
+  }();
+  return corpus;
+}
+
+bool names_word(const std::string& text, const std::string& name) {
+  const std::regex word("(^|[^A-Za-z0-9_])" + std::regex_replace(name, std::regex(R"([.^$|()\[\]{}*+?\\])"), R"(\$&)") +
+                        "($|[^A-Za-z0-9_])");
+  return std::regex_search(text, word);
+}
+
+}  // namespace
+
+// Every code span of docs/architecture.md that is a path (under a top-level folder of the
+// repository) names a file or folder that exists; every one that is a name (identifier, A::B, a
+// topic or a flag) occurs in the code, each part of a qualified name as a word.
+TEST(Docs, ArchitectureNamesExist) {
+  std::string text;  // the prose and tables: fenced blocks (drawings) left out
+  bool fenced = false;
+  for (const std::string& l : lines_of(read_file(kRoot + "/docs/architecture.md"))) {
+    if (l.rfind("```", 0) == 0) fenced = !fenced;
+    if (!fenced && l.rfind("```", 0) != 0) text += l + "\n";
+  }
+  ASSERT_FALSE(text.empty()) << "docs/architecture.md missing";
+  static const std::regex name_like(R"(^[~/-]*[A-Za-z_][A-Za-z0-9_:./-]*(\(\))?$)");
+  static const std::set<std::string> roots = {"src",   "include", "docs", "config", "launch", "scripts", "test",
+                                              "bench", "cmake",   "cfg",  "msg",    "action", "util"};
+  int checked = 0;
+  for (const std::string& line : lines_of(text))
+    for (const std::string& span : code_spans(line)) {
+      std::string s = span;
+      if (s.find(' ') != std::string::npos) s = s.substr(0, s.find(' '));  // "scripts/check_core --quick"
+      if (!std::regex_match(s, name_like)) continue;                       // a formula, a message template
+      if (s.size() > 2 && s.compare(s.size() - 2, 2, "()") == 0) s.resize(s.size() - 2);
+      const std::string first = s.substr(0, s.find('/'));
+      if (s.find('/') != std::string::npos && roots.count(first)) {
+        const std::string path = first == "util" ? "include/hydrojet_control/" + s : s;
+        EXPECT_TRUE(std::filesystem::exists(kRoot + "/" + path)) << "`" << span << "`: no such path";
+      } else if (s.find("::") != std::string::npos) {
+        for (size_t a = 0, b; a < s.size(); a = b + 2) {
+          b = s.find("::", a);
+          if (b == std::string::npos) b = s.size();
+          EXPECT_TRUE(names_word(code_corpus(), s.substr(a, b - a))) << "`" << span << "`: " << s.substr(a, b - a);
+        }
+      } else {
+        EXPECT_NE(code_corpus().find(s.substr(s.find_first_not_of("~"))), std::string::npos)
+            << "`" << span << "` does not occur in the code";
+      }
+      ++checked;
+    }
+  EXPECT_GT(checked, 100) << "the check found too few names to be meaningful";
+}

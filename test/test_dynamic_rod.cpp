@@ -187,7 +187,7 @@ TEST(DynamicRodStatic, SettlesToKirchhoffSolutionUnderConstantForce) {
 // A general rod: two segments (the distal one softer and precurved), a point mass and a
 // pair of actuators mid-body, actuators at the tip, one with a moment arm. At rest under the inputs
 // (reset_to_static) and after settling from a step of them (the jump conditions with their inertia),
-// the dynamic rod sits where the static general solver puts it (a second, independent method: its
+// the dynamic rod sits where the static solver (rod::RodSolver) puts it (a second, independent method: its
 // stations, pieces and Kirchhoff kinematics), up to shear/extension and the grid.
 rod::RodModel two_segment_body() {
   rod::RodModel b;

@@ -168,8 +168,9 @@ TEST(GeneralRodClosedForm, PrecurvedSegmentsArePiecewiseArcs) {
   EXPECT_LT((ps - ends[2]).norm(), 1e-10);
 }
 
-// Two identical segments are one rod; actuators at the tip are the tip follower wrench B q; both give
-// RodSolver's solution, C^b, and J_q = C^b B. Kirchhoff and Cosserat, with weight and precurvature.
+// Two identical segments are one rod; actuators at the tip are the tip follower wrench B q: the cut rod
+// (two pieces, a station between them) gives the one-piece solution, C^b, and J_q = C^b B. Kirchhoff
+// and Cosserat, with weight and precurvature.
 TEST(GeneralRodEquivalence, IdenticalSegmentsAndTipActuatorsAreTheUniformRod) {
   for (rod::RodKind kind : {rod::RodKind::kKirchhoff, rod::RodKind::kCosserat}) {
     rod::RodModel u;
@@ -409,9 +410,9 @@ TEST(GeneralRodStability, ColdSolvePastBucklingReachesTheBuckledBranchAsTheUnifo
 }
 
 // Multiple shooting (beyond single shooting's reach, λL > 12): a long soft rod as two identical
-// segments under a large tip follower force from actuators is the uniform rod under that force, which
-// RodSolver's own multiple shooting solves (a second implementation, its node unknowns R and u
-// with n in closed form; here R, n and u). Then forced multiple shooting on the busy model equals
+// segments under a large tip follower force from actuators is the uniform rod under that force (nodes
+// and a station that do not coincide against nodes alone). Then forced multiple shooting on the busy
+// model equals
 // single shooting there, and a load with mid-body actuators at λL ≈ 20 converges with 8 and 16
 // segments to the same equilibrium.
 TEST(GeneralRodMultipleShooting, BeyondSingleShootingAsTheUniformRodsMultipleShooting) {

@@ -1,5 +1,5 @@
 // The numerics of the rod solver beyond the Kirchhoff/RK8 default: the Cosserat model (closed
-// forms, the Kirchhoff limit, its compliance), the scene-specialized right-hand sides against the
+// forms, the Kirchhoff limit, its compliance), the scene-specialised right-hand sides against the
 // general one, the CVODE integrators (both ways of carrying sensitivities), KINSOL as the Newton
 // iteration, and multiple shooting against single shooting.
 #include <gtest/gtest.h>
@@ -117,7 +117,7 @@ TEST(Cosserat, ComplianceMatchesCentralDifferences) {
 }
 
 // The right-hand side compiled for the scene's terms gives the same numbers as the general one.
-TEST(Specialization, VariantsMatchTheGeneralRightHandSide) {
+TEST(Specialisation, VariantsMatchTheGeneralRightHandSide) {
   config::Scene hj = test::scene("hydrojet_30deg");
   rod::RodModel weight = test::bare(hj);
   weight.segments[0].linear_density = 0.02;
@@ -136,7 +136,7 @@ TEST(Specialization, VariantsMatchTheGeneralRightHandSide) {
   for (const Case& c : cases) {
     rod::ShootingOptions s = test::rk8(8);
     rod::RodSolver special(c.m, s);
-    s.specialize_model = false;
+    s.specialise_model = false;
     rod::RodSolver general(c.m, s);
     EXPECT_STREQ(special.variant_name(), c.variant);
     EXPECT_STREQ(general.variant_name(), "general");

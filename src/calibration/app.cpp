@@ -94,7 +94,7 @@ struct Args {
   QuasistaticOptions qs;
   BagTopics topics;
   std::vector<std::string> bounds;  ///< --bound NAME=LO:HI, applied after the defaults
-  int synthesize = 0;
+  int synthetic_samples = 0;  ///< --synthesize N
   double noise_deg = 0.5, max_force_fraction = 0.9;
   unsigned seed = 1;
   bool help = false;
@@ -168,7 +168,7 @@ bool set_bag_option(const std::string& k, const std::string& v, Args* r) {
 /// --synthesize and its options; false when `k` is none of them.
 bool set_synthesis_option(const std::string& k, const std::string& v, Args* r) {
   if (k == "--synthesize")
-    r->synthesize = parse_int(k, v, 1, 1000000);
+    r->synthetic_samples = parse_int(k, v, 1, 1000000);
   else if (k == "--noise-deg") {
     r->noise_deg = parse_double(k, v);
     if (r->noise_deg < 0) throw UsageError(k + ": must not be negative");
@@ -185,9 +185,9 @@ bool set_synthesis_option(const std::string& k, const std::string& v, Args* r) {
 /// The required options of the chosen mode, and --fit turned into a mask.
 void check_required(Args* r) {
   if (r->scene.empty()) throw UsageError("--scene: missing (the scene YAML with geometry and starting values)");
-  if (r->synthesize == 0 && r->data.empty()) throw UsageError("--data: missing (CSV or rosbag)");
+  if (r->synthetic_samples == 0 && r->data.empty()) throw UsageError("--data: missing (CSV or rosbag)");
   if (r->out.empty())
-    throw UsageError(r->synthesize ? "--out: missing (CSV to write)" : "--out: missing (scene YAML to write)");
+    throw UsageError(r->synthetic_samples ? "--out: missing (CSV to write)" : "--out: missing (scene YAML to write)");
   try {
     r->opt.fit = parse_param_list(r->fit);
   } catch (const std::invalid_argument& e) {
@@ -258,11 +258,11 @@ CalibrationOptions calibration_options(const Args& a, const StartScene& s) {
 /// --synthesize: writes samples of the scene's own model and reports them.
 int run_synthesis(const Args& a, const StartScene& s, std::ostream& out) {
   SyntheticOptions so;
-  so.samples = a.synthesize;
+  so.samples = a.synthetic_samples;
   so.noise_rad = a.noise_deg * M_PI / 180.0;
   so.seed = a.seed;
   so.max_force_fraction = a.max_force_fraction;
-  const std::vector<Sample> samples = synthesize(s.scene, so);
+  const std::vector<Sample> samples = synthesise(s.scene, so);
   write_text(a.out, to_csv(samples), "--out");
   util::JsonObject j;
   j.add("samples", static_cast<int>(samples.size()))
@@ -445,7 +445,7 @@ int run_calibrate(const std::vector<std::string>& argv, std::ostream& out, std::
     }
     const StartScene s = load_start_scene(a);
     const CalibrationOptions opt = calibration_options(a, s);  // --bound is checked in either mode
-    if (a.synthesize > 0) return run_synthesis(a, s, out);
+    if (a.synthetic_samples > 0) return run_synthesis(a, s, out);
     return run_fit(a, s, opt, out, err);
   } catch (const UsageError& e) {
     err << "calibrate: " << e.what() << "\n";

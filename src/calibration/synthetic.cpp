@@ -9,7 +9,7 @@
 namespace hydrojet {
 namespace calibration {
 
-std::vector<Sample> synthesize(const config::Scene& truth, const SyntheticOptions& o) {
+std::vector<Sample> synthesise(const config::Scene& truth, const SyntheticOptions& o) {
   std::mt19937 rng(o.seed);
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   std::normal_distribution<double> n01(0.0, 1.0);
@@ -27,7 +27,7 @@ std::vector<Sample> synthesize(const config::Scene& truth, const SyntheticOption
     tw.moment = w.tail<3>();
     const rod::RodSolution sol = solver.solve(tw);
     if (!sol.converged)
-      throw std::runtime_error("synthesize: rod solve " + std::to_string(k + 1) + " did not converge");
+      throw std::runtime_error("synthesise: rod solve " + std::to_string(k + 1) + " did not converge");
     const Eigen::Vector3d n(n01(rng), n01(rng), n01(rng));
     s.tip_orientation = Eigen::Quaterniond(sol.tip_rotation * so3::exp(o.noise_rad * n)).normalized();
     s.origin = "synthetic " + std::to_string(k + 1);

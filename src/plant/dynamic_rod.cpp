@@ -663,7 +663,7 @@ void DynamicRod::set_gravity(const Vec3& g) {
   model_.rod.gravity = g;
 }
 
-Mat3 DynamicRod::tip_rotation() const { return so3::orthonormalize(Eigen::Map<const Mat3>(nodes_.back().data() + 3)); }
+Mat3 DynamicRod::tip_rotation() const { return so3::orthonormalise(Eigen::Map<const Mat3>(nodes_.back().data() + 3)); }
 
 Vec3 DynamicRod::tip_position() const { return nodes_.back().segment<3>(0); }
 

@@ -136,7 +136,7 @@ bool RodSolver::newton_kinsol(Mat3* R_tip, const Load& load, RodSolution* sol, E
     return false;
   }
   *last = e;
-  *R_tip = so3::orthonormalize(c.R_ref * so3::exp(Vec3(x[0], x[1], x[2])));
+  *R_tip = so3::orthonormalise(c.R_ref * so3::exp(Vec3(x[0], x[1], x[2])));
   sol->residual = e.r.norm();
   if (sol->residual <= options_.residual_tolerance) return true;
   sol->message =

@@ -141,10 +141,10 @@ struct RodSolver::MultipleShooting {
   static Nodes accepted(Nodes n) { return n; }
   Nodes moved(const Nodes& n, const Step& dX, double a) const {
     Nodes y = n;
-    y.R[M] = so3::orthonormalize(n.R[M] * so3::exp(a * dX.head<3>()));
+    y.R[M] = so3::orthonormalise(n.R[M] * so3::exp(a * dX.head<3>()));
     for (int k = 1; k < M; ++k) {
       const int c = 3 + 9 * (M - 1 - k);
-      y.R[k] = so3::orthonormalize(n.R[k] * so3::exp(a * dX.segment<3>(c)));
+      y.R[k] = so3::orthonormalise(n.R[k] * so3::exp(a * dX.segment<3>(c)));
       y.n[k] = n.n[k] + a * dX.segment<3>(c + 3);
       y.u[k] = n.u[k] + a * dX.segment<3>(c + 6);
     }
@@ -183,7 +183,7 @@ bool RodSolver::ms_nodes(const Mat3& R_tip, const Load& load, int M, Nodes* x) {
   x->R[M] = R_tip;
   for (int j = 0; j < M - 1; ++j) {
     const int k = M - 1 - j;
-    x->R[k] = so3::orthonormalize(rec.R[j]);
+    x->R[k] = so3::orthonormalise(rec.R[j]);
     x->n[k] = rec.n[j];
     x->u[k] = rec.u[j];
   }
@@ -203,7 +203,7 @@ void RodSolver::MsEval::add_sweep(const Nodes& x, int k, double Fs, int D, const
   for (int d = 0; d < D; ++d) dP_X.col(c0 + d) += y.segment<3>(O9::kBase + O9::kPerDir * d + 6);
   if (k == 0) {
     const int row = 9 * (M - 1);
-    const Vec3 r = so3::log(so3::orthonormalize(Rm));
+    const Vec3 r = so3::log(so3::orthonormalise(Rm));
     F.segment<3>(row) = r;
     const Mat3 Jri = so3::right_jacobian_inverse(r);
     for (int d = 0; d < D; ++d) J.block<3, 1>(row, c0 + d) = Jri * eta(d);
@@ -211,7 +211,7 @@ void RodSolver::MsEval::add_sweep(const Nodes& x, int k, double Fs, int D, const
     return;
   }
   const int row = 9 * (M - 1 - k);
-  const Vec3 r = so3::log(so3::orthonormalize(x.R[k].transpose() * Rm));
+  const Vec3 r = so3::log(so3::orthonormalise(x.R[k].transpose() * Rm));
   F.segment<3>(row) = r;
   F.segment<3>(row + 3) = (end.n - x.n[k]) / Fs;
   F.segment<3>(row + 6) = h * (y.segment<3>(12) - x.u[k]);
@@ -336,7 +336,7 @@ bool RodSolver::ms_solve(const Load& target, int M, RodSolution* sol) {
   }
   sol->converged = true;
   sol->message.clear();
-  sol->tip_rotation = so3::orthonormalize(ms.e.R0.transpose() * R_tip);
+  sol->tip_rotation = so3::orthonormalise(ms.e.R0.transpose() * R_tip);
   sol->tip_position = -ms.e.R0.transpose() * ms.e.sum_dp;
   sol->jacobian_det = ms.det;
   internal::report_folds(folds, sol);

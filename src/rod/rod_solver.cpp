@@ -176,7 +176,7 @@ RodSolver::Eval RodSolver::evaluate(const Mat3& R_tip, const Load& load, int* rh
     e.dp0.col(i) = y.segment<3>(O::kBase + O::kPerDir * i + 6);
   }
   // Shooting residual, eq. (15): R(0) = I  <=>  log R(0) = 0.
-  e.r = so3::log(so3::orthonormalize(e.R0));
+  e.r = so3::log(so3::orthonormalise(e.R0));
   e.J = so3::right_jacobian_inverse(e.r) * deta0;
   e.ok = e.r.allFinite() && e.J.allFinite();
   return e;
@@ -213,7 +213,7 @@ double RodSolver::error_estimate(const Mat3& R_tip, const Load& load, const Eval
   (halve ? c.step_divisor : c.step_multiplier) = 2;
   if (!kernels_->run<0>(*this, c)) return std::numeric_limits<double>::infinity();
   const Mat3 R0o = Eigen::Map<const Mat3>(y.data() + 3);
-  const Vec3 dr = f * so3::log(so3::orthonormalize(e.R0.transpose() * R0o));
+  const Vec3 dr = f * so3::log(so3::orthonormalise(e.R0.transpose() * R0o));
   const Vec3 dp = f * (y.segment<3>(0) - e.p0);
   const Vec3 dx = -e.J.partialPivLu().solve(dr);
   return (dp + e.dp0 * dx).norm();
@@ -233,7 +233,7 @@ struct TipOrientationNewton {
   }
   static double size(const Vec3& dx) { return dx.norm(); }
   static Mat3 moved(const Mat3& R, const Vec3& dx, double a) { return R * so3::exp(a * dx); }
-  static Mat3 accepted(const Mat3& R) { return so3::orthonormalize(R); }
+  static Mat3 accepted(const Mat3& R) { return so3::orthonormalise(R); }
 };
 
 template <class Evaluate>
@@ -345,7 +345,7 @@ bool RodSolver::multiple_shooting_first(const Load& target) const {
 bool RodSolver::finish(Shooting* p, bool ok, FoldTracker* folds) {
   RodSolution& sol = *p->sol;
   if (p->e.ok) {
-    sol.tip_rotation = so3::orthonormalize(p->e.R0.transpose() * p->x);
+    sol.tip_rotation = so3::orthonormalise(p->e.R0.transpose() * p->x);
     sol.tip_position = -p->e.R0.transpose() * p->e.p0;
     sol.jacobian_det = p->e.J.determinant();
   }

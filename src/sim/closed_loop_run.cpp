@@ -47,7 +47,7 @@ RunSample record(const plant::Plant& plant, const control::ControllerOutput& out
 }
 
 /// The error statistics of the recorded samples.
-void summarize(RunResult& r) {
+void summarise(RunResult& r) {
   std::vector<double> e;
   double s2 = 0.0, p2 = 0.0;
   for (const RunSample& s : r.samples) {
@@ -98,7 +98,7 @@ RunResult run_path(const control::RobotModel& model, const control::ControllerOp
       break;
     }
   }
-  summarize(r);
+  summarise(r);
   r.simulated_seconds = r.samples.empty() ? 0.0 : r.samples.back().t + settle;
   r.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   return r;

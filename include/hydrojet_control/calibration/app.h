@@ -11,7 +11,7 @@ namespace calibration {
 
 /// Runs `calibrate` with `args` (argv without the program name): report on `out` (last line one
 /// JSON object), errors and warnings on `err`. Returns the exit status: 0 converged (or data
-/// synthesized), 1 the fit did not converge, 2 bad input (one line on `err` naming the problem,
+/// synthesised), 1 the fit did not converge, 2 bad input (one line on `err` naming the problem,
 /// nothing on `out`).
 int run_calibrate(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 

@@ -24,7 +24,7 @@ struct SyntheticOptions {
 /// Random jet forces q (per jet uniform in [0, fraction·max_jet_force_i] of the scene) and the
 /// scene's static tip orientation for each, rotated by exp(n̂), n ~ N(0, σ² I₃) in the tip frame.
 /// Deterministic for a seed. Throws std::runtime_error if a rod solve does not converge.
-std::vector<Sample> synthesize(const config::Scene& truth, const SyntheticOptions& options);
+std::vector<Sample> synthesise(const config::Scene& truth, const SyntheticOptions& options);
 
 }  // namespace calibration
 }  // namespace hydrojet

@@ -1,5 +1,5 @@
 // One control cycle's inputs (the latest tracker and flow samples) and result (valve duties and
-// everything worth publishing). Per-jet vectors are JetVectors sized by the model's jet map.
+// everything worth publishing). Per-actuator vectors are rod::InputVectors sized by the model.
 // ROS-free (Eigen, the rod library).
 #pragma once
 

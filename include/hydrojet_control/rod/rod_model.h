@@ -24,7 +24,7 @@
 //   v = e_z + K_se⁻¹ Rᵀ n,   p' = R v,   u' = −K⁻¹(u × K(u − ũ) + v × Q_b)
 // (the moment balance m' = −p' × n in the body frame). As EA, GA → ∞, v → e_z: the Kirchhoff rod.
 //
-// Model specialization ("leave out what the model does not need"): RodOde is a template over
+// Model specialisation ("leave out what the model does not need"): RodOde is a template over
 // RodTerms, compile-time switches for the Cosserat strains, the distributed load ρA·g and the
 // precurvature. The solver picks the smallest variant that holds the model's terms once, at model
 // load; the hot loop has no branches on them. RodOde<D> without a second argument is the general

@@ -62,7 +62,7 @@ struct ShootingOptions {
   int max_continuation_steps = 256;   ///< load-continuation steps allowed when a start fails
   /// Right-hand side compiled for the model's terms only (RodTerms chosen by needed_terms()).
   /// false: the general variant (every term, Cosserat form) — for benchmarks and checks.
-  bool specialize_model = true;
+  bool specialise_model = true;
   /// 0: automatic (single shooting; multiple shooting when that fails); 1: single shooting only;
   /// M ≥ 2: always multiple shooting with M equal segments.
   int shooting_segments = 0;

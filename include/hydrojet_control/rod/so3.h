@@ -75,7 +75,7 @@ inline Mat3 right_jacobian(const Vec3& r) {
 }
 
 /// Nearest rotation matrix (polar decomposition through the SVD-free quaternion route).
-inline Mat3 orthonormalize(const Mat3& R) {
+inline Mat3 orthonormalise(const Mat3& R) {
   Eigen::Quaterniond q(R);
   q.normalize();
   return q.toRotationMatrix();

@@ -24,7 +24,7 @@ class JsonObject {
     return raw(key, matrix(m));
   }
   JsonObject& add_null(const std::string& key) { return raw(key, "null"); }
-  /// Adds an already-serialized JSON value.
+  /// Adds an already-serialised JSON value.
   JsonObject& raw(const std::string& key, const std::string& json) {
     body_ += (body_.empty() ? "" : ", ") + quote(key) + ": " + json;
     return *this;

@@ -19,7 +19,7 @@ void RodSolver::select_kernels() {
   };
   static const Kernels general = HJ_KERNEL(true, true, true, "general");
 #undef HJ_KERNEL
-  if (!options_.specialize_model) {
+  if (!options_.specialise_model) {
     kernels_ = &general;
     return;
   }
