@@ -41,9 +41,9 @@ struct PlantNodeOptions {
   double tracker_dropout_at = -1.0, tracker_dropout_duration = 1.0;
   double flow_fault_at = -1.0;  ///< from then on jet 1 reads NaN and jet 2 negative
   double stuck_open_at = -1.0;
-  int stuck_open_jet = 2;   ///< 1-based
-  double stuck_duty = 1.0;  ///< the stuck valve's opening [0, 1]
-  double start_time = 0.0;  ///< lockstep: /clock starts here [s] (a restarted plant, scripts/soak)
+  int stuck_open_actuator = 1;  ///< 0-based, as PlantFault's actuator (the old ~stuck_open_jet: 1-based)
+  double stuck_duty = 1.0;      ///< the stuck valve's opening [0, 1]
+  double start_time = 0.0;      ///< lockstep: /clock starts here [s] (a restarted plant, scripts/soak)
 };
 
 /// A fault received on plant/fault, active over [from, to) of the plant's own time [s].
@@ -60,7 +60,7 @@ PlantNodeOptions read_options(const ros::NodeHandle& pnh) {
   config::YamlTree<config::ParamError> t(y, '/', "~");
   t.keys("", {"scene", "plant", "seed", "rate", "lockstep", "command_wait", "duration", "tracker_frame", "world_frame",
               "tracker_dropout_at", "tracker_dropout_duration", "flow_fault_at", "stuck_open_at", "stuck_open_jet",
-              "stuck_duty", "start_time"});
+              "stuck_open_actuator", "stuck_duty", "start_time"});
   o.scene = t.text("scene", "");
   if (o.scene.empty()) t.fail("scene", "missing (path of the scene YAML)");
   o.plant_file = t.text("plant", o.plant_file);
@@ -75,7 +75,11 @@ PlantNodeOptions read_options(const ros::NodeHandle& pnh) {
   o.tracker_dropout_duration = t.number("tracker_dropout_duration", o.tracker_dropout_duration);
   o.flow_fault_at = t.number("flow_fault_at", o.flow_fault_at);
   o.stuck_open_at = t.number("stuck_open_at", o.stuck_open_at);
-  o.stuck_open_jet = t.integer("stuck_open_jet", o.stuck_open_jet, 1, 3);
+  if (t.has("stuck_open_jet") && t.has("stuck_open_actuator"))
+    t.fail("stuck_open_jet", "give stuck_open_actuator (0-based) or the older stuck_open_jet (1-based), not both");
+  if (t.has("stuck_open_jet"))
+    o.stuck_open_actuator = t.integer("stuck_open_jet", o.stuck_open_actuator + 1, 1, rod::kMaxInputs) - 1;
+  o.stuck_open_actuator = t.integer("stuck_open_actuator", o.stuck_open_actuator, 0, rod::kMaxInputs - 1);
   o.stuck_duty = t.number("stuck_duty", o.stuck_duty);
   o.start_time = t.number("start_time", o.start_time);
   if (!(o.start_time >= 0.0)) t.fail("start_time", "must be >= 0 s");
@@ -98,6 +102,10 @@ class PlantNode {
     model_ = config::load_plant(scene, o_.plant_file);
     plant_.reset(new plant::Plant(model_, static_cast<unsigned>(o_.seed)));
     if (!plant_->error().empty()) throw std::runtime_error(plant_->error());
+    if (o_.stuck_open_at >= 0 &&
+        (o_.stuck_open_actuator >= plant_->input_count() || !plant_->is_jet(o_.stuck_open_actuator)))
+      throw config::ParamError("~stuck_open_actuator: " + std::to_string(o_.stuck_open_actuator) +
+                               " is not a jet of this robot (only a jet has a valve to stick)");
     if (o_.tracker_dropout_at >= 0) plant_->tracker().force_dropout(o_.tracker_dropout_at, o_.tracker_dropout_duration);
     if (o_.lockstep) clock_pub_ = nh.advertise<rosgraph_msgs::Clock>(names::kClock, 10);
     tip_pub_ = nh.advertise<geometry_msgs::PoseStamped>(names::kTipPose, 10);
@@ -249,8 +257,7 @@ class PlantNode {
   void publish_sensors(double t) {
     const ros::Time stamp(now(t));
     if (o_.stuck_open_at >= 0 && t >= o_.stuck_open_at)
-      if (o_.stuck_open_jet <= plant_->hydraulics().size())
-        plant_->hydraulics()[o_.stuck_open_jet - 1].set_stuck(o_.stuck_duty);
+      plant_->hydraulics()[plant_->valve_of(o_.stuck_open_actuator)].set_stuck(o_.stuck_duty);
     const plant::TrackerSample ts = plant_->tracker_sample();
     if (ts.valid) {  // a missing sensor publishes nothing: stale data is never republished
       geometry_msgs::PoseStamped tip, base;
