@@ -27,14 +27,17 @@ function(hydrojet_gtest name)
 endfunction()
 
 foreach(t test_rod_closed_form test_rod_compliance test_scene test_rod_fk_cli test_actuation test_controller test_util
-          test_dynamic_rod test_numerics_models test_numerics_extreme test_general_rod
-          test_bounded_allocation)
+          test_dynamic_rod test_numerics_models test_numerics_extreme test_rod_solver test_integrators
+          test_bounded_allocation test_resolved_rates test_reference test_task_space test_safety_monitor)
   hydrojet_gtest(${t} LIBS hydrojet_config)
 endforeach()
 add_dependencies(test_rod_fk_cli rod_fk)
 # Operator control's core pieces: paths, reachable set, look-at solver.
 hydrojet_gtest(test_operator_core LIBS hydrojet_config)
-hydrojet_gtest(test_plant LIBS hydrojet_sim hydrojet_config)
+# The simulated plant's parts, its valve model, the disturbance observer on it, and closed-loop runs.
+foreach(t test_plant test_hydraulics test_disturbance_observer test_closed_loop_run)
+  hydrojet_gtest(${t} LIBS hydrojet_sim hydrojet_config)
+endforeach()
 hydrojet_gtest(test_devices LIBS hydrojet_devices hydrojet_config)
 # Rig core (line splitter, serial port on a pty pair, gate, aggregator, valve loop, rig.yaml) and the
 # drivers against the PTY emulators in test/emulators/ (Python, standard library only).
@@ -42,7 +45,8 @@ hydrojet_gtest(test_rig_core LIBS hydrojet_devices)
 hydrojet_gtest(test_rig_emulators LIBS hydrojet_devices)
 # Joystick reader on a FIFO fed with js_event records.
 hydrojet_gtest(test_joystick LIBS hydrojet_devices)
-# Calibration core: synthetic data, data checks, covariance, scene round trip.
+# Calibration core: the parameter vector zeta; synthetic data, data checks, covariance, scene round trip.
+hydrojet_gtest(test_zeta LIBS hydrojet_calibration)
 hydrojet_gtest(test_calibration LIBS hydrojet_calibration)
 
 if(NOT HYDROJET_WITH_ROS)

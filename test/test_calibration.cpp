@@ -19,32 +19,22 @@
 #include "hydrojet_control/calibration/scene_writer.h"
 #include "hydrojet_control/calibration/synthetic.h"
 #include "hydrojet_control/rod/so3.h"
+#include "calibration_fixtures.h"
 
 namespace {
 
 using namespace hydrojet;
 using namespace hydrojet::calibration;
+using test::kI;
+using test::shipped;
+using test::truth_zeta;
 
 constexpr double kDeg = M_PI / 180.0;
-// Hollow cylinder of the paper (§6.2), written out here independently of CrossSection.
-const double kI = M_PI * (std::pow(0.008, 4) - std::pow(0.006, 4)) / 64.0;
-
-config::Scene shipped(const std::string& name) {
-  return config::load_scene(std::string(HYDROJET_SOURCE_DIR) + "/config/scenes/" + name + ".yaml");
-}
 
 std::string num(double v) {
   char b[40];
   std::snprintf(b, sizeof(b), "%.17g", v);
   return b;
-}
-
-/// ζ of the test truth: the plant-like mismatch of config/plant.yaml applied to Table 1
-/// (ũ + (0.6, −0.4), EI × 0.8, GJ × 1.25, misalignments + (0.06, −0.06, 0.05)).
-ZetaVector truth_zeta() {
-  ZetaVector z;
-  z << 0.034 + 0.6, 0.88 - 0.4, 0.8 * 6.01e-4 / kI, 1.25 * 2.23e-4 / (2 * kI), 0.12 + 0.06, 0.06 - 0.06, -0.08 + 0.05;
-  return z;
 }
 
 /// A complete scene for ζ as YAML text (moduli + diameters), accurate solver settings.
@@ -86,45 +76,6 @@ double rms_model_difference(const config::Scene& a, const config::Scene& b, cons
   for (const Sample& x : s)
     sum += rotation_error(predict_tip_rotation(a, x.jet_force), predict_tip_rotation(b, x.jet_force)).squaredNorm();
   return std::sqrt(sum / s.size());
-}
-
-// ---------------------------------------------------------------------------------------------
-// ζ, cross-section, parameter names
-// ---------------------------------------------------------------------------------------------
-
-TEST(CalibrationZeta, Table1ModuliAndRoundTrip) {
-  const config::Scene s = shipped("hydrojet_0deg");
-  const CrossSection cs;  // 8 mm / 6 mm
-  EXPECT_NEAR(cs.second_moment(), kI, 1e-25);
-  const ZetaVector z = zeta_from_scene(s, cs);
-  EXPECT_NEAR(z[kE], 6.01e-4 / kI, 1e-6 * z[kE]);  // ≈ 4.37 MPa
-  EXPECT_NEAR(z[kG], 2.23e-4 / (2 * kI), 1e-6 * z[kG]);
-  EXPECT_EQ(z[kUx], 0.034);
-  EXPECT_EQ(z[kUy], 0.88);
-  EXPECT_EQ(z[kDa], 0.12);
-  EXPECT_EQ(z[kDg], -0.08);
-  const ZetaVector t = truth_zeta();
-  const config::Scene a = apply_zeta(s, t, cs);
-  EXPECT_LT((zeta_from_scene(a, cs) - t).cwiseQuotient(t.cwiseAbs().cwiseMax(1.0)).cwiseAbs().maxCoeff(), 1e-14);
-  EXPECT_EQ(a.rod.segments[0].precurvature.z(), s.rod.segments[0].precurvature.z());
-  EXPECT_EQ(a.rod.tip_mass, s.rod.tip_mass);
-}
-
-TEST(CalibrationZeta, CrossSectionFromSceneTextAndParamList) {
-  const CrossSection fb;
-  CrossSection cs = cross_section_from_scene_text("rod: {length: 0.09, bending_stiffness: [1, 1]}\n", fb);
-  EXPECT_EQ(cs.outer_diameter, 0.008);
-  cs = cross_section_from_scene_text("rod: {outer_diameter: 0.01, inner_diameter: 0.0}\n", fb);
-  EXPECT_EQ(cs.outer_diameter, 0.01);
-  EXPECT_EQ(cs.inner_diameter, 0.0);
-  EXPECT_THROW(cross_section_from_scene_text("rod: {outer_diameter: 0.005, inner_diameter: 0.006}\n", fb),
-               config::SceneError);
-  const ParamMask m = parse_param_list("ux, E,dg");
-  EXPECT_TRUE(m[kUx] && m[kE] && m[kDg]);
-  EXPECT_FALSE(m[kUy] || m[kG] || m[kDa] || m[kDb]);
-  EXPECT_THROW(parse_param_list("ux,EI"), std::invalid_argument);
-  EXPECT_THROW(parse_param_list("ux,ux"), std::invalid_argument);
-  EXPECT_THROW(parse_param_list(""), std::invalid_argument);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -1,110 +1,35 @@
 // The PD resolved-rates controller (Algorithm 1) with the quasi-static rod model as the plant, no
 // ROS: convergence on static targets in closed and open loop, the value of feedback under model
-// mismatch, every safety trigger, the force limiter, and the options (defaults = config/controller.yaml,
-// ranges of cfg/Controller.cfg).
+// mismatch, the operator's sources (targets, paths, the reachable set), the fast-path elements, and the
+// options (defaults = config/controller.yaml, ranges of cfg/Controller.cfg).
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include <yaml-cpp/yaml.h>
 
 #include "hydrojet_control/config/controller_config.h"
-#include "hydrojet_control/actuation/allocation.h"
-#include "hydrojet_control/actuation/jet_map.h"
 #include "hydrojet_control/control/controller.h"
-#include "hydrojet_control/rod/so3.h"
+#include "controller_fixtures.h"
 #include "test_helpers.h"
 
 using namespace hydrojet;
 using control::Controller;
-using control::ControllerInputs;
 using control::ControllerOutput;
 using control::ControllerState;
 using control::Vec3;
-
-namespace {
-
-constexpr double kDt = 0.01;             // 100 Hz
-constexpr double kFlowPerDuty = 1.6e-5;  // plant valve: full duty gives 1.6e-5 m^3/s
-
-actuation::FlowRegulatorOptions flow_gains() {
-  actuation::FlowRegulatorOptions p;
-  p.feedforward = 1.0 / kFlowPerDuty;
-  p.kp = 0.3 / kFlowPerDuty;
-  p.ki = 5.0 / kFlowPerDuty;
-  return p;
-}
-
-/// Quasi-static plant: valves set flows instantly, flows set jet forces by eq. (26), the rod
-/// settles at once. Its rod may differ from the controller's model.
-struct StaticPlant {
-  rod::RodSolver rod;
-  actuation::JetMap jets;
-  actuation::Nozzle nozzle;
-  Vec3 flows = Vec3::Zero();
-  control::Mat3 tip = control::Mat3::Identity();
-  int stuck_jet = -1;       ///< fault injection: this jet's flow is stuck_flow whatever the valve
-  double stuck_flow = 0.0;  ///< [m^3/s]
-
-  StaticPlant(const config::Scene& sc, const rod::RodModel& truth)
-      : rod(truth, sc.solver), jets(*sc.jets), nozzle(sc.nozzle) {
-    apply(Vec3::Zero());
-  }
-  void apply(const Vec3& duty) {
-    flows = duty.cwiseMax(0.0).cwiseMin(1.0) * kFlowPerDuty;
-    if (stuck_jet >= 0) flows[stuck_jet] = stuck_flow;
-    Vec3 q;
-    for (int i = 0; i < 3; ++i) q[i] = actuation::force_from_flow(flows[i], nozzle);
-    rod::TipWrench w;
-    w.force = jets.wrench(q).head<3>();
-    const rod::RodSolution s = rod.solve(w);
-    ASSERT_TRUE(s.converged);
-    tip = s.tip_rotation;
-  }
-  ControllerInputs inputs(double t) const {
-    ControllerInputs in;
-    in.t = t;
-    in.tip_valid = in.flow_valid = true;
-    in.tip_stamp = in.flow_stamp = t;
-    in.tip_rotation = tip;
-    in.flows = flows;
-    return in;
-  }
-};
-
-/// The gains these tests were tuned with (K_p 4/s, K_d 0.2; config/controller.yaml has 3/s, 0).
-control::ControllerOptions tuned_gains() {
-  control::ControllerOptions p;
-  p.kp = 4.0;
-  p.kd = 0.2;
-  return p;
-}
-
-control::ControllerOptions static_target(double theta, double phi) {
-  control::ControllerOptions p = tuned_gains();
-  p.path.theta_start = p.path.theta_end = theta;
-  p.path.phi_start = p.path.phi_end = phi;
-  p.path.duration = 1000.0;
-  return p;
-}
-
-/// Runs `seconds` of control; returns the last output.
-ControllerOutput run(Controller& c, StaticPlant& plant, double t0, double seconds) {
-  ControllerOutput out;
-  const int n = static_cast<int>(std::lround(seconds / kDt));
-  for (int k = 0; k < n; ++k) {
-    out = c.update(plant.inputs(t0 + k * kDt));
-    plant.apply(out.valve_command);
-    if (out.state == ControllerState::kAborted) break;
-  }
-  return out;
-}
-
-}  // namespace
+using test::ArcPath;
+using test::flow_gains;
+using test::kDt;
+using test::run;
+using test::static_target;
+using test::StaticPlant;
+using test::tuned_gains;
 
 // With an exact model both loops reach static targets across the workspace.
 TEST(Controller, ConvergesOnStaticTargetsClosedAndOpenLoop) {
@@ -174,68 +99,7 @@ TEST(Controller, FollowsShortenedSpiral) {
   EXPECT_EQ(c.state(), ControllerState::kFinished);
 }
 
-// --- Reference and operator sources -------------------------------------------------------------
-
-// A new target is not a step: the reference moves along the great circle at most max_angular_rate.
-TEST(Reference, MovesTowardANewTargetAlongTheGreatCircleAtTheRateLimit) {
-  control::Reference ref(0.2, nullptr, nullptr);
-  ref.hold();
-  ref.start(Vec3::UnitZ(), 0.0);
-  const Vec3 target = control::direction(0.4, 0.0);
-  ref.aim(2.0 * target, control::Source::kDirection);  // not unit: normalised
-  Vec3 prev = ref.direction();
-  for (int k = 1; k <= 250; ++k) {
-    const Vec3 d = ref.advance(k * kDt, kDt, control::Mat3::Identity());
-    EXPECT_LE(control::geodesic_error(prev, d), 0.2 * kDt + 1e-12) << k;
-    EXPECT_NEAR(d.y(), 0.0, 1e-12);  // on the great circle through z and the target
-    EXPECT_NEAR(d.norm(), 1.0, 1e-12);
-    if (k == 100) EXPECT_NEAR(control::bend_angle(d), 0.2, 1e-9);
-    prev = d;
-  }
-  EXPECT_LT(control::geodesic_error(ref.direction(), target), 1e-12);  // there after 0.4 / 0.2 = 2 s
-  EXPECT_EQ(ref.source(), control::Source::kDirection);
-}
-
-// Rate sources turn about the tip frame's axes (up = +x, right = +y) and hold once they expire.
-TEST(Reference, RatesTurnAboutTheTipAxesAndHoldWhenTheyExpire) {
-  const control::Mat3 tip = Eigen::AngleAxisd(0.3, Vec3::UnitZ()).toRotationMatrix();  // camera rolled 0.3 rad
-  for (int axis = 0; axis < 2; ++axis) {
-    control::Reference ref(0.2, nullptr, nullptr);
-    ref.start(Vec3::UnitZ(), 0.0);
-    const Eigen::Vector2d rates = axis == 0 ? Eigen::Vector2d(0.1, 0.0) : Eigen::Vector2d(0.0, 0.1);
-    ref.turn(rates, control::Source::kJoy, 1.0);
-    for (int k = 1; k <= 100; ++k) ref.advance(k * kDt, kDt, tip);
-    // Up turns z toward the tip's −y, right toward the tip's +x, by 0.1 rad/s × 1 s.
-    const Vec3 expected = axis == 0 ? Vec3(-tip.col(1) * std::sin(0.1) + Vec3::UnitZ() * std::cos(0.1))
-                                    : Vec3(tip.col(0) * std::sin(0.1) + Vec3::UnitZ() * std::cos(0.1));
-    EXPECT_LT(control::geodesic_error(ref.direction(), expected), 1e-9) << axis;
-    const Vec3 held = ref.direction();
-    for (int k = 101; k <= 400; ++k) ref.advance(k * kDt, kDt, tip);  // no new message: expired at 1 s
-    EXPECT_EQ(ref.source(), control::Source::kHold);
-    EXPECT_LT(control::geodesic_error(ref.direction(), held), 0.1 * 2 * kDt);
-  }
-}
-
-// Overflowing commands are directions and rates like any other, not infinities: a target of
-// (1e308, 1e308, 1e308) aims along (1, 1, 1), a rate of 1e308 turns at the cap; NaN is refused.
-TEST(Reference, HugeTargetsAndRatesAreNotTakenForSomethingElse) {
-  control::Reference ref(0.2, nullptr, nullptr);
-  ref.hold();
-  ref.start(Vec3::UnitZ(), 0.0);
-  ASSERT_TRUE(ref.aim(Vec3(1e308, 1e308, 1e308), control::Source::kDirection));
-  for (int k = 1; k <= 1000; ++k) ref.advance(k * kDt, kDt, control::Mat3::Identity());
-  EXPECT_LT(control::geodesic_error(ref.direction(), Vec3(1, 1, 1).normalized()), 1e-12);
-  EXPECT_FALSE(ref.aim(Vec3(NAN, 0, 1), control::Source::kDirection));
-  EXPECT_FALSE(ref.aim(Vec3::Zero(), control::Source::kDirection));
-  EXPECT_EQ(ref.source(), control::Source::kDirection);  // the refused commands changed nothing
-
-  control::Reference turning(0.2, nullptr, nullptr);
-  turning.start(Vec3::UnitZ(), 0.0);
-  turning.turn(Eigen::Vector2d(1e308, 0.0), control::Source::kKeyboard, 1.0);
-  for (int k = 1; k <= 50; ++k) turning.advance(k * kDt, kDt, control::Mat3::Identity());
-  // Up at the cap, 0.2 rad/s for 0.5 s: z turned toward −y by 0.1 rad.
-  EXPECT_LT(control::geodesic_error(turning.direction(), Vec3(0, -std::sin(0.1), std::cos(0.1))), 1e-9);
-}
+// --- Operator sources ----------------------------------------------------------------------------
 
 namespace {
 /// A controller holding on the exact-model static plant (path/type none).
@@ -390,142 +254,7 @@ TEST(ControllerSources, AnOperatorsPathIsClippedToTheOperatorSet) {
   EXPECT_GT(most, 0.1);  // within these 10 s the raster climbs well past the set's edge
 }
 
-// --- Safety -------------------------------------------------------------------------------------
-
-namespace {
-struct SafetyRig {
-  config::Scene sc = test::scene("hydrojet_0deg");
-  Controller c;
-  StaticPlant plant;
-  explicit SafetyRig(control::ControllerOptions p = static_target(0.5, 0.0),
-                     rod::ShootingOptions solver = test::scene("hydrojet_0deg").solver)
-      : c(
-            [&] {
-              auto m = config::make_controller_model(sc, flow_gains());
-              m.solver = solver;
-              return m;
-            }(),
-            p),
-        plant(sc, test::bare(sc)) {
-    c.start(0.0);
-    const ControllerOutput out = run(c, plant, 0.0, 1.0);  // running, jets on
-    EXPECT_EQ(out.state, ControllerState::kRunning) << out.reason;
-    EXPECT_GT(out.valve_command.sum(), 0.0);
-  }
-  ControllerOutput step(const ControllerInputs& in) {
-    const ControllerOutput out = c.update(in);
-    plant.apply(out.valve_command);
-    return out;
-  }
-};
-
-void expect_aborted(const ControllerOutput& out, const std::string& reason_part) {
-  EXPECT_EQ(out.state, ControllerState::kAborted);
-  EXPECT_EQ(out.valve_command, Vec3::Zero());
-  EXPECT_NE(out.reason.find(reason_part), std::string::npos) << out.reason;
-}
-}  // namespace
-
-TEST(ControllerSafety, StartsAndStopsWithJetsAtZero) {
-  const config::Scene sc = test::scene("hydrojet_0deg");
-  Controller c(config::make_controller_model(sc, flow_gains()), static_target(0.5, 0.0));
-  StaticPlant plant(sc, test::bare(sc));
-  EXPECT_EQ(c.update(plant.inputs(0.0)).valve_command, Vec3::Zero());  // idle before start
-  c.start(0.0);
-  ControllerOutput out = run(c, plant, 0.0, 1.0);
-  EXPECT_GT(out.valve_command.sum(), 0.0);
-  c.stop();
-  out = c.update(plant.inputs(1.0));
-  EXPECT_EQ(out.state, ControllerState::kIdle);
-  EXPECT_EQ(out.valve_command, Vec3::Zero());
-}
-
-TEST(ControllerSafety, StaleTrackerAbortsWithinThreeSamplePeriods) {
-  SafetyRig r;
-  const double t_last = 0.99;  // last tracker sample
-  ControllerOutput out;
-  int k = 0;
-  for (; k < 10; ++k) {
-    ControllerInputs in = r.plant.inputs(1.0 + k * kDt);
-    in.tip_stamp = t_last;
-    out = r.step(in);
-    if (out.state == ControllerState::kAborted) break;
-  }
-  EXPECT_LE(1.0 + k * kDt - t_last, 3 * kDt + 1e-9 + kDt);
-  expect_aborted(out, "tracker");
-  // Latched: healthy data again does not restart the jets.
-  out = r.step(r.plant.inputs(1.2));
-  expect_aborted(out, "tracker");
-  r.c.start(1.3);  // until commanded
-  EXPECT_EQ(r.step(r.plant.inputs(1.3)).state, ControllerState::kRunning);
-}
-
-TEST(ControllerSafety, NonFiniteTrackerPoseAborts) {
-  SafetyRig r;
-  ControllerInputs in = r.plant.inputs(1.0);
-  in.tip_rotation(0, 0) = std::nan("");
-  expect_aborted(r.step(in), "tracker");
-}
-
-TEST(ControllerSafety, StaleNanOrNegativeFlowAborts) {
-  {
-    SafetyRig r;
-    ControllerInputs in = r.plant.inputs(1.05);
-    in.flow_stamp = 1.0;
-    expect_aborted(r.step(in), "flow");
-  }
-  {
-    SafetyRig r;
-    ControllerInputs in = r.plant.inputs(1.0);
-    in.flows[1] = std::nan("");
-    expect_aborted(r.step(in), "jet 2");
-  }
-  {
-    SafetyRig r;
-    ControllerInputs in = r.plant.inputs(1.0);
-    in.flows[2] = -1e-6;
-    expect_aborted(r.step(in), "jet 3");
-  }
-}
-
-TEST(ControllerSafety, SolverFailingTwiceInARowAborts) {
-  rod::ShootingOptions weak = test::scene("hydrojet_0deg").solver;
-  SafetyRig r(static_target(0.5, 0.0), weak);
-  // Now cripple the controller's solver: one Newton step, no continuation, and a large jump of
-  // the measured flows that it cannot follow in one step.
-  control::RobotModel m = config::make_controller_model(r.sc, flow_gains());
-  m.solver.max_iterations = 1;
-  m.solver.max_continuation_steps = 0;
-  Controller c(m, static_target(0.5, 0.0));
-  c.start(0.0);
-  ControllerInputs in = r.plant.inputs(0.0);
-  in.flows = Vec3(1.2e-5, 0.0, 0.0);
-  ControllerOutput out = c.update(in);
-  EXPECT_EQ(out.state, ControllerState::kRunning);  // one failure is tolerated
-  EXPECT_FALSE(out.solver_converged);
-  in.t = in.tip_stamp = in.flow_stamp = kDt;
-  in.flows = Vec3(0.0, 1.2e-5, 0.0);
-  out = c.update(in);
-  expect_aborted(out, "did not converge");
-}
-
-TEST(ControllerSafety, LowStabilityMarginAborts) {
-  control::ControllerOptions p = static_target(0.5, 0.0);
-  const config::Scene sc = test::scene("hydrojet_0deg");
-  Controller c(config::make_controller_model(sc, flow_gains()), p);
-  StaticPlant plant(sc, test::bare(sc));
-  p.min_stability_margin = 100.0;  // N/m, far above the HydroJet's ~3 N/m
-  c.set_params(p);
-  c.start(0.0);
-  expect_aborted(c.update(plant.inputs(0.0)), "sigma_c");
-}
-
-TEST(ControllerSafety, OscillationBeyondHalfRadianAborts) {
-  SafetyRig r;
-  ControllerInputs in = r.plant.inputs(1.0);
-  in.tip_rotation = so3::exp(Vec3(0.0, 0.5 + 0.6, 0.0));  // 0.6 rad past the 0.5 rad target
-  expect_aborted(r.step(in), "oscillation");
-}
+// --- Options -------------------------------------------------------------------------------------
 
 TEST(ControllerOptions, ValidationNamesTheField) {
   control::ControllerOptions p;
@@ -539,161 +268,6 @@ TEST(ControllerOptions, ValidationNamesTheField) {
   p.path.duration = 0;
   EXPECT_EQ(p.validate().rfind("path.duration:", 0), 0u);
 }
-
-TEST(TaskSpace, AnglesDirectionsAndMetrics) {
-  for (double th : {0.0, 0.3, 1.04, 1.5})
-    for (double ph : {-3.0, -0.5, 0.0, 2.0}) {
-      const Vec3 d = control::direction(th, ph);
-      EXPECT_NEAR(d.norm(), 1.0, 1e-15);
-      EXPECT_NEAR(control::bend_angle(d), th, 1e-12);
-      if (th > 0) {
-        EXPECT_NEAR(std::remainder(control::azimuth(d) - ph, 2 * M_PI), 0.0, 1e-12);
-      }
-    }
-  const Vec3 a = control::direction(0.4, 0.2), b = control::direction(0.9, 1.7);
-  const Vec3 r = control::rotation_between(a, b);
-  EXPECT_LT((so3::exp(r) * a - b).norm(), 1e-12);
-  EXPECT_NEAR(r.norm(), control::geodesic_error(a, b), 1e-12);
-  // Pure pitch: the paper's metric equals the geodesic angle.
-  EXPECT_NEAR(control::pitch_yaw_error(control::direction(0.2, 0.0), control::direction(0.5, 0.0)), 0.3, 1e-12);
-  // Spiral end point (eq. 28 defaults).
-  control::SpiralPath s;
-  EXPECT_NEAR(s.angles(600.0)[0], 1.04, 1e-12);
-  EXPECT_NEAR(s.angles(600.0)[1], 14.0, 1e-12);
-  EXPECT_NEAR(s.angles(300.0)[0], 0.52, 1e-12);
-}
-
-// A valve stuck open: the measured flow of that jet stays far above its command; the controller
-// notices from flow feedback within flow_fault_time and stops.
-TEST(ControllerSafety, StuckOpenJetIsDetectedFromFlowFeedback) {
-  SafetyRig r;
-  r.plant.stuck_jet = 1;  // jet 2 partly open whatever it is told
-  r.plant.stuck_flow = 6e-6;
-  const double t0 = 1.0;
-  ControllerOutput out;
-  int k = 0;
-  for (; k < 200; ++k) {
-    out = r.c.update(r.plant.inputs(t0 + k * kDt));
-    r.plant.apply(out.valve_command);
-    if (out.state == ControllerState::kAborted) break;
-  }
-  expect_aborted(out, "jet 2 does not follow");
-  const double params_time = control::ControllerOptions().flow_fault_time;
-  // The excess over the tolerance (3e-6) is at most 3e-6 here, so it cannot trip sooner than
-  // flow_fault_time; it trips soon after the loop has pushed jet 2's command away from the stuck flow.
-  EXPECT_GE(k * kDt, params_time - 1e-9);
-  EXPECT_LE(k * kDt, 2.0);
-}
-
-// The flows must come one per jet (three for the HydroJet's jet map).
-TEST(ControllerSafety, WrongNumberOfFlowReadingsAborts) {
-  SafetyRig r;
-  EXPECT_EQ(r.c.input_count(), 3);
-  ControllerInputs in = r.plant.inputs(1.0);
-  in.flows = Eigen::Vector2d(1e-6, 1e-6);
-  expect_aborted(r.step(in), "flow: 2 readings for 3 jets");
-}
-
-// --- The step on the actuation Jacobian (eqs. 19-20) ----------------------------------------------
-
-namespace {
-
-/// The HydroJet model at rest-ish: its tip frame, C^b and the jets' J_q = C^b W at a tip force.
-struct HydroJetLinearisation {
-  control::Mat3 R;
-  control::ActuatedModel::Linearisation lin;
-  rod::InputVector lower, upper;
-};
-
-HydroJetLinearisation hydrojet_linearisation(const Eigen::Vector3d& q) {
-  control::ActuatedModel m(config::make_controller_model(test::scene("hydrojet_0deg"), flow_gains()));
-  EXPECT_TRUE(m.rod().tip_actuated_uniform());
-  const rod::RodSolution sol = m.solve(q);
-  EXPECT_TRUE(sol.converged);
-  return {sol.tip_rotation, m.linearise(), m.lower(), m.upper()};
-}
-
-}  // namespace
-
-// Away from the bounds, the tip force W q takes exactly eq. (19)'s step on the force block of C^b,
-// δf = (MᵀM + μ²)⁻¹Mᵀ(x_cntr × d) with M = −d̂ R C^b_ω[:, f_x f_y], and q is eq. (20)'s allocation of
-// the new force (the 27-set enumeration of allocation.h, an independent solver).
-TEST(InputStep, OnTheHydroJetIsEquationNineteenThenTwenty) {
-  const Eigen::Vector3d q0(0.05, 0.03, 0.02);
-  const HydroJetLinearisation h = hydrojet_linearisation(q0);
-  const actuation::JetMap jets(actuation::hydrojet_geometry());
-  const Vec3 d = h.R.col(2);
-  const Vec3 x_cntr(0.004, -0.003, 0.0005);
-  control::InputStepOptions o;
-  o.max_force_step = 1.0;  // no rate limit here
-  const control::InputStep step = control::input_step(h.R, h.lin, x_cntr, q0, h.lower, h.upper, o);
-  ASSERT_TRUE(step.ok) << step.message;
-  const Eigen::Matrix<double, 3, 2> M = -so3::hat(d) * h.R * h.lin.body_compliance.block<3, 2>(3, 0);
-  const Eigen::Vector2d df = (M.transpose() * M + o.damping * o.damping * Eigen::Matrix2d::Identity())
-                                 .ldlt()
-                                 .solve(M.transpose() * x_cntr.cross(d));
-  const Eigen::Vector2d f = jets.planar() * q0 + df;
-  const Eigen::Vector3d q = step.q;
-  EXPECT_NEAR((jets.planar() * q - f).norm(), 0.0, 1e-7 * f.norm()) << "W q = f + δf (λ = 1e-6 moves it by ~λ)";
-  const actuation::AllocationResult ref = actuation::allocate(jets.planar(), f, h.lower, h.upper, 0.0);
-  ASSERT_TRUE(ref.ok);
-  EXPECT_NEAR((q - ref.q).norm(), 0.0, 1e-6) << "the smallest jet forces for that force";
-  EXPECT_LE(step.bound_cost, 1e-6);
-}
-
-TEST(InputStep, StepAndMagnitudeAreLimitedInTipForce) {
-  const Eigen::Vector3d q0(0.05, 0.03, 0.02);
-  const HydroJetLinearisation h = hydrojet_linearisation(q0);
-  const actuation::JetMap jets(actuation::hydrojet_geometry());
-  const Vec3 x_cntr = 0.3 * h.R.col(0);  // a large turn about the tip x-axis (δf ≈ 0.045 N)
-  control::InputStepOptions o;
-  o.max_force_step = 0.01;  // 1 N/s · 10 ms
-  const control::InputStep a = control::input_step(h.R, h.lin, x_cntr, q0, h.lower, h.upper, o);
-  o.max_force_step = 10.0;
-  const control::InputStep b = control::input_step(h.R, h.lin, x_cntr, q0, h.lower, h.upper, o);
-  ASSERT_TRUE(a.ok && b.ok);
-  const Eigen::Vector3d qa = a.q, qb = b.q;
-  const Eigen::Vector2d fa = jets.planar() * (qa - q0), fb = jets.planar() * (qb - q0);
-  EXPECT_NEAR(fa.norm(), 0.01, 1e-12) << "the step's tip-force change is cut to the limit";
-  EXPECT_GT(fb.norm(), 0.02);
-  EXPECT_NEAR(fa.normalized().dot(fb.normalized()), 1.0, 1e-9) << "along the unlimited step";
-  // The magnitude: the force itself is scaled onto max_force, and every input stays in its bounds.
-  o.max_force = 0.05;
-  const control::InputStep c = control::input_step(h.R, h.lin, x_cntr, q0, h.lower, h.upper, o);
-  ASSERT_TRUE(c.ok);
-  const Eigen::Vector3d qc = c.q;
-  EXPECT_NEAR((jets.planar() * qc).norm(), 0.05, 1e-12);
-  EXPECT_TRUE((qc.array() >= -1e-15).all() && (qc.array() <= h.upper.array()).all());
-}
-
-TEST(InputStep, AtTheBoundsTheBestAllowedStepAndItsCost) {
-  // Every jet at q_max but jet 1 at 0: a turn that needs more of jets 2 and 3 is out of reach.
-  const Eigen::Vector3d q0(0.0, 0.224, 0.244);
-  const HydroJetLinearisation h = hydrojet_linearisation(q0);
-  const actuation::JetMap jets(actuation::hydrojet_geometry());
-  const Vec3 d = h.R.col(2);
-  const Eigen::Matrix<double, 3, 2> M = -so3::hat(d) * h.R * h.lin.body_compliance.block<3, 2>(3, 0);
-  // The direction change that the force (jets 2 + 3 more) would cause.
-  const Eigen::Vector2d push = jets.planar() * Eigen::Vector3d(0.0, 0.05, 0.05);
-  const Vec3 dd = M * push;
-  const Vec3 x_cntr = d.cross(dd);  // x_cntr × d = dd
-  control::InputStepOptions o;
-  o.max_force_step = 1.0;
-  const control::InputStep s = control::input_step(h.R, h.lin, x_cntr, q0, h.lower, h.upper, o);
-  ASSERT_TRUE(s.ok);
-  const Eigen::Vector3d q = s.q;
-  EXPECT_TRUE((q.array() >= -1e-15).all() && (q.array() <= h.upper.array() + 1e-15).all());
-  EXPECT_GT(s.bound_cost, 1e-3) << "the bounds cost tip force";
-  // No input vector in the box does better on the task (the objective is convex; compare with a grid).
-  auto task = [&](const Eigen::Vector3d& qq) { return (M * (jets.planar() * (qq - q0)) - dd).norm(); };
-  double best = 1e9;
-  for (int i = 0; i <= 40; ++i)
-    for (int j = 0; j <= 40; ++j)
-      for (int k = 0; k <= 40; ++k) best = std::min(best, task(Eigen::Vector3d(i, j, k).cwiseProduct(h.upper) / 40.0));
-  EXPECT_LE(task(q), best + 1e-4);
-}
-
-// --- Options ----------------------------------------------------------------------------------
 
 // config/controller.yaml is the source of every default: it names every key, and the
 // default-constructed options hold the same values, field by field (the scene aside).
@@ -846,151 +420,7 @@ TEST(ControllerOptions, RangesOfControllerCfgAreEnforced) {
   }
 }
 
-// --- Fast paths -----------------------------------------------------------------------------------
-
-namespace {
-
-/// The direction a [rad] from +z toward +x.
-Vec3 dir(double a) { return Vec3(std::sin(a), 0.0, std::cos(a)); }
-
-/// DirectionPd's terms alone: K_p, K_i, the feedforward's weight; no derivative.
-control::ControllerOptions pd_terms(double kp, double ki, double feedforward) {
-  control::ControllerOptions g;
-  g.kp = kp;
-  g.kd = 0.0;
-  g.ki = ki;
-  g.feedforward = feedforward;
-  return g;
-}
-
-/// A great circle from +z toward +x at `rate` [rad/s] for `duration` [s].
-class ArcPath : public control::Path {
- public:
-  ArcPath(double rate, double duration) : rate_(rate), duration_(duration) {}
-  Vec3 direction_at(double t) const override { return dir(rate_ * std::clamp(t, 0.0, duration_)); }
-  double duration() const override { return duration_; }
-  const char* type() const override { return "arc"; }
-
- private:
-  double rate_, duration_;
-};
-
-}  // namespace
-
-// A path is followed as written once the reference is on it, even faster than max_angular_rate
-// (which still limits the way onto it); preview() looks ahead along it and is the reference itself
-// otherwise.
-TEST(Reference, APathIsFollowedAtItsOwnSpeedOnceJoined) {
-  control::Reference ref(0.25, nullptr, nullptr);
-  const auto path = std::make_shared<ArcPath>(0.6, 2.0);  // 0.6 rad/s > 0.25
-  ref.follow(path, 0.0, /*starts_at_path=*/true);
-  ref.start(Vec3::UnitZ(), 0.0);
-  for (int k = 1; k <= 100; ++k) {
-    const double t = 0.01 * k;
-    const Vec3 d = ref.advance(t, 0.01, control::Mat3::Identity());
-    EXPECT_NEAR(control::geodesic_error(d, path->direction_at(t)), 0.0, 1e-12) << t;
-  }
-  EXPECT_NEAR(control::geodesic_error(ref.preview(1.0, 0.1), path->direction_at(1.1)), 0.0, 1e-12);
-  EXPECT_EQ(ref.preview(1.0, 0.0), ref.direction());
-  // Joining from elsewhere: at most max_angular_rate until on the path, then the path's speed.
-  control::Reference join(0.25, nullptr, nullptr);
-  join.start(Vec3(std::sin(0.3), 0.0, std::cos(0.3)), 0.0);
-  join.follow(std::make_shared<ArcPath>(0.6, 10.0), 0.0);
-  Vec3 prev = join.direction();
-  bool joined = false;
-  for (int k = 1; k <= 300 && !joined; ++k) {
-    const Vec3 d = join.advance(0.01 * k, 0.01, control::Mat3::Identity());
-    joined = control::geodesic_error(d, ArcPath(0.6, 10.0).direction_at(0.01 * k)) < 1e-12;
-    // Rate-limited on the way; the step that joins adds at most the path's own step (0.006 rad).
-    EXPECT_LE(control::geodesic_error(prev, d), 0.25 * 0.01 + (joined ? 0.006 : 0.0) + 1e-12) << k;
-    prev = d;
-  }
-  EXPECT_TRUE(joined);
-  EXPECT_EQ(join.preview(0.0, 0.0), join.direction());
-}
-
-// The lead enters the feedforward once, when it starts; after that the feedforward is the motion
-// ahead; when the lead ends it is not taken back in one step.
-TEST(DirectionPd, TheLeadEntersOnceAndIsNotTakenBackAtOnce) {
-  const control::ControllerOptions g = pd_terms(0.0, control::ControllerOptions().ki, 1.0);
-  control::DirectionPd pd;
-  // Cycle 1 primes on x_des = dir(0) with x_ff = dir(0.05): the lead (0.05 rad about +y) enters.
-  Vec3 x = pd.correction(dir(0.0), dir(0.0), dir(0.05), 0.01, g);
-  EXPECT_NEAR((x - Vec3(0.0, 0.05, 0.0)).norm(), 0.0, 1e-12);
-  // Then the motion ahead: 0.01 rad per step.
-  x = pd.correction(dir(0.01), dir(0.01), dir(0.06), 0.01, g);
-  EXPECT_NEAR((x - Vec3(0.0, 0.01, 0.0)).norm(), 0.0, 1e-12);
-  // The lead ends (x_ff = x_des): x_des's own motion, no step back by 0.05.
-  x = pd.correction(dir(0.02), dir(0.02), dir(0.02), 0.01, g);
-  EXPECT_NEAR((x - Vec3(0.0, 0.01, 0.0)).norm(), 0.0, 1e-12);
-  // K_i: the integral of a constant error e over n steps of dt adds K_i dt (n dt) e, bounded.
-  control::ControllerOptions gi = pd_terms(0.0, 2.0, 0.0);
-  gi.max_integral = 1.0;
-  gi.fast_path_rate = 0.0;  // unscheduled: the still reference below gets the integral too
-  control::DirectionPd pi;
-  const Vec3 e(0.0, 0.02, 0.0);
-  for (int n = 1; n <= 5; ++n) {
-    x = pi.correction(dir(0.0), dir(0.02), dir(0.02), 0.01, gi);
-    EXPECT_NEAR((x - gi.ki * 0.01 * (n * 0.01) * e).norm(), 0.0, 1e-12) << n;
-  }
-}
-
-// The integral's weight on the reference's speed v: w = v²/(v² + v₀²), 1 without v₀. A still
-// reference gets none of it (the paper's law); a moving one gets w of the error per step; when the
-// reference stops, the integral leaks at K_p.
-TEST(DirectionPd, TheIntegralIsWeightedByTheReferenceSpeedAndLeaksWhenItStops) {
-  EXPECT_EQ(control::fast_path_weight(0.0, 0.1), 0.0);
-  EXPECT_DOUBLE_EQ(control::fast_path_weight(0.1, 0.1), 0.5);
-  EXPECT_DOUBLE_EQ(control::fast_path_weight(0.3, 0.1), 0.9);
-  EXPECT_EQ(control::fast_path_weight(0.0, 0.0), 1.0);
-  control::ControllerOptions g = pd_terms(0.0, 2.0, 0.0);
-  g.max_integral = 1.0;
-  g.fast_path_rate = 0.1;
-  const double dt = 0.01, e = 0.02;
-  // Still: no integral at all.
-  control::DirectionPd still;
-  for (int n = 0; n < 5; ++n) EXPECT_EQ(still.correction(dir(0.0), dir(e), dir(e), dt, g).norm(), 0.0) << n;
-  // Moving at 0.3 rad/s (w = 0.9), the tip e behind: after the priming step, K_i dt Σ w e dt.
-  control::DirectionPd moving;
-  moving.correction(dir(-e), dir(0.0), dir(0.0), dt, g);  // primes (v unknown: 0)
-  Vec3 x;
-  for (int n = 1; n <= 5; ++n) {
-    const double a = 0.3 * dt * n;
-    x = moving.correction(dir(a - e), dir(a), dir(a), dt, g);
-    EXPECT_NEAR(x.y(), g.ki * dt * (n * dt * 0.9 * e), 1e-9) << n;
-  }
-  // It stops: with K_p the integral leaks by (1 − K_p dt) per step (and K_p's own term adds K_p dt e).
-  g.kp = 3.0;
-  const double before = x.y() / (g.ki * dt);
-  const double a = 0.3 * dt * 5;
-  x = moving.correction(dir(a - e), dir(a), dir(a), dt, g);
-  EXPECT_NEAR(x.y(), g.kp * dt * e + g.ki * dt * before * (1.0 - g.kp * dt), 1e-9);
-}
-
-// A cycle without a correction (the controller held while the model did not converge, the reference on
-// a path, which moves with time; Controller::hold skips only then): the reference's speed is its
-// motion over both cycles, not over the last one (which would double it), and the
-// feedforward carries the motion of both.
-TEST(DirectionPd, AHeldCycleCountsInTheReferenceSpeed) {
-  const control::ControllerOptions g = pd_terms(0.0, 0.0, 1.0);
-  const double dt = 0.01, v = 0.2;
-  control::DirectionPd pd;
-  pd.skip(dt);  // before the first correction: nothing to carry
-  pd.correction(dir(0.0), dir(0.0), dir(0.0), dt, g);
-  pd.correction(dir(v * dt), dir(v * dt), dir(v * dt), dt, g);
-  EXPECT_NEAR(pd.speed(), v, 1e-9);
-  pd.skip(dt);  // the held cycle; x_des moved on by v dt
-  const Vec3 x = pd.correction(dir(3 * v * dt), dir(3 * v * dt), dir(3 * v * dt), dt, g);
-  EXPECT_NEAR(pd.speed(), v, 1e-9);
-  EXPECT_NEAR(x.y(), 2 * v * dt, 1e-12);
-  pd.correction(dir(4 * v * dt), dir(4 * v * dt), dir(4 * v * dt), dt, g);  // the skip is spent
-  EXPECT_NEAR(pd.speed(), v, 1e-9);
-  pd.reset();
-  pd.skip(dt);
-  pd.correction(dir(0.0), dir(0.0), dir(0.0), dt, g);
-  pd.correction(dir(v * dt), dir(v * dt), dir(v * dt), dt, g);
-  EXPECT_NEAR(pd.speed(), v, 1e-9);
-}
+// --- Fast paths ----------------------------------------------------------------------------------
 
 // A plant 25 % softer than the model (its direction gain g = 1.25): on an arc at v = 0.3 rad/s the
 // paper's law settles at the type-1 ramp error (1 − 1/g) v / K_p = 0.02 rad; with the speed-weighted,
@@ -1086,77 +516,6 @@ TEST(Controller, IdlingJetsStayOpenAndTheTargetIsStillReached) {
         EXPECT_LT(out.jet_force_command.minCoeff(), 1e-9);
     }
   }
-}
-
-// The HydroJet's common mode (allocation_smoothing) against eq. (24): the jets' planar forces P (2 × 3)
-// and their moments d e_z × f cancel together along P's null vector, the cross product of its rows.
-// J_q = C^b W has that null space and no other; two jets have none; a jet left out gets 0.
-TEST(RoundedAllocation, TheJetsCommonModeMovesTheTipByNothing) {
-  const HydroJetLinearisation h = hydrojet_linearisation(Eigen::Vector3d(0.05, 0.02, 0.0));
-  const rod::InputVector jets = rod::InputVector::Ones(3);
-  const rod::InputVector n = control::jet_common_mode(h.lin.actuation, jets);
-  ASSERT_EQ(n.size(), 3);
-  const actuation::JetMap map(*test::scene("hydrojet_0deg").jets);
-  Eigen::Vector3d closed = map.planar().row(0).transpose().cross(map.planar().row(1).transpose());
-  if (closed.sum() < 0.0) closed = -closed;
-  closed /= closed.maxCoeff();
-  EXPECT_LT((n - closed).norm(), 1e-9) << n.transpose() << " vs " << closed.transpose();
-  EXPECT_GT(n.minCoeff(), 0.5);  // misaligned by 0.06–0.12 rad: near, not at, all equal
-  EXPECT_LT((h.lin.actuation * n).norm(), 1e-9 * h.lin.actuation.norm());
-  rod::InputVector two = jets;
-  two[2] = 0.0;
-  EXPECT_TRUE(control::jet_common_mode(h.lin.actuation, two).isZero());
-}
-
-// round_allocation: the log-sum-exp amount in closed form, blind to a common mode already in q (its
-// excess), s log m with every jet on its bound; and on the HydroJet's jets (eq. 24), a tip force
-// of 0.1 N turned once round the tip: the least-water allocation (one jet on its bound, what the
-// box QP gives) has a corner each time the force passes a jet, a second difference of O(h) at step
-// h; rounded, none (O(h²)), and the tip force is the same.
-TEST(RoundedAllocation, TheLogSumExpAmountAndNoCornerWhereTheForcePassesAJet) {
-  const double s = 0.035, a = 0.02, b = 0.07, d = 0.01;
-  const rod::InputVector ones = rod::InputVector::Ones(3), zero = rod::InputVector::Zero(3);
-  const rod::InputVector q = (rod::InputVector(3) << 0.0, a, b).finished();
-  const control::AllocationRounding r = control::round_allocation(q, zero, ones, s);
-  EXPECT_EQ(r.excess, 0.0);
-  EXPECT_NEAR(r.amount, s * std::log(1.0 + std::exp(-a / s) + std::exp(-b / s)), 1e-15);
-  const control::AllocationRounding shifted = control::round_allocation(q + d * ones, zero, ones, s);
-  EXPECT_NEAR(shifted.excess, d, 1e-15);
-  EXPECT_NEAR(shifted.amount, r.amount, 1e-15);
-  EXPECT_NEAR(control::round_allocation(zero, zero, ones, s).amount, s * std::log(3.0), 1e-15);
-  const control::AllocationRounding none = control::round_allocation(q + d * ones, zero, ones, 0.0);
-  EXPECT_NEAR(none.excess, d, 1e-15);  // scale 0: no rounding, the least common mode
-  EXPECT_EQ(none.amount, 0.0);
-
-  const actuation::JetMap map(*test::scene("hydrojet_0deg").jets);
-  const Eigen::Matrix<double, 2, 3> P = map.planar();
-  Eigen::Vector3d n = P.row(0).transpose().cross(P.row(1).transpose());
-  if (n.sum() < 0.0) n = -n;
-  n /= n.maxCoeff();
-  const Eigen::Matrix<double, 3, 2> pinv = P.transpose() * (P * P.transpose()).inverse();
-  auto allocate = [&](double phi, bool round) {
-    const Eigen::Vector2d F = 0.1 * Eigen::Vector2d(std::cos(phi), std::sin(phi));
-    Eigen::Vector3d x = pinv * F;
-    x -= (x.array() / n.array()).minCoeff() * n;  // least water: one jet at 0
-    rod::InputVector q = x;
-    if (round) q += control::round_allocation(q, zero, n, s).amount * n;
-    EXPECT_LT((P * q - F).norm(), 1e-12);
-    EXPECT_GE(q.minCoeff(), -1e-15);
-    return q;
-  };
-  const double h = 1e-3;
-  double hard = 0.0, rounded = 0.0;
-  for (double phi = 0.0; phi < 2.0 * M_PI; phi += h) {
-    hard = std::max(
-        hard, (allocate(phi + h, false) - 2.0 * allocate(phi, false) + allocate(phi - h, false)).cwiseAbs().maxCoeff());
-    rounded = std::max(
-        rounded, (allocate(phi + h, true) - 2.0 * allocate(phi, true) + allocate(phi - h, true)).cwiseAbs().maxCoeff());
-  }
-  // A corner: h times the jump of slope, here (0.1 N) · O(1) per rad; smooth: h² max|q''|, q'' at
-  // most (0.1 N)² / s + 0.1 N, a few 0.1 N/rad².
-  EXPECT_GT(hard, 0.1 * h * 0.1);
-  EXPECT_LT(rounded, h * h * 1.0);
-  EXPECT_LT(rounded, 0.02 * hard);
 }
 
 // The controller on a cone round the tip (the tip force turns past each jet), quasi-static plant with

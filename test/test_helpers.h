@@ -5,6 +5,7 @@
 
 #include "hydrojet_control/config/scene.h"
 #include "hydrojet_control/rod/rod_solver.h"
+#include "hydrojet_control/rod/so3.h"
 
 namespace hydrojet {
 namespace test {
@@ -50,6 +51,16 @@ inline rod::ShootingOptions rk8(int steps, double residual_tol = 1e-12) {
   s.integrator.steps = steps;
   s.residual_tolerance = residual_tol;
   return s;
+}
+
+/// The angle [rad] of the rotation from A to B.
+inline double angle_between(const rod::Mat3& A, const rod::Mat3& B) { return so3::log(A.transpose() * B).norm(); }
+
+/// A tip wrench of a force alone.
+inline rod::TipWrench force(const rod::Vec3& f) {
+  rod::TipWrench w;
+  w.force = f;
+  return w;
 }
 
 }  // namespace test

@@ -1,45 +1,27 @@
 // The numerics of the rod solver beyond the Kirchhoff/RK8 default: the Cosserat model (closed
 // forms, the Kirchhoff limit, its compliance), the scene-specialised right-hand sides against the
-// general one, the CVODE integrators (both ways of carrying sensitivities), KINSOL as the Newton
-// iteration, and multiple shooting against single shooting.
+// general one, and multiple shooting against single shooting.
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <string>
 
 #include "hydrojet_control/rod/so3.h"
 #include "hydrojet_control/rod/stability.h"
 #include "test_helpers.h"
 
 using namespace hydrojet;
-using rod::Mat3;
 using rod::Mat6;
 using rod::Vec3;
+using test::angle_between;
+using test::force;
 
 namespace {
-
-double angle_between(const Mat3& A, const Mat3& B) { return so3::log(A.transpose() * B).norm(); }
 
 rod::RodModel cosserat(rod::RodModel m, double GA, double EA) {
   m.kind = rod::RodKind::kCosserat;
   m.segments[0].shear_stiffness = GA;
   m.segments[0].axial_stiffness = EA;
   return m;
-}
-
-rod::ShootingOptions with(rod::IntegratorType type, double tol, int steps = 4) {
-  rod::ShootingOptions s;
-  s.integrator.type = type;
-  s.integrator.tolerance = tol;
-  s.integrator.steps = steps;
-  s.residual_tolerance = 1e-12;
-  return s;
-}
-
-rod::TipWrench force(const Vec3& f) {
-  rod::TipWrench w;
-  w.force = f;
-  return w;
 }
 
 }  // namespace
@@ -149,46 +131,6 @@ TEST(Specialisation, VariantsMatchTheGeneralRightHandSide) {
   }
 }
 
-// CVODE Adams and BDF (sensitivities in the state, or through CVODES) agree with the RK8 reference
-// on the HydroJet, for the solve and for C^b; KINSOL as the Newton iteration finds the same root.
-TEST(Cvode, AdamsAndBdfMatchTheReference) {
-  const config::Scene sc = test::scene("hydrojet_30deg");
-  const rod::TipWrench w = force(test::jet_force(0.2, 0.05, 0.1));
-  rod::RodSolver ref(test::bare(sc), test::rk8(128, 1e-13));
-  const rod::RodSolution r = ref.solve(w);
-  ASSERT_TRUE(r.converged);
-  const Mat6 Cref = ref.compliance().body;
-  for (rod::IntegratorType t : {rod::IntegratorType::kCvodeAdams, rod::IntegratorType::kCvodeBdf}) {
-    for (bool cvodes : {false, true}) {
-      rod::ShootingOptions s = with(t, 1e-10);
-      s.integrator.cvodes_sensitivities = cvodes;
-      rod::RodSolver solver(test::bare(sc), s);
-      const std::string what = std::string(rod::integrator_name(t)) + (cvodes ? " (CVODES sensitivities)" : "");
-      const rod::RodSolution a = solver.solve(w);
-      ASSERT_TRUE(a.converged) << what << ": " << a.message;
-      EXPECT_LT((a.tip_position - r.tip_position).norm(), 1e-7) << what;
-      EXPECT_LT(angle_between(a.tip_rotation, r.tip_rotation), 1e-6) << what;
-      const rod::Compliance C = solver.compliance();
-      ASSERT_TRUE(C.ok) << what;
-      EXPECT_LT((C.body - Cref).norm(), 1e-5 * Cref.norm()) << what;
-      // warm solves along a short path keep converging (CVODE memory reused)
-      for (int k = 1; k <= 5; ++k)
-        EXPECT_TRUE(solver.solve(force(test::jet_force(0.2 - 0.02 * k, 0.05, 0.1))).converged);
-    }
-  }
-  rod::ShootingOptions k = sc.solver;
-  k.newton = rod::NewtonBackend::kKinsol;
-  k.residual_tolerance = 1e-12;
-  rod::RodSolver kin(test::bare(sc), k);
-  rod::ShootingOptions e = sc.solver;
-  e.residual_tolerance = 1e-12;
-  rod::RodSolver eig(test::bare(sc), e);
-  const rod::RodSolution a = kin.solve(w), b = eig.solve(w);
-  ASSERT_TRUE(a.converged) << a.message;
-  ASSERT_TRUE(b.converged);
-  EXPECT_LT((a.tip_position - b.tip_position).norm(), 1e-11);
-}
-
 // Multiple shooting (forced) finds the single-shooting solution, shape and compliance.
 TEST(MultipleShooting, AgreesWithSingleShooting) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
@@ -213,16 +155,4 @@ TEST(MultipleShooting, AgreesWithSingleShooting) {
       for (size_t i = 0; i < pa.size(); ++i) EXPECT_LT((pa[i] - pb[i]).norm(), 1e-10);
     }
   }
-}
-
-// A copied solver is independent (its CVODE memory is its own) and gives the same answers.
-TEST(Cvode, CopiedSolverIsIndependent) {
-  const config::Scene sc = test::scene("hydrojet_0deg");
-  rod::RodSolver a(test::bare(sc), with(rod::IntegratorType::kCvodeBdf, 1e-9));
-  const rod::TipWrench w = force(test::jet_force(0.1, 0.1, 0.0));
-  ASSERT_TRUE(a.solve(w).converged);
-  rod::RodSolver b = a;
-  const rod::RodSolution sa = a.solve(w), sb = b.solve(w);
-  ASSERT_TRUE(sa.converged && sb.converged);
-  EXPECT_LT((sa.tip_position - sb.tip_position).norm(), 1e-14);
 }

@@ -1,49 +1,21 @@
-// The simulated plant's parts against their own definitions: valve statics and lag, sensor noise
-// statistics, plant configuration errors and defaults, the static limit against the quasi-static model, and
-// determinism of a closed-loop run for a seed.
+// The simulated plant's parts against their own definitions: sensor noise statistics, plant
+// configuration errors and defaults, and the static limit against the quasi-static model.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <string>
 
-#include "hydrojet_control/config/controller_config.h"
 #include "hydrojet_control/config/plant_config.h"
+#include "hydrojet_control/config/yaml_tree.h"
+#include "hydrojet_control/plant/plant.h"
 #include "hydrojet_control/rod/rod_solver.h"
-#include "hydrojet_control/sim/closed_loop_run.h"
+#include "hydrojet_control/rod/so3.h"
+#include "plant_fixtures.h"
 #include "test_helpers.h"
 
 using namespace hydrojet;
-
-TEST(Valve, DeadZoneLagHysteresisAndSaturation) {
-  plant::ValveModel p;
-  p.max_flow = 1.6e-5, p.dead_zone = 0.1, p.exponent = 0.8, p.hysteresis = 0.0, p.time_constant = 0.05;
-  p.saturation = 1.0;
-  plant::Valve v(p);
-  EXPECT_EQ(v.steady_flow(0.05), 0.0);  // inside the dead zone
-  const double u = (0.6 - 0.1) / 0.9;
-  EXPECT_NEAR(v.steady_flow(0.6), 1.6e-5 * std::pow(u, 0.8), 1e-18);
-  // First-order lag: after one time constant 1 − e⁻¹ of the step.
-  double q = 0.0;
-  for (int i = 0; i < 50; ++i) q = v.step(0.6, 0.001);
-  EXPECT_NEAR(q / v.steady_flow(0.6), 1.0 - std::exp(-1.0), 1e-12);
-  // Saturation.
-  p.saturation = 1e-5;
-  plant::Valve s(p);
-  for (int i = 0; i < 2000; ++i) s.step(1.0, 0.001);
-  EXPECT_NEAR(s.flow(), 1e-5, 1e-12);
-  // Hysteresis (play of width h): coming down, the effective duty lags by h.
-  p.saturation = 1.0, p.hysteresis = 0.1, p.time_constant = 1e-4;
-  plant::Valve h(p);
-  for (int i = 0; i < 100; ++i) h.step(0.8, 0.001);
-  for (int i = 0; i < 100; ++i) h.step(0.7, 0.001);
-  EXPECT_NEAR(h.flow(), 1.6e-5 * std::pow((0.75 - 0.1) / 0.9, 0.8), 1e-12);  // 0.7 + h/2
-  // Stuck: ignores the command.
-  h.set_stuck(1.0);
-  for (int i = 0; i < 100; ++i) h.step(0.0, 0.001);
-  EXPECT_GT(h.flow(), 1.5e-5);
-  EXPECT_EQ(p.validate(), "");
-  p.dead_zone = 1.0;
-  EXPECT_EQ(p.validate().rfind("dead_zone", 0), 0u);
-}
+using test::exact_plant;
 
 TEST(Sensors, NoiseHasTheConfiguredSpreadAndLatencyDelays) {
   plant::TrackerNoise n;
@@ -178,18 +150,6 @@ TEST(PlantConfig, DefaultsMatchYaml) {
   EXPECT_EQ(a.valves[1].dead_zone, b.valves[1].dead_zone);
 }
 
-namespace {
-
-/// The plant of scene `sc` exactly as the scene says: no mismatch, no sensor noise.
-plant::PlantModel exact_plant(const config::Scene& sc) {
-  return config::make_plant(
-      sc,
-      "plant: {sensor_noise: false, dynamics: {kelvin_voigt_time: 0.03}, mismatch: {precurvature_offset: [0, 0, 0], "
-      "bending_stiffness_scale: 1, misalignment_offset: [0, 0, 0], tip_mass_scale: 1, base_tilt_offset: 0}}");
-}
-
-}  // namespace
-
 // With constant valve duties the plant settles to the quasi-static model at its true parameters.
 TEST(Plant, SettlesToTheQuasiStaticModel) {
   const config::Scene sc = test::scene("hydrojet_30deg");
@@ -207,39 +167,6 @@ TEST(Plant, SettlesToTheQuasiStaticModel) {
   // Shear/extension compliance of the dynamic rod (GA = EA = 1e5 N) and its grid: ~1e-6.
   EXPECT_LT((pl.tip_position() - s.tip_position).norm(), 2e-6);
   EXPECT_LT(so3::log(pl.tip_rotation().transpose() * s.tip_rotation).norm(), 2e-5);
-}
-
-namespace {
-
-/// The controller model, the plant and the controller options of a shipped scene with the shipped
-/// config/controller.yaml and config/plant.yaml (what scripts/experiment runs).
-struct ShippedSetup {
-  control::RobotModel model;
-  plant::PlantModel plant;
-  control::ControllerOptions controller;
-};
-
-ShippedSetup shipped(const std::string& scene) {
-  const config::Scene sc = test::scene(scene);
-  const config::ControllerNodeOptions o =
-      config::load_controller_options(std::string(HYDROJET_SOURCE_DIR) + "/config/controller.yaml");
-  return {config::make_controller_model(sc, o.flow_regulator),
-          config::load_plant(sc, std::string(HYDROJET_SOURCE_DIR) + "/config/plant.yaml"), o.controller};
-}
-
-}  // namespace
-
-TEST(ClosedLoopRun, DeterministicForASeed) {
-  const ShippedSetup setup = shipped("hydrojet_0deg");
-  const control::RobotModel& m = setup.model;
-  const plant::PlantModel& p = setup.plant;
-  control::ControllerOptions c = setup.controller;
-  c.path.duration = 5.0;
-  const sim::RunResult a = sim::run_path(m, c, p, 7), b = sim::run_path(m, c, p, 7), d = sim::run_path(m, c, p, 8);
-  ASSERT_TRUE(a.completed) << a.reason;
-  EXPECT_EQ(a.rms, b.rms);
-  EXPECT_EQ(a.samples.size(), b.samples.size());
-  EXPECT_NE(a.rms, d.rms);  // another seed, other sensor noise
 }
 
 // A general robot: with constant drives the second robot's plant settles where the
@@ -270,69 +197,6 @@ TEST(PlantGeneral, SettlesToTheGeneralStaticModel) {
   // A command of the wrong size closes the valves (drives at zero).
   pl.command(rod::InputVector::Constant(3, 0.5), 6.0);
   EXPECT_EQ(pl.valve_command(), rod::InputVector::Zero(6));
-}
-
-// The controller steers the second robot on its plant (model mismatch, sensor noise): closed loop
-// follows a spiral with less than half the open-loop error (the experiment's comparison).
-TEST(ClosedLoopRun, TheSecondRobotClosedLoopBeatsOpenLoop) {
-  const ShippedSetup setup = shipped("two_segment_thrusters");
-  const control::RobotModel& m = setup.model;
-  const plant::PlantModel& p = setup.plant;
-  control::ControllerOptions c = setup.controller;
-  c.path.duration = 60.0;
-  c.path.theta_end = 0.5;
-  c.path.phi_end = 4.0;
-  c.mode = control::LoopMode::kClosed;
-  const sim::RunResult closed = sim::run_path(m, c, p, 3);
-  c.mode = control::LoopMode::kOpen;
-  const sim::RunResult open = sim::run_path(m, c, p, 3);
-  ASSERT_TRUE(closed.completed) << closed.reason;
-  ASSERT_TRUE(open.completed) << open.reason;
-  std::printf("second robot, 60 s spiral to 0.5 rad: closed %.4f rad, open %.4f rad RMS\n", closed.rms, open.rms);
-  EXPECT_LT(closed.rms, 0.5 * open.rms);
-}
-
-// The disturbance observer converges to a constant force injected at the simulated tip
-// within 2 s, to 10 %. The plant is the model exactly (no mismatch) but for that force, with sensor
-// noise; the controller holds its start direction in closed loop, so the inputs move meanwhile.
-TEST(DisturbanceObserver, ConvergesToAForceInjectedAtTheTip) {
-  const config::Scene sc = test::scene("hydrojet_0deg");
-  plant::PlantModel p = exact_plant(sc);
-  p.sensor_noise = true;
-  p.external_tip_force = Eigen::Vector3d(0.03, -0.02, 0.0);  // [N], tip frame
-  const config::ControllerNodeOptions o =
-      config::load_controller_options(std::string(HYDROJET_SOURCE_DIR) + "/config/controller.yaml");
-  control::ControllerOptions c = o.controller;
-  c.path_type = control::PathType::kNone;
-  c.mode = control::LoopMode::kClosed;
-  c.observer = true;
-  c.observer_time_constant = 0.25;
-  control::Controller ctl(config::make_controller_model(sc, o.flow_regulator), c);
-  plant::Plant pl(p, 5);
-  const double dt = 0.01;
-  ctl.start(0.0);
-  double at_2s = -1.0;
-  for (int k = 0; k <= 300; ++k) {
-    const double t = k * dt;
-    ASSERT_TRUE(pl.advance_to(t)) << pl.error();
-    control::ControllerInputs in;
-    const plant::TrackerSample ts = pl.tracker_sample();
-    in.t = t;
-    in.tip_valid = ts.valid;
-    in.tip_stamp = ts.stamp;
-    in.tip_rotation = ts.base.orientation.toRotationMatrix().transpose() * ts.tip.orientation.toRotationMatrix();
-    in.flows = pl.flow_sample();
-    in.flow_valid = true;
-    in.flow_stamp = t;
-    const control::ControllerOutput out = ctl.update(in);
-    ASSERT_NE(out.state, control::ControllerState::kAborted) << out.reason;
-    pl.command(out.valve_command, t);
-    if (k == 200) at_2s = (ctl.observer().force() - p.external_tip_force).norm() / p.external_tip_force.norm();
-  }
-  const Eigen::Vector3d f = ctl.observer().force();
-  std::printf("observer: estimate (%.4f, %.4f, %.4f) N at 3 s, relative error %.3f at 2 s\n", f.x(), f.y(), f.z(),
-              at_2s);
-  EXPECT_LT(at_2s, 0.10);
 }
 
 // The plant variations (config/plants/*.yaml) load on both HydroJet scenes and differ

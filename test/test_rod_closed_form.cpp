@@ -1,4 +1,5 @@
-// The rod solver against closed-form solutions and against its own convergence order.
+// The rod solver against closed-form solutions, the accuracy of its defaults, and its robustness (cold
+// starts across the workspace, non-convergence reported).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -74,42 +75,6 @@ TEST(RodClosedForm, SmallTipForceMatchesLinearBeam) {
     const double slope = F * L * L / (2 * EI);
     EXPECT_NEAR(so3::log(sol.tip_rotation).norm(), slope, 1e-3 * slope);
   }
-}
-
-namespace {
-// Tip position error against a reference solved with RK8 at 256 steps (error ~1e-16).
-double tip_error(rod::IntegratorType type, int steps, const rod::RodModel& m, const rod::TipWrench& w,
-                 const Vec3& ref) {
-  rod::ShootingOptions s = test::rk8(steps, 1e-13);
-  s.integrator.type = type;
-  rod::RodSolver solver(m, s);
-  const rod::RodSolution sol = solver.solve(w);
-  EXPECT_TRUE(sol.converged) << sol.message;
-  return (sol.tip_position - ref).norm();
-}
-}  // namespace
-
-// Halving the step divides the global error by 2^p: ~16 for RK4, ~256 for the 8th-order method.
-TEST(RodConvergenceOrder, Rk4AndRk8OnHydroJet) {
-  const rod::RodModel m = test::bare(test::scene("hydrojet_30deg"));
-  rod::TipWrench w;
-  w.force = test::jet_force(0.2, 0.05, 0.1);
-  rod::RodSolver ref(m, test::rk8(256, 1e-14));
-  const rod::RodSolution r = ref.solve(w);
-  ASSERT_TRUE(r.converged);
-  ASSERT_GT(r.tip_position.head<2>().norm(), 0.02);  // a large deflection, not a near-linear case
-
-  const double e8 = tip_error(rod::IntegratorType::kRk4, 8, m, w, r.tip_position);
-  const double e16 = tip_error(rod::IntegratorType::kRk4, 16, m, w, r.tip_position);
-  const double e32 = tip_error(rod::IntegratorType::kRk4, 32, m, w, r.tip_position);
-  EXPECT_NEAR(e16 / e32, 16.0, 3.0) << e8 << " " << e16 << " " << e32;
-  EXPECT_NEAR(e8 / e16, 16.0, 4.0);
-
-  const double f2 = tip_error(rod::IntegratorType::kRk8, 2, m, w, r.tip_position);
-  const double f4 = tip_error(rod::IntegratorType::kRk8, 4, m, w, r.tip_position);
-  const double f8 = tip_error(rod::IntegratorType::kRk8, 8, m, w, r.tip_position);
-  EXPECT_GT(f4 / f8, 256.0 / 2.0) << f2 << " " << f4 << " " << f8;
-  EXPECT_LT(f4 / f8, 256.0 * 2.0);
 }
 
 // The defaults (RK8, 4 steps) put the tip within 1e-6 m of the exact solution on both HydroJet

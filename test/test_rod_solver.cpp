@@ -1,6 +1,7 @@
-// RodSolver on general robots: segments, point loads and actuators along the body, checked against
-// closed forms of beam theory, against the one-piece solve where both apply (a uniform rod with its
-// actuation at the tip), and C^b / J_q against central differences of full solves.
+// rod::RodSolver (rod/rod_solver.h) on general robots: segments, point loads and actuators along the body,
+// checked against closed forms of beam theory, against the one-piece solve where both apply (a uniform rod
+// with its actuation at the tip), and C^b / J_q against central differences of full solves; its error
+// messages, the shipped second robot, stability, and multiple shooting.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -96,7 +97,7 @@ rod::RodModel busy_model(rod::RodKind kind) {
 // Cantilever, force P at a along body x: δ_tip = P a²(3L − a)/(6EI), tip slope P a²/(2EI). The
 // linearisation about the straight rod is exactly Euler–Bernoulli, so J_q at q = 0 matches to the
 // integration error; a small full solve matches to O((PL²/EI)²).
-TEST(GeneralRodClosedForm, CantileverWithAForceAtA) {
+TEST(RodSolverClosedForm, CantileverWithAForceAtA) {
   const double L = 0.09, EI = 6.01e-4, GJ = 2.23e-4;
   for (double a : {0.02, 0.045, 0.07, 0.09}) {
     rod::RodModel m;
@@ -119,7 +120,7 @@ TEST(GeneralRodClosedForm, CantileverWithAForceAtA) {
 
 // Two segments (EI₁ on [0, a], EI₂ on [a, L]) under a tip force: δ = P[(L³ − b³)/(3EI₁) + b³/(3EI₂)],
 // b = L − a (∫ M(s)(L − s)/EI(s) ds with M = P(L − s)).
-TEST(GeneralRodClosedForm, TwoSegmentCantileverComposite) {
+TEST(RodSolverClosedForm, TwoSegmentCantileverComposite) {
   const double a = 0.05, b = 0.04, L = a + b, EI1 = 1.5e-3, EI2 = 4.0e-4;
   rod::RodModel m;
   m.segments = {segment(a, EI1, 5.6e-4), segment(b, EI2, 1.5e-4)};
@@ -138,7 +139,7 @@ TEST(GeneralRodClosedForm, TwoSegmentCantileverComposite) {
 
 // Precurved unloaded segments are piecewise arcs: tip frame Π exp(l_k ũ_k), tip position the chain of
 // the arcs' chords, and the shape passes through each segment's end.
-TEST(GeneralRodClosedForm, PrecurvedSegmentsArePiecewiseArcs) {
+TEST(RodSolverClosedForm, PrecurvedSegmentsArePiecewiseArcs) {
   rod::RodModel m;
   m.segments = {segment(0.03, 1e-3, 4e-4, Vec3(0.0, 4.0, 0.0)), segment(0.025, 5e-4, 2e-4, Vec3(-6.0, 0.0, 3.0)),
                 segment(0.035, 8e-4, 3e-4, Vec3(2.0, 5.0, -1.0))};
@@ -171,7 +172,7 @@ TEST(GeneralRodClosedForm, PrecurvedSegmentsArePiecewiseArcs) {
 // Two identical segments are one rod; actuators at the tip are the tip follower wrench B q: the cut rod
 // (two pieces, a station between them) gives the one-piece solution, C^b, and J_q = C^b B. Kirchhoff
 // and Cosserat, with weight and precurvature.
-TEST(GeneralRodEquivalence, IdenticalSegmentsAndTipActuatorsAreTheUniformRod) {
+TEST(RodSolverEquivalence, IdenticalSegmentsAndTipActuatorsAreTheUniformRod) {
   for (rod::RodKind kind : {rod::RodKind::kKirchhoff, rod::RodKind::kCosserat}) {
     rod::RodModel u;
     u.segments.resize(1);
@@ -214,7 +215,7 @@ TEST(GeneralRodEquivalence, IdenticalSegmentsAndTipActuatorsAreTheUniformRod) {
 
 // The jets scene: its three actuators (built from the `jets` section) give the solution of the jet
 // map's tip force (eq. 24) on the uniform solver.
-TEST(GeneralRodEquivalence, JetsSceneIsItsThreeActuators) {
+TEST(RodSolverEquivalence, JetsSceneIsItsThreeActuators) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const config::Scene sc = test::scene(name);
     ASSERT_EQ(sc.rod.actuators.size(), 3u);
@@ -235,7 +236,7 @@ TEST(GeneralRodEquivalence, JetsSceneIsItsThreeActuators) {
 // C^b and J_q from the sensitivities against central differences of full solves, on a model with
 // every kind of station (follower and dead loads, point mass, segment change, actuators with moment
 // arms mid-body and at the tip), Kirchhoff and Cosserat.
-TEST(GeneralRodSensitivities, ComplianceAndActuationJacobianMatchCentralDifferences) {
+TEST(RodSolverSensitivities, ComplianceAndActuationJacobianMatchCentralDifferences) {
   for (rod::RodKind kind : {rod::RodKind::kKirchhoff, rod::RodKind::kCosserat}) {
     const rod::RodModel m = busy_model(kind);
     rod::ShootingOptions opt = test::rk8(16, 1e-13);
@@ -277,7 +278,7 @@ TEST(GeneralRodSensitivities, ComplianceAndActuationJacobianMatchCentralDifferen
 
 // A dead moment M at a on a straight rod bends only [0, a] (m(s) = M there, 0 beyond): tip slope
 // M a/EI, tip deflection M a(2L − a)/(2EI) (small M: linear).
-TEST(GeneralRodClosedForm, PointMomentAtABendsOnlyTheProximalPart) {
+TEST(RodSolverClosedForm, PointMomentAtABendsOnlyTheProximalPart) {
   const double L = 0.09, EI = 6.01e-4, a = 0.04, M = 1e-6;
   rod::RodModel m;
   m.segments = {segment(L, EI, 2.23e-4)};
@@ -294,7 +295,7 @@ TEST(GeneralRodClosedForm, PointMomentAtABendsOnlyTheProximalPart) {
   EXPECT_NEAR(s.tip_position.x(), d, 1e-5 * d);
 }
 
-TEST(GeneralRodErrors, BadModelsAndInputsAreNamed) {
+TEST(RodSolverErrors, BadModelsAndInputsAreNamed) {
   rod::RodModel m;
   m.segments = {segment(0.09, 6e-4, 2e-4)};
   m.actuators = {actuator(0.09, Vec3::UnitX())};
@@ -324,7 +325,7 @@ TEST(GeneralRodErrors, BadModelsAndInputsAreNamed) {
 
 // The shipped second robot solves at its full inputs, cold and warm, within the accuracy contract
 // (1e-6 m against a 64-step reference).
-TEST(GeneralRodScenes, TwoSegmentThrustersSolvesWithinTheAccuracyContract) {
+TEST(RodSolverScenes, TwoSegmentThrustersSolvesWithinTheAccuracyContract) {
   const config::Scene sc = test::scene("two_segment_thrusters");
   rod::RodSolver solver(sc.rod, sc.solver);
   rod::ShootingOptions fine = sc.solver;
@@ -343,7 +344,7 @@ TEST(GeneralRodScenes, TwoSegmentThrustersSolvesWithinTheAccuracyContract) {
 // Stability for a general actuator set (the block of C^b on the span of the actuators' equivalent tip
 // wrenches) reduces to today's {f_x, f_y} block on the HydroJet: its jets span exactly that plane.
 // For actuators along the body the equivalent tip wrenches (C^b)^† J_q move the tip as they do.
-TEST(GeneralRodStability, ReducesToTheLateralForceBlockOnTheHydroJet) {
+TEST(RodSolverStability, ReducesToTheLateralForceBlockOnTheHydroJet) {
   for (const char* name : {"hydrojet_0deg", "hydrojet_30deg"}) {
     const config::Scene sc = test::scene(name);
     rod::RodSolver gen(sc.rod, sc.solver);
@@ -374,7 +375,7 @@ TEST(GeneralRodStability, ReducesToTheLateralForceBlockOnTheHydroJet) {
 // segments: a cold solve leaves the straight, unstable branch (which it reaches with the check off)
 // for the buckled one, as RodSolver does on the same rod: the same deflection about the weaker
 // axis, stable.
-TEST(GeneralRodStability, ColdSolvePastBucklingReachesTheBuckledBranchAsTheUniformRod) {
+TEST(RodSolverStability, ColdSolvePastBucklingReachesTheBuckledBranchAsTheUniformRod) {
   const double EI = 6.01e-4, L = 0.09, g = 9.81;
   const double Pcr = M_PI * M_PI * EI / (4 * L * L);
   rod::RodModel u = test::plain_rod(L, EI);
@@ -415,7 +416,7 @@ TEST(GeneralRodStability, ColdSolvePastBucklingReachesTheBuckledBranchAsTheUnifo
 // model equals
 // single shooting there, and a load with mid-body actuators at λL ≈ 20 converges with 8 and 16
 // segments to the same equilibrium.
-TEST(GeneralRodMultipleShooting, BeyondSingleShootingAsTheUniformRodsMultipleShooting) {
+TEST(RodSolverMultipleShooting, BeyondSingleShootingAsTheUniformRodsMultipleShooting) {
   rod::RodModel u;
   u.segments.resize(1);
   u.segments[0].length = 0.3;
@@ -452,7 +453,7 @@ TEST(GeneralRodMultipleShooting, BeyondSingleShootingAsTheUniformRodsMultipleSho
   EXPECT_LT((ca.body - cb.body).norm(), 1e-5 * ca.body.norm());
 }
 
-TEST(GeneralRodMultipleShooting, ForcedEqualsSingleShootingAndSegmentCountsAgree) {
+TEST(RodSolverMultipleShooting, ForcedEqualsSingleShootingAndSegmentCountsAgree) {
   const rod::RodModel m = busy_model(rod::RodKind::kKirchhoff);
   const rod::InputVector q = inputs({0.05, 0.03, 0.04, 0.02});
   rod::RodSolver single(m, test::rk8(8));

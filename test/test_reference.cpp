@@ -1,0 +1,107 @@
+// The controller's reference (reference.h): toward a new target at the rate limit along the great
+// circle, rate sources about the tip axes, overflowing commands, and a path followed at its own speed.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+
+#include "hydrojet_control/control/reference.h"
+#include "controller_fixtures.h"
+
+using namespace hydrojet;
+using control::Vec3;
+using test::ArcPath;
+using test::kDt;
+
+// A new target is not a step: the reference moves along the great circle at most max_angular_rate.
+TEST(Reference, MovesTowardANewTargetAlongTheGreatCircleAtTheRateLimit) {
+  control::Reference ref(0.2, nullptr, nullptr);
+  ref.hold();
+  ref.start(Vec3::UnitZ(), 0.0);
+  const Vec3 target = control::direction(0.4, 0.0);
+  ref.aim(2.0 * target, control::Source::kDirection);  // not unit: normalised
+  Vec3 prev = ref.direction();
+  for (int k = 1; k <= 250; ++k) {
+    const Vec3 d = ref.advance(k * kDt, kDt, control::Mat3::Identity());
+    EXPECT_LE(control::geodesic_error(prev, d), 0.2 * kDt + 1e-12) << k;
+    EXPECT_NEAR(d.y(), 0.0, 1e-12);  // on the great circle through z and the target
+    EXPECT_NEAR(d.norm(), 1.0, 1e-12);
+    if (k == 100) EXPECT_NEAR(control::bend_angle(d), 0.2, 1e-9);
+    prev = d;
+  }
+  EXPECT_LT(control::geodesic_error(ref.direction(), target), 1e-12);  // there after 0.4 / 0.2 = 2 s
+  EXPECT_EQ(ref.source(), control::Source::kDirection);
+}
+
+// Rate sources turn about the tip frame's axes (up = +x, right = +y) and hold once they expire.
+TEST(Reference, RatesTurnAboutTheTipAxesAndHoldWhenTheyExpire) {
+  const control::Mat3 tip = Eigen::AngleAxisd(0.3, Vec3::UnitZ()).toRotationMatrix();  // camera rolled 0.3 rad
+  for (int axis = 0; axis < 2; ++axis) {
+    control::Reference ref(0.2, nullptr, nullptr);
+    ref.start(Vec3::UnitZ(), 0.0);
+    const Eigen::Vector2d rates = axis == 0 ? Eigen::Vector2d(0.1, 0.0) : Eigen::Vector2d(0.0, 0.1);
+    ref.turn(rates, control::Source::kJoy, 1.0);
+    for (int k = 1; k <= 100; ++k) ref.advance(k * kDt, kDt, tip);
+    // Up turns z toward the tip's −y, right toward the tip's +x, by 0.1 rad/s × 1 s.
+    const Vec3 expected = axis == 0 ? Vec3(-tip.col(1) * std::sin(0.1) + Vec3::UnitZ() * std::cos(0.1))
+                                    : Vec3(tip.col(0) * std::sin(0.1) + Vec3::UnitZ() * std::cos(0.1));
+    EXPECT_LT(control::geodesic_error(ref.direction(), expected), 1e-9) << axis;
+    const Vec3 held = ref.direction();
+    for (int k = 101; k <= 400; ++k) ref.advance(k * kDt, kDt, tip);  // no new message: expired at 1 s
+    EXPECT_EQ(ref.source(), control::Source::kHold);
+    EXPECT_LT(control::geodesic_error(ref.direction(), held), 0.1 * 2 * kDt);
+  }
+}
+
+// Overflowing commands are directions and rates like any other, not infinities: a target of
+// (1e308, 1e308, 1e308) aims along (1, 1, 1), a rate of 1e308 turns at the cap; NaN is refused.
+TEST(Reference, HugeTargetsAndRatesAreNotTakenForSomethingElse) {
+  control::Reference ref(0.2, nullptr, nullptr);
+  ref.hold();
+  ref.start(Vec3::UnitZ(), 0.0);
+  ASSERT_TRUE(ref.aim(Vec3(1e308, 1e308, 1e308), control::Source::kDirection));
+  for (int k = 1; k <= 1000; ++k) ref.advance(k * kDt, kDt, control::Mat3::Identity());
+  EXPECT_LT(control::geodesic_error(ref.direction(), Vec3(1, 1, 1).normalized()), 1e-12);
+  EXPECT_FALSE(ref.aim(Vec3(NAN, 0, 1), control::Source::kDirection));
+  EXPECT_FALSE(ref.aim(Vec3::Zero(), control::Source::kDirection));
+  EXPECT_EQ(ref.source(), control::Source::kDirection);  // the refused commands changed nothing
+
+  control::Reference turning(0.2, nullptr, nullptr);
+  turning.start(Vec3::UnitZ(), 0.0);
+  turning.turn(Eigen::Vector2d(1e308, 0.0), control::Source::kKeyboard, 1.0);
+  for (int k = 1; k <= 50; ++k) turning.advance(k * kDt, kDt, control::Mat3::Identity());
+  // Up at the cap, 0.2 rad/s for 0.5 s: z turned toward −y by 0.1 rad.
+  EXPECT_LT(control::geodesic_error(turning.direction(), Vec3(0, -std::sin(0.1), std::cos(0.1))), 1e-9);
+}
+
+// A path is followed as written once the reference is on it, even faster than max_angular_rate
+// (which still limits the way onto it); preview() looks ahead along it and is the reference itself
+// otherwise.
+TEST(Reference, APathIsFollowedAtItsOwnSpeedOnceJoined) {
+  control::Reference ref(0.25, nullptr, nullptr);
+  const auto path = std::make_shared<ArcPath>(0.6, 2.0);  // 0.6 rad/s > 0.25
+  ref.follow(path, 0.0, /*starts_at_path=*/true);
+  ref.start(Vec3::UnitZ(), 0.0);
+  for (int k = 1; k <= 100; ++k) {
+    const double t = 0.01 * k;
+    const Vec3 d = ref.advance(t, 0.01, control::Mat3::Identity());
+    EXPECT_NEAR(control::geodesic_error(d, path->direction_at(t)), 0.0, 1e-12) << t;
+  }
+  EXPECT_NEAR(control::geodesic_error(ref.preview(1.0, 0.1), path->direction_at(1.1)), 0.0, 1e-12);
+  EXPECT_EQ(ref.preview(1.0, 0.0), ref.direction());
+  // Joining from elsewhere: at most max_angular_rate until on the path, then the path's speed.
+  control::Reference join(0.25, nullptr, nullptr);
+  join.start(Vec3(std::sin(0.3), 0.0, std::cos(0.3)), 0.0);
+  join.follow(std::make_shared<ArcPath>(0.6, 10.0), 0.0);
+  Vec3 prev = join.direction();
+  bool joined = false;
+  for (int k = 1; k <= 300 && !joined; ++k) {
+    const Vec3 d = join.advance(0.01 * k, 0.01, control::Mat3::Identity());
+    joined = control::geodesic_error(d, ArcPath(0.6, 10.0).direction_at(0.01 * k)) < 1e-12;
+    // Rate-limited on the way; the step that joins adds at most the path's own step (0.006 rad).
+    EXPECT_LE(control::geodesic_error(prev, d), 0.25 * 0.01 + (joined ? 0.006 : 0.0) + 1e-12) << k;
+    prev = d;
+  }
+  EXPECT_TRUE(joined);
+  EXPECT_EQ(join.preview(0.0, 0.0), join.direction());
+}
