@@ -94,7 +94,7 @@ struct Args {
   QuasistaticOptions qs;
   BagTopics topics;
   std::vector<std::string> bounds;  ///< --bound NAME=LO:HI, applied after the defaults
-  int synthetic_samples = 0;  ///< --synthesize N
+  int synthetic_samples = 0;        ///< --synthesize N
   double noise_deg = 0.5, max_force_fraction = 0.9;
   unsigned seed = 1;
   bool help = false;
