@@ -36,7 +36,7 @@ std::vector<rod::Actuator> jet_actuators(const actuation::JetGeometry& jets, con
 /// The model at actuator inputs q [N]: its equilibrium (rod::RodSolver), then (at the last converged
 /// solve) C^b, the actuation Jacobian J_q (6×N: tip body twist (v, ω) per unit input) and the
 /// stability of eq. (23) on the actuated directions. Warm-started from the last converged solve. Not
-/// thread-safe; a copy starts without the warm start.
+/// thread-safe; a copy keeps the warm start (with integrator memories of its own).
 class ActuatedModel {
  public:
   /// Throws std::invalid_argument naming the field when the model is invalid.
