@@ -18,9 +18,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     FUZZ_CHECK(std::string(e.what()).size() > 0, "an error says what");
     return 0;
   }
-  FUZZ_CHECK(scene.body.validate().empty(), "an accepted scene is a valid rod");
-  const double L = scene.body.length();
+  FUZZ_CHECK(scene.rod.validate().empty(), "an accepted scene is a valid rod");
+  const double L = scene.rod.length();
   FUZZ_CHECK(std::isfinite(L) && L > 0.0, "an accepted scene has a positive length");
-  FUZZ_CHECK(!scene.body.segments.empty(), "an accepted scene has a segment");
+  FUZZ_CHECK(!scene.rod.segments.empty(), "an accepted scene has a segment");
   return 0;
 }
