@@ -22,16 +22,10 @@ inline config::Scene scene(const std::string& name) {
 }
 
 /// The rod of a scene without its actuators: loaded by a tip wrench only.
-inline rod::RodModel bare(const config::Scene& s) {
-  rod::RodModel m = s.rod;
-  m.actuators.clear();
-  return m;
-}
+inline rod::RodModel bare(const config::Scene& s) { return s.rod.without_actuators(); }
 
 /// q_max [N] of a HydroJet scene's three jets.
-inline Vec3 jet_max_force(const config::Scene& s) {
-  return Vec3(s.rod.actuators.at(0).max_force, s.rod.actuators.at(1).max_force, s.rod.actuators.at(2).max_force);
-}
+inline Vec3 jet_max_force(const config::Scene& s) { return control::jet_max_force(s.rod); }
 
 /// Jet map of eq. (24) with Table 1's misalignments: tip-frame force from three jet forces [N].
 inline Vec3 jet_force(double q1, double q2, double q3) {

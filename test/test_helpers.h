@@ -22,16 +22,10 @@ inline rod::Vec3 jet_force(double q1, double q2, double q3, double da = 0.12, do
 }
 
 /// The rod of a scene without its actuators: loaded by a tip wrench only.
-inline rod::RodModel bare(const config::Scene& s) {
-  rod::RodModel m = s.rod;
-  m.actuators.clear();
-  return m;
-}
+inline rod::RodModel bare(const config::Scene& s) { return s.rod.without_actuators(); }
 
 /// q_max [N] of a HydroJet scene's three jets.
-inline rod::Vec3 jet_max_force(const config::Scene& s) {
-  return rod::Vec3(s.rod.actuators.at(0).max_force, s.rod.actuators.at(1).max_force, s.rod.actuators.at(2).max_force);
-}
+inline rod::Vec3 jet_max_force(const config::Scene& s) { return control::jet_max_force(s.rod); }
 
 /// A straight, unloaded, isotropic rod with no gravity (for closed-form checks).
 inline rod::RodModel plain_rod(double L = 0.09, double EI = 6.01e-4, double GJ = 2.23e-4) {

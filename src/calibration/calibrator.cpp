@@ -25,16 +25,10 @@ std::string fmt(const char* f, double v) {
   return b;
 }
 
-/// The robot without its actuators: the jets load it as a tip wrench of their geometry (eq. 24).
-rod::RodModel without_actuators(rod::RodModel m) {
-  m.actuators.clear();
-  return m;
-}
-
 /// Everything the per-sample residuals share.
 struct FitContext {
   FitContext(const config::Scene& scene, const CrossSection& cs, const ZetaVector& start)
-      : model(without_actuators(scene.rod)),
+      : model(scene.rod.without_actuators()),
         solver_options(scene.solver),
         jets(scene.jets.value_or(actuation::JetGeometry())),
         E0(start[kE]),
@@ -54,7 +48,8 @@ struct FitContext {
     return z;
   }
 
-  rod::RodModel model;  ///< the scene's model (stiffness, ũ replaced per evaluation)
+  rod::RodModel
+      model;  ///< the scene's rod without actuators (the jets: eq. 24's tip wrench); stiffness, ũ per evaluation
   rod::ShootingOptions solver_options;
   actuation::JetGeometry jets;  ///< nozzle offset from the scene; misalignment per evaluation
   double E0 = 1.0, G0 = 1.0;    ///< moduli at the start: internal coordinates are ln(E/E0), ln(G/G0)
@@ -409,7 +404,7 @@ Eigen::Vector3d rotation_error(const Eigen::Matrix3d& R_meas, const Eigen::Matri
 }
 
 Eigen::Matrix3d predict_tip_rotation(const config::Scene& scene, const Eigen::Vector3d& q, bool* ok) {
-  rod::RodSolver solver(without_actuators(scene.rod), scene.solver);
+  rod::RodSolver solver(scene.rod.without_actuators(), scene.solver);
   const actuation::Vec6 w = actuation::JetMap(scene.jets.value_or(actuation::JetGeometry())).wrench(q);
   rod::TipWrench tw;
   tw.force = w.head<3>();

@@ -13,9 +13,8 @@ std::vector<Sample> synthesise(const config::Scene& truth, const SyntheticOption
   std::mt19937 rng(o.seed);
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   std::normal_distribution<double> n01(0.0, 1.0);
-  rod::RodModel body = truth.rod;
-  body.actuators.clear();  // the jets load the tip as a wrench of their geometry (eq. 24)
-  rod::RodSolver solver(body, truth.solver);
+  // The jets load the tip as a wrench of their geometry (eq. 24).
+  rod::RodSolver solver(truth.rod.without_actuators(), truth.solver);
   const actuation::JetMap jets(truth.jets.value_or(actuation::JetGeometry()));
   std::vector<Sample> out;
   for (int k = 0; k < o.samples; ++k) {

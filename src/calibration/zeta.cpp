@@ -91,9 +91,7 @@ config::Scene apply_zeta(const config::Scene& scene, const ZetaVector& z, const 
   actuation::JetGeometry jets = s.jets.value_or(actuation::JetGeometry());
   jets.misalignment = z.tail<3>();
   s.jets = jets;
-  Eigen::Vector3d q_max;
-  for (int i = 0; i < 3; ++i) q_max[i] = s.rod.actuators[i].max_force;
-  s.rod.actuators = control::jet_actuators(jets, q_max, s.rod.length());
+  s.rod.actuators = control::jet_actuators(jets, control::jet_max_force(s.rod), s.rod.length());
   return s;
 }
 

@@ -148,9 +148,7 @@ void apply_mismatch(const plant::ModelMismatch& m, const Scene& nominal, plant::
   if (nominal.jets) {
     actuation::JetGeometry truth = *nominal.jets;
     truth.misalignment += m.misalignment_offset;
-    Eigen::Vector3d q_max;
-    for (int i = 0; i < 3; ++i) q_max[i] = r.actuators[i].max_force;
-    r.actuators = control::jet_actuators(truth, q_max, r.length());
+    r.actuators = control::jet_actuators(truth, control::jet_max_force(r), r.length());
     return;
   }
   for (size_t i = 0; i < r.actuators.size(); ++i) {

@@ -24,6 +24,10 @@ std::vector<rod::Actuator> jet_actuators(const actuation::JetGeometry& jets, con
   return out;
 }
 
+Vec3 jet_max_force(const rod::RodModel& rod) {
+  return Vec3(rod.actuators.at(0).max_force, rod.actuators.at(1).max_force, rod.actuators.at(2).max_force);
+}
+
 ActuatedModel::ActuatedModel(const RobotModel& model) : solver_(model.rod, model.solver) {
   const rod::RodModel& m = solver_.model();
   const int n = input_count();

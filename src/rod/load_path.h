@@ -7,6 +7,7 @@
 //   kNewtonFromUnloaded                   Newton straight to the target from the unloaded shape
 //   x, det, tip                           the current equilibrium (the result after the ladder)
 //   target, sol                           the target load; the solution whose counters grow
+//   load_between(from, to, t)             (found by argument lookup) the load a fraction t of the way
 //   options(), length(), growth()         ShootingOptions, L, λL of the target load
 //   newton(&x, load, &det, &tip)          Newton at one load from x (x updated in place)
 //   turned_far(a, b)                      some frame of the unknowns turned by more than max_step
@@ -136,16 +137,6 @@ struct TipOrientationShooting {
     sol->message.clear();
   }
 };
-
-/// The load a fraction t of the way from `from` to `to`.
-template <class Load>
-Load load_between(const Load& from, const Load& to, double t) {
-  Load l;
-  l.wrench.force = from.wrench.force + t * (to.wrench.force - from.wrench.force);
-  l.wrench.moment = from.wrench.moment + t * (to.wrench.moment - from.wrench.moment);
-  l.gravity_scale = from.gravity_scale + t * (to.gravity_scale - from.gravity_scale);
-  return l;
-}
 
 /// Two equilibria are "far" apart when a frame turned by more than max_step or the tip moved by more
 /// than L/4: more than a load step of a path should do; a jump to another branch or a snap-through.

@@ -32,6 +32,8 @@ struct RobotModel {
 /// The three jets of eq. (24) for `jets` at arc length `length` [m] as actuators of type jet: jet i
 /// pushes along column i of the jet map at the point nozzle_offset·e_z, bounds [0, max_force[i]].
 std::vector<rod::Actuator> jet_actuators(const actuation::JetGeometry& jets, const Vec3& max_force, double length);
+/// q_max [N] of the three jets jet_actuators() made (the first three actuators of `rod`).
+Vec3 jet_max_force(const rod::RodModel& rod);
 
 /// The model at actuator inputs q [N]: its equilibrium (rod::RodSolver), then (at the last converged
 /// solve) C^b, the actuation Jacobian J_q (6×N: tip body twist (v, ω) per unit input) and the

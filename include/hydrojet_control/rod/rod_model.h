@@ -132,6 +132,12 @@ struct RodModel {
     return L;
   }
   int input_count() const { return static_cast<int>(actuators.size()); }
+  /// The same rod without its actuators: loaded by a tip wrench alone.
+  RodModel without_actuators() const {
+    RodModel m = *this;
+    m.actuators.clear();
+    return m;
+  }
   /// One uniform segment, no point loads and every actuator at the tip: the tip wrench says it all
   /// (the solver then integrates one piece, and J_q = C^b W).
   bool tip_actuated_uniform() const;
