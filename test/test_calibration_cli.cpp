@@ -4,6 +4,7 @@
 // or, for the bag, written here with the rosbag API from the static model.
 #include <geometry_msgs/PoseStamped.h>
 #include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
 #include <rosbag/bag.h>
 #include <topic_tools/shape_shifter.h>
 #include <sys/wait.h>
@@ -22,6 +23,7 @@
 #include "hydrojet_control/calibration/bag_reader.h"
 #include "hydrojet_control/calibration/calibrator.h"
 #include "hydrojet_control/config/scene.h"
+#include "hydrojet_control/rod/rod_solver.h"
 #include "hydrojet_control/rod/so3.h"
 #include "cli_helpers.h"
 
@@ -166,6 +168,93 @@ TEST(CalibrateCli, BoundHitIsWarned) {
   EXPECT_NE(r.err.find("warning: E ended at its bound"), std::string::npos) << r.err;
 }
 
+/// The two-segment robot of config/scenes with other precurvatures and stiffnesses and its tip
+/// mount turned by 0.05 rad about the tip axis, written out independently of the calibration code.
+const char* kTwoSegmentTruth =
+    "rod:\n  segments:\n"
+    "    - {length: 0.05, bending_stiffness: [1.3e-3, 1.3e-3], torsional_stiffness: 1.15e-3,"
+    " precurvature: [0.8, -0.6, 0.0], linear_density: 0.02}\n"
+    "    - {length: 0.04, bending_stiffness: [4.6e-4, 4.6e-4], torsional_stiffness: 3.1e-4,"
+    " precurvature: [-0.4, 2.6, 0.0], linear_density: 0.015}\n"
+    "tip: {mass: 0.003}\ngravity: [0.0, 0.0, 9.81]\nsolver: {steps: 16, residual_tolerance: 1.0e-13}\n"
+    "loads:\n  - {at: 0.05, mass: 0.001}\n"
+    "actuators:\n"
+    "  - {name: tip_px, direction: [0.99875026039496628, 0.049979169270678331, 0.0], max_force: 0.15}\n"
+    "  - {name: tip_nx, direction: [-0.99875026039496628, -0.049979169270678331, 0.0], max_force: 0.15}\n"
+    "  - {name: tip_py, direction: [-0.049979169270678331, 0.99875026039496628, 0.0], max_force: 0.15}\n"
+    "  - {name: tip_ny_arm, position: [0.0039950010415798651, 0.00019991667708271332, 0.0],"
+    " direction: [0.049979169270678331, -0.99875026039496628, 0.0], max_force: 0.15}\n"
+    "  - {name: mid_px, at: 0.05, position: [0.0, 0.005, 0.0], direction: [1.0, 0.0, 0.0], max_force: 0.1}\n"
+    "  - {name: mid_py, at: 0.05, position: [0.005, 0.0, 0.0], direction: [0.0, 1.0, 0.0], max_force: 0.1}\n";
+
+TEST(CalibrateCli, FitsAnyRobotFromItsSceneAndWritesACompleteScene) {
+  const std::string truth = write("two_truth.yaml", kTwoSegmentTruth), csv = tmp("two.csv"), out = tmp("two_fit.yaml");
+  const CliRun syn = run("--scene " + truth + " --synthesize 50 --seed 3 --noise-deg 0.3 --out " + csv);
+  ASSERT_EQ(syn.status, 0) << syn.err;
+  std::ifstream head(csv);
+  std::string header;
+  std::getline(head, header);
+  EXPECT_EQ(header, "q1,q2,q3,q4,q5,q6,qw,qx,qy,qz");
+
+  std::remove(out.c_str());
+  const CliRun r = run("--scene " + scene("two_segment_thrusters") + " --data " + csv + " --out " + out);
+  ASSERT_EQ(r.status, 0) << r.err << r.out;
+  const std::string json = r.last_line();
+  EXPECT_NE(json.find("\"converged\": true"), std::string::npos);
+  EXPECT_NE(json.find("\"bending_scale\": \"per-segment\""), std::string::npos) << json;
+  const std::string p = object_field(json, "parameters"), sd = object_field(json, "std");
+  const std::string id = object_field(json, "identifiable");
+  const std::pair<const char*, double> truths[] = {{"bend1", 1.3 / 1.5}, {"bend2", 1.15}, {"dg", 0.05}, {"uy2", 2.6}};
+  for (const auto& [name, value] : truths) {
+    SCOPED_TRACE(name);
+    EXPECT_NE(id.find(std::string("\"") + name + "\": true"), std::string::npos) << id;
+    EXPECT_LE(std::abs(number_field(p, name) - value), 4 * number_field(sd, name));
+  }
+  EXPECT_LT(number_field(json, "rms_rad"), 1.2 * 0.3 * M_PI / 180 * std::sqrt(3.0));
+
+  // A complete scene: loads, keeps the robot's structure, and solves.
+  config::Scene fitted;
+  ASSERT_NO_THROW(fitted = config::load_scene(out));
+  ASSERT_EQ(fitted.rod.segments.size(), 2u);
+  ASSERT_EQ(fitted.rod.input_count(), 6);
+  EXPECT_EQ(fitted.rod.actuators[3].name, "tip_ny_arm");
+  EXPECT_EQ(fitted.rod.loads.size(), 1u);
+  EXPECT_NEAR(fitted.rod.segments[0].stiffness.x(), 1.5e-3 * number_field(p, "bend1"), 1e-15);
+  EXPECT_EQ(fitted.rod.segments[1].precurvature.y(), number_field(p, "uy2"));
+  const double dg = number_field(p, "dg");
+  EXPECT_NEAR(fitted.rod.actuators[0].direction.y(), std::sin(dg), 1e-3);  // da, db small
+  rod::RodSolver solver(fitted.rod, fitted.solver);
+  EXPECT_TRUE(solver.solve(rod::InputVector::Constant(6, 0.05)).converged);
+  const YAML::Node cal = YAML::LoadFile(out)["calibration"];
+  EXPECT_EQ(cal["bending_scale"].as<std::string>(), "per-segment");
+  EXPECT_TRUE(cal["std"]["bend2"]);
+}
+
+TEST(CalibrateCli, AnyRobotsDataMustMatchItsActuators) {
+  const std::string s2 = scene("two_segment_thrusters"), out = tmp("bad2.yaml");
+  auto check = [&](const std::string& args, const std::string& message) {
+    SCOPED_TRACE(args);
+    const CliRun r = run(args);
+    EXPECT_EQ(r.status, 2);
+    EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
+  };
+  std::string rows;
+  for (int i = 0; i < 12; ++i) rows += "0.1,0.05,0.02,1,0,0,0\n";
+  const std::string three = write("three.csv", "q1,q2,q3,qw,qx,qy,qz\n" + rows);
+  check("--scene " + s2 + " --data " + three + " --out " + out, "header has no column 'q4'");
+  const std::string seven = write("seven.csv", "q1,q2,q3,q4,q5,q6,q7,qw,qx,qy,qz\n");
+  check("--scene " + s2 + " --data " + seven + " --out " + out, "header has column 'q7' but the scene has 6 actuators");
+  std::string six_rows;
+  for (int i = 0; i < 12; ++i) six_rows += "0.1,0.05,0.02,0.01,-0.01,0.02,1,0,0,0\n";
+  const std::string negative = write("negative.csv", "q1,q2,q3,q4,q5,q6,qw,qx,qy,qz\n" + six_rows);
+  check("--scene " + s2 + " --data " + negative + " --out " + out, "q5 (mid_px) is negative");
+  check("--scene " + s2 + " --data " + negative + " --out " + out + " --fit bend,bend1", "scale the same stiffness");
+  check("--scene " + s2 + " --data " + negative + " --out " + out + " --fit E", "unknown parameter 'E' (ux1, uy1");
+  check("--scene " + s2 + " --data " + negative + " --out " + out + " --outer-diameter 0.01",
+        "--outer-diameter / --inner-diameter: only for a scene fitted in moduli");
+  check("--scene " + s2 + " --data " + negative + " --out " + out + " --bending-scale some", "--bending-scale");
+}
+
 TEST(CalibrateCli, NotConvergedExitsOneAndWritesNoScene) {
   const std::string csv = synthesised_csv(40, 4), out = tmp("nc.yaml");
   std::remove(out.c_str());
@@ -189,7 +278,7 @@ TEST(CalibrateCli, BadInputExitsTwoNamingTheProblem) {
   std::string rows;
   for (int i = 0; i < 10; ++i) rows += "0.1,0.05,0.02,1,0,0,0\n";
   const std::string nan = write("nan.csv", head + rows + "0.1,NaN,0.02,1,0,0,0\n" + rows);
-  check("--scene " + s0 + " --data " + nan + " --out " + out, nan + ":12: q2 is not finite");
+  check("--scene " + s0 + " --data " + nan + " --out " + out, nan + ":12: q2 (jet2) is not finite");
   const std::string nonunit = write("nonunit.csv", head + rows + "0.1,0.05,0.02,0.5,0,0,0\n");
   check("--scene " + s0 + " --data " + nonunit + " --out " + out,
         nonunit + ":12: quaternion (qw,qx,qy,qz) is not unit");
@@ -198,7 +287,7 @@ TEST(CalibrateCli, BadInputExitsTwoNamingTheProblem) {
   std::string zeros;
   for (int i = 0; i < 10; ++i) zeros += "0,0,0,1,0,0,0\n";
   const std::string zero = write("zero.csv", head + zeros);
-  check("--scene " + s0 + " --data " + zero + " --out " + out, "all jet forces are zero");
+  check("--scene " + s0 + " --data " + zero + " --out " + out, "every actuator input is zero");
   const std::string nocol = write("nocol.csv", "q1,q2,q3,qw,qx,qy\n");
   check("--scene " + s0 + " --data " + nocol + " --out " + out, "header has no column 'qz'");
   check("--scene " + s0 + " --data " + tmp("missing.csv") + " --out " + out, "cannot read data file");
@@ -214,7 +303,7 @@ TEST(CalibrateCli, BadInputExitsTwoNamingTheProblem) {
   const std::string nojets = write("nojets.yaml",
                                    "rod: {length: 0.09, bending_stiffness: [6e-4, 6e-4], torsional_stiffness: 2e-4}\n"
                                    "tip: {mass: 0.0}\ngravity: [0, 0, 9.81]\n");
-  check("--scene " + nojets + " --data " + zero + " --out " + out, "jets: missing");
+  check("--scene " + nojets + " --data " + zero + " --out " + out, "actuators: none");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -302,6 +391,10 @@ TEST(CalibrateCli, FitsARosbagOfTheDriversTopics) {
   EXPECT_EQ(bad.status, 2);
   EXPECT_NE(bad.err.find("no hydrojet_control/JetState messages on a topic 'jets/state'"), std::string::npos)
       << bad.err;
+  // A bag holds three jets' flows: a robot described by its actuators gives its data as CSV.
+  const CliRun other = run("--scene " + scene("two_segment_thrusters") + " --data " + bag + " --out " + out);
+  EXPECT_EQ(other.status, 2);
+  EXPECT_NE(other.err.find("this scene has no jets section"), std::string::npos) << other.err;
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -69,13 +70,13 @@ std::string fmt(const char* f, double v) {
   return b;
 }
 
-std::string json_params(const ZetaVector& v, const ParamMask* only = nullptr) {
+std::string json_params(const Zeta& zeta, const ZetaVector& v, const ParamMask* only = nullptr) {
   util::JsonObject o;
-  for (int i = 0; i < kNumParams; ++i) {
-    if (only && !(*only)[i])
-      o.add_null(param_name(i));
+  for (int i = 0; i < zeta.size(); ++i) {
+    if ((only && !(*only)[i]) || !std::isfinite(v[i]))
+      o.add_null(zeta[i].name);
     else
-      o.add(param_name(i), v[i]);
+      o.add(zeta[i].name, v[i]);
   }
   return o.str();
 }
@@ -88,7 +89,7 @@ std::string json_strings(const std::vector<std::string>& v) {
 
 struct Args {
   std::string scene, data, out, samples_out;
-  std::string fit = "ux,uy,E,G,da,db,dg";
+  std::string fit;  ///< empty: the scene's default (Zeta::default_fit)
   double outer = -1.0, inner = -1.0;
   CalibrationOptions opt;
   QuasistaticOptions qs;
@@ -113,7 +114,14 @@ bool set_fit_option(const std::string& k, const std::string& v, Args* r) {
     r->samples_out = v;
   else if (k == "--fit")
     r->fit = v;
-  else if (k == "--bound")
+  else if (k == "--bending-scale") {
+    if (v == "auto")
+      r->opt.bending_scale = BendingScale::kAuto;
+    else if (v == "per-segment")
+      r->opt.bending_scale = BendingScale::kPerSegment;
+    else
+      throw UsageError(k + ": unknown value '" + v + "' (auto, per-segment)");
+  } else if (k == "--bound")
     r->bounds.push_back(v);
   else if (k == "--outer-diameter")
     r->outer = positive(k, v);
@@ -182,17 +190,12 @@ bool set_synthesis_option(const std::string& k, const std::string& v, Args* r) {
   return true;
 }
 
-/// The required options of the chosen mode, and --fit turned into a mask.
-void check_required(Args* r) {
-  if (r->scene.empty()) throw UsageError("--scene: missing (the scene YAML with geometry and starting values)");
-  if (r->synthetic_samples == 0 && r->data.empty()) throw UsageError("--data: missing (CSV or rosbag)");
-  if (r->out.empty())
-    throw UsageError(r->synthetic_samples ? "--out: missing (CSV to write)" : "--out: missing (scene YAML to write)");
-  try {
-    r->opt.fit = parse_param_list(r->fit);
-  } catch (const std::invalid_argument& e) {
-    throw UsageError(std::string("--fit: ") + e.what());
-  }
+/// The required options of the chosen mode.
+void check_required(const Args& r) {
+  if (r.scene.empty()) throw UsageError("--scene: missing (the scene YAML with geometry and starting values)");
+  if (r.synthetic_samples == 0 && r.data.empty()) throw UsageError("--data: missing (CSV or rosbag)");
+  if (r.out.empty())
+    throw UsageError(r.synthetic_samples ? "--out: missing (CSV to write)" : "--out: missing (scene YAML to write)");
 }
 
 Args parse_args(const std::vector<std::string>& a) {
@@ -209,45 +212,57 @@ Args parse_args(const std::vector<std::string>& a) {
     if (!set_fit_option(k, v, &r) && !set_bag_option(k, v, &r) && !set_synthesis_option(k, v, &r))
       throw UsageError("unknown option '" + k + "' (see --help)");
   }
-  if (!r.help) check_required(&r);
+  if (!r.help) check_required(r);
   return r;
 }
 
-/// The scene (its text, for the calibrated copy) and the cross-section (the scene's, or the
-/// command line's diameters).
+/// The scene (its text, for the calibrated copy), the cross-section (the scene's, or the command
+/// line's diameters; the paper's form only) and its ζ.
 struct StartScene {
   std::string text;
   config::Scene scene;
   CrossSection cs;
+  std::optional<Zeta> zeta;
 };
 
 StartScene load_start_scene(const Args& a) {
   StartScene s;
   s.text = read_text(a.scene, "--scene");
   s.scene = config::parse_scene(s.text);
-  if (s.scene.rod.segments.size() > 1 || !s.scene.rod.loads.empty())
-    throw config::SceneError("rod.segments", "the calibration fits one uniform rod with its jets at the tip so far");
   s.cs = cross_section_from_scene_text(s.text, CrossSection());
   if (a.outer > 0) s.cs.outer_diameter = a.outer;
   if (a.inner >= 0) s.cs.inner_diameter = a.inner;
   const std::string cse = s.cs.validate();
   if (!cse.empty()) throw UsageError("cross-section: " + cse + " (--outer-diameter / --inner-diameter)");
-  if (!s.scene.jets) throw config::SceneError("jets", "missing (the calibration needs the jet geometry, eq. 24)");
+  s.zeta.emplace(s.scene, s.cs);
+  if (!s.zeta->paper_form() && (a.outer > 0 || a.inner >= 0))
+    throw UsageError(
+        "--outer-diameter / --inner-diameter: only for a scene fitted in moduli (one segment with a jets section); "
+        "this scene's stiffness is fitted as scales");
   return s;
 }
 
-/// The fit's options with the --bound overrides applied to the default bounds.
+/// The fit's options: --fit as a mask of the scene's ζ, the --bound overrides applied to the
+/// default bounds.
 CalibrationOptions calibration_options(const Args& a, const StartScene& s) {
+  const Zeta& zeta = *s.zeta;
   CalibrationOptions opt = a.opt;
+  if (!a.fit.empty()) {
+    try {
+      opt.fit = zeta.parse(a.fit);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--fit: ") + e.what());
+    }
+  }
   if (a.bounds.empty()) return opt;
   opt.has_bounds = true;
-  opt.bounds = default_bounds(zeta_from_scene(s.scene, s.cs));
+  opt.bounds = default_bounds(zeta);
   for (const std::string& b : a.bounds) {
     const size_t eq = b.find('='), colon = b.find(':', eq == std::string::npos ? 0 : eq);
     if (eq == std::string::npos || colon == std::string::npos)
       throw UsageError("--bound: '" + b + "' is not NAME=LO:HI (e.g. E=1e6:1e7)");
-    const int i = param_index(b.substr(0, eq));
-    if (i < 0) throw UsageError("--bound: unknown parameter '" + b.substr(0, eq) + "' (ux, uy, E, G, da, db, dg)");
+    const int i = zeta.index(b.substr(0, eq));
+    if (i < 0) throw UsageError("--bound: unknown parameter '" + b.substr(0, eq) + "' (" + zeta.names() + ")");
     opt.bounds.lower[i] = parse_double("--bound " + b.substr(0, eq), b.substr(eq + 1, colon - eq - 1));
     opt.bounds.upper[i] = parse_double("--bound " + b.substr(0, eq), b.substr(colon + 1));
     if (!(opt.bounds.lower[i] < opt.bounds.upper[i])) throw UsageError("--bound " + b + ": LO must be below HI");
@@ -268,7 +283,7 @@ int run_synthesis(const Args& a, const StartScene& s, std::ostream& out) {
   j.add("samples", static_cast<int>(samples.size()))
       .add("noise_rad", so.noise_rad)
       .add("seed", static_cast<int>(a.seed));
-  j.raw("parameters", json_params(zeta_from_scene(s.scene, s.cs))).add("out", a.out);
+  j.raw("parameters", json_params(*s.zeta, s.zeta->start())).add("out", a.out);
   out << "calibrate: wrote " << samples.size() << " synthetic samples of the scene's model (noise " << a.noise_deg
       << " deg per axis) to " << a.out << "\n"
       << j.str() << "\n";
@@ -277,7 +292,12 @@ int run_synthesis(const Args& a, const StartScene& s, std::ostream& out) {
 
 /// The static samples: a CSV, or the quasistatic intervals of a rosbag (summarised in `rep`).
 std::vector<Sample> read_samples(const Args& a, const config::Scene& scene, std::ostream& rep) {
-  if (!is_rosbag(a.data)) return read_csv(a.data);
+  if (!is_rosbag(a.data)) return read_csv(a.data, scene.rod.actuators);
+  if (!scene.jets)
+    throw UsageError(
+        "--data: a rosbag holds the three jets' flows (jets/state); this scene has no jets section, "
+        "give its data as a CSV (q1..q" +
+        std::to_string(scene.rod.input_count()) + ",qw,qx,qy,qz)");
   const BagRecords br = read_bag(a.data, a.topics);
   const Extraction ex = extract_quasistatic(br.jets, br.tip, br.base, scene.nozzle, a.qs);
   rep << "bag " << a.data << ": " << br.tip.size() << " tip, " << br.base.size() << " base, " << br.jets.size()
@@ -288,28 +308,34 @@ std::vector<Sample> read_samples(const Args& a, const config::Scene& scene, std:
 }
 
 /// The table of start, estimate and std per parameter, and the correlations of the fitted ones.
-void report_parameters(const CalibrationResult& res, std::ostream& rep) {
+void report_parameters(const Zeta& zeta, const CalibrationResult& res, std::ostream& rep) {
   rep << "parameter        start            estimate         std              unit\n";
-  for (int i = 0; i < kNumParams; ++i) {
-    char line[160];
-    std::snprintf(line, sizeof(line), "%-4s %-11s %-16.6g %-16.6g %-16s %s\n", param_name(i),
+  for (int i = 0; i < zeta.size(); ++i) {
+    char line[200];
+    std::snprintf(line, sizeof(line), "%-6s %-9s %-16.6g %-16.6g %-16s %s\n", zeta[i].name.c_str(),
                   res.fitted[i] ? "" : "(fixed)", res.start[i], res.zeta[i],
                   res.fitted[i] && std::isfinite(res.stddev[i]) ? fmt("%.3g", res.stddev[i]).c_str() : "-",
-                  param_unit(i));
+                  zeta[i].unit.empty() ? "(scale)" : zeta[i].unit.c_str());
     rep << line;
   }
-  rep << "correlations:\n      ";
-  for (int j = 0; j < kNumParams; ++j)
-    if (res.fitted[j]) rep << std::string(7 - std::string(param_name(j)).size(), ' ') << param_name(j);
+  rep << "correlations:\n       ";
+  for (int j = 0; j < zeta.size(); ++j)
+    if (res.fitted[j]) rep << std::string(8 - std::min<size_t>(7, zeta[j].name.size()), ' ') << zeta[j].name;
   rep << "\n";
-  for (int i = 0; i < kNumParams; ++i) {
+  for (int i = 0; i < zeta.size(); ++i) {
     if (!res.fitted[i]) continue;
-    rep << param_name(i) << std::string(6 - std::string(param_name(i)).size(), ' ');
-    for (int j = 0; j < kNumParams; ++j)
+    rep << zeta[i].name << std::string(7 - std::min<size_t>(6, zeta[i].name.size()), ' ');
+    for (int j = 0; j < zeta.size(); ++j)
       if (res.fitted[j])
-        rep << (std::isfinite(res.correlation(i, j)) ? fmt("%7.3f", res.correlation(i, j)) : std::string("      -"));
+        rep << (std::isfinite(res.correlation(i, j)) ? fmt("%8.3f", res.correlation(i, j)) : std::string("       -"));
     rep << "\n";
   }
+}
+
+std::string input_list(const rod::InputVector& q) {
+  std::string s = "[";
+  for (Eigen::Index i = 0; i < q.size(); ++i) s += (i ? ", " : "") + fmt("%.4f", q[i]);
+  return s + "]";
 }
 
 /// The per-sample errors, the RMS, the fit's cost and its warnings (also on `err`).
@@ -317,10 +343,9 @@ void report_residuals(const CalibrationResult& res, const std::vector<Sample>& s
                       std::ostream& err) {
   rep << "per-sample orientation error [deg]:\n";
   for (size_t k = 0; k < res.sample_error_rad.size(); ++k) {
-    char line[200];
-    std::snprintf(line, sizeof(line), "  %-28s q = [%.4f, %.4f, %.4f] N  %.3f\n", samples[k].origin.c_str(),
-                  samples[k].jet_force[0], samples[k].jet_force[1], samples[k].jet_force[2],
-                  res.sample_error_rad[k] * 180.0 / M_PI);
+    char line[300];
+    std::snprintf(line, sizeof(line), "  %-28s q = %s N  %.3f\n", samples[k].origin.c_str(),
+                  input_list(samples[k].inputs).c_str(), res.sample_error_rad[k] * 180.0 / M_PI);
     rep << line;
   }
   rep << "RMS residual: " << fmt("%.6g", res.rms_rad) << " rad (" << fmt("%.3f", res.rms_rad * 180 / M_PI)
@@ -334,18 +359,27 @@ void report_residuals(const CalibrationResult& res, const std::vector<Sample>& s
   }
 }
 
+/// "per-segment" / "common" when the scene has segments of their own bending scale, else "".
+std::string bending_scale_mode(const Zeta& zeta, const CalibrationResult& res) {
+  if (zeta.common_bending_scale() < 0) return "";
+  if (res.fitted[zeta.common_bending_scale()]) return "common";
+  for (int k : zeta.segment_bending_scales())
+    if (res.fitted[k]) return "per-segment";
+  return "";
+}
+
 /// The `calibration` section of the output scene: data, start, what was fitted and how well.
-YAML::Node calibration_summary(const Args& a, const CalibrationResult& res, size_t samples) {
+YAML::Node calibration_summary(const Args& a, const Zeta& zeta, const CalibrationResult& res, size_t samples) {
   YAML::Node cal(YAML::NodeType::Map);
   cal["data"] = a.data;
   cal["start_scene"] = a.scene;
   cal["samples"] = static_cast<int>(samples);
   YAML::Node fl(YAML::NodeType::Sequence), sd(YAML::NodeType::Map), id(YAML::NodeType::Map);
-  for (int i = 0; i < kNumParams; ++i) {
+  for (int i = 0; i < zeta.size(); ++i) {
     if (!res.fitted[i]) continue;
-    fl.push_back(param_name(i));
-    sd[param_name(i)] = std::isfinite(res.stddev[i]) ? YAML::Node(yaml_number(res.stddev[i])) : YAML::Node();
-    id[param_name(i)] = res.identifiable[i];
+    fl.push_back(zeta[i].name);
+    sd[zeta[i].name] = std::isfinite(res.stddev[i]) ? YAML::Node(yaml_number(res.stddev[i])) : YAML::Node();
+    id[zeta[i].name] = static_cast<bool>(res.identifiable[i]);
   }
   fl.SetStyle(YAML::EmitterStyle::Flow);
   sd.SetStyle(YAML::EmitterStyle::Flow);
@@ -355,6 +389,8 @@ YAML::Node calibration_summary(const Args& a, const CalibrationResult& res, size
   cal["start_rms_rad"] = yaml_number(res.start_rms_rad);
   cal["std"] = sd;
   cal["identifiable"] = id;
+  const std::string mode = bending_scale_mode(zeta, res);
+  if (!mode.empty()) cal["bending_scale"] = mode;
   return cal;
 }
 
@@ -370,25 +406,28 @@ bool write_calibrated_scene(const Args& a, const StartScene& s, const Calibratio
                               "; start: " + a.scene + ".\nRMS orientation residual " + fmt("%.4g", res.rms_rad) +
                               " rad over " + std::to_string(samples) +
                               " samples; the `calibration` section summarises the fit (load_scene ignores it).";
-  write_text(a.out, calibrated_scene_yaml(s.text, res.zeta, s.cs, comment, calibration_summary(a, res, samples)),
+  write_text(a.out,
+             calibrated_scene_yaml(s.text, *s.zeta, res.zeta, comment, calibration_summary(a, *s.zeta, res, samples)),
              "--out");
   rep << "wrote " << a.out << "\n";
   return true;
 }
 
 /// The last stdout line: the result as one JSON object.
-std::string result_json(const CalibrationResult& res, size_t samples, const std::string* written) {
+std::string result_json(const Zeta& zeta, const CalibrationResult& res, size_t samples, const std::string* written) {
   util::JsonObject j;
   j.add("converged", res.converged).add("rms_rad", res.rms_rad);
-  j.raw("parameters", json_params(res.zeta));
-  j.raw("std", json_params(res.stddev, &res.fitted));
+  j.raw("parameters", json_params(zeta, res.zeta));
+  j.raw("std", json_params(zeta, res.stddev, &res.fitted));
   j.add("time_s", res.time_s);
   j.add("samples", static_cast<int>(samples)).add("start_rms_rad", res.start_rms_rad);
   j.add("sigma_rad", res.sigma_rad).add("iterations", res.iterations).add("rod_solves", res.rod_solves);
   util::JsonObject ident;
-  for (int i = 0; i < kNumParams; ++i)
-    if (res.fitted[i]) ident.add(param_name(i), res.identifiable[i]);
+  for (int i = 0; i < zeta.size(); ++i)
+    if (res.fitted[i]) ident.add(zeta[i].name, static_cast<bool>(res.identifiable[i]));
   j.raw("identifiable", ident.str());
+  const std::string mode = bending_scale_mode(zeta, res);
+  if (!mode.empty()) j.add("bending_scale", mode);
   j.raw("warnings", json_strings(res.warnings));
   if (written) j.add("out", *written);
   return j.str();
@@ -399,29 +438,33 @@ int run_fit(const Args& a, const StartScene& s, const CalibrationOptions& opt, s
   std::ostringstream rep;  // the report; written to `out` only when the input was good
   const std::vector<Sample> samples = read_samples(a, s.scene, rep);
   if (!a.samples_out.empty()) write_text(a.samples_out, to_csv(samples), "--samples-out");
+  const Zeta& zeta = *s.zeta;
   const Eigen::Vector3d& k = s.scene.rod.segments[0].stiffness;
-  if (std::abs(k.x() - k.y()) > 1e-9 * std::abs(k.x()))
+  if (zeta.paper_form() && std::abs(k.x() - k.y()) > 1e-9 * std::abs(k.x()))
     rep << "note: the scene's EI_x and EI_y differ; E starts from their mean and the output is isotropic\n";
 
-  const CalibrationResult res = calibrate(s.scene, s.cs, samples, opt);
+  const CalibrationResult res = calibrate(zeta, samples, opt);
 
   std::string fitted_list;
-  for (int i = 0; i < kNumParams; ++i)
-    if (res.fitted[i]) fitted_list += (fitted_list.empty() ? "" : " ") + std::string(param_name(i));
-  rep << "calibrate: " << samples.size() << " samples from " << a.data << "; fitting " << fitted_list
-      << "; cross-section D = " << s.cs.outer_diameter << " m, d = " << s.cs.inner_diameter << " m\n";
-  report_parameters(res, rep);
+  for (int i = 0; i < zeta.size(); ++i)
+    if (res.fitted[i]) fitted_list += (fitted_list.empty() ? "" : " ") + zeta[i].name;
+  rep << "calibrate: " << samples.size() << " samples from " << a.data << "; fitting " << fitted_list;
+  if (zeta.paper_form())
+    rep << "; cross-section D = " << s.cs.outer_diameter << " m, d = " << s.cs.inner_diameter << " m";
+  rep << "\n";
+  report_parameters(zeta, res, rep);
   report_residuals(res, samples, rep, err);
   const bool wrote = write_calibrated_scene(a, s, res, samples.size(), rep, err);
-  out << rep.str() << result_json(res, samples.size(), wrote ? &a.out : nullptr) << "\n";
+  out << rep.str() << result_json(zeta, res, samples.size(), wrote ? &a.out : nullptr) << "\n";
   return res.converged ? 0 : 1;
 }
 
 }  // namespace
 
 std::string calibrate_usage() {
-  return "usage: calibrate --scene FILE --data FILE [--fit ux,uy,E,G,da,db,dg] --out FILE.yaml\n"
-         "                 [--outer-diameter M] [--inner-diameter M] [--bound NAME=LO:HI ...]\n"
+  return "usage: calibrate --scene FILE --data FILE [--fit NAME,...] --out FILE.yaml\n"
+         "                 [--bending-scale auto|per-segment] [--bound NAME=LO:HI ...]\n"
+         "                 [--outer-diameter M] [--inner-diameter M]\n"
          "                 [--loss none|huber|cauchy]\n"
          "                 [--loss-scale RAD] [--max-iterations N] [--threads N]\n"
          "                 [--samples-out FILE.csv]\n"
@@ -430,10 +473,16 @@ std::string calibrate_usage() {
          "                 [--max-angle-drift RAD] [--max-pair-dt S]\n"
          "       calibrate --scene TRUTH.yaml --synthesize N [--noise-deg DEG] [--seed K]\n"
          "                 [--max-force-fraction F] --out DATA.csv\n"
-         "Fits zeta = [ux, uy, E, G, da, db, dg] (paper eq. 27) to measured tip orientations.\n"
-         "--data: CSV with header q1,q2,q3,qw,qx,qy,qz (jet forces [N], tip-in-base quaternion) or a\n"
-         "rosbag of tracker/tip_pose, tracker/base_pose, jets/state. Last stdout line: one JSON\n"
-         "object. Exit: 0 converged, 1 not converged, 2 bad input.\n";
+         "Fits zeta to measured tip orientations. One segment with a jets section (the HydroJet):\n"
+         "zeta = [ux, uy, E, G, da, db, dg] (paper eq. 27; diameters for E and G). Any other scene:\n"
+         "per segment k ux<k>, uy<k> [1/m] and a bending-stiffness scale bend<k> (one common scale\n"
+         "`bend` when the data cannot tell the segments apart), a torsional scale `twist`, and the\n"
+         "tip actuators' mount rotation da, db, dg [rad]. --fit defaults to all of them (twist only\n"
+         "when an actuator twists the rod).\n"
+         "--data: CSV with header q1..qN,qw,qx,qy,qz (one input [N] per actuator in the scene's\n"
+         "order, tip-in-base quaternion) or, for a jets scene, a rosbag of tracker/tip_pose,\n"
+         "tracker/base_pose, jets/state. Last stdout line: one JSON object. Exit: 0 converged,\n"
+         "1 not converged, 2 bad input.\n";
 }
 
 int run_calibrate(const std::vector<std::string>& argv, std::ostream& out, std::ostream& err) {

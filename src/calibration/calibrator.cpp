@@ -12,7 +12,7 @@
 #include <memory>
 #include <stdexcept>
 
-#include "hydrojet_control/actuation/jet_map.h"
+#include "hydrojet_control/rod/rod_solver.h"
 #include "hydrojet_control/rod/so3.h"
 
 namespace hydrojet {
@@ -27,78 +27,74 @@ std::string fmt(const char* f, double v) {
 
 /// Everything the per-sample residuals share.
 struct FitContext {
-  FitContext(const config::Scene& scene, const CrossSection& cs, const ZetaVector& start)
-      : model(scene.rod.without_actuators()),
-        solver_options(scene.solver),
-        jets(scene.jets.value_or(actuation::JetGeometry())),
-        E0(start[kE]),
-        G0(start[kG]),
-        I(cs.second_moment()),
-        J(cs.polar_moment()) {
+  FitContext(const Zeta& z, const config::Scene& scene) : zeta(z), solver_options(scene.solver), start(z.start()) {
     solver_options.residual_tolerance = std::min(solver_options.residual_tolerance, 1e-12);
   }
+  int size() const { return zeta.size(); }
   /// A physical value of parameter i → its internal coordinate.
-  double internal(int i, double v) const { return i == kE ? std::log(v / E0) : i == kG ? std::log(v / G0) : v; }
+  double internal(int i, double v) const { return zeta[i].logarithmic ? std::log(v / start[i]) : v; }
   /// Internal coordinates x → ζ in physical units.
   ZetaVector physical(const double* x) const {
-    ZetaVector z;
-    for (int i = 0; i < kNumParams; ++i) z[i] = x[i];
-    z[kE] = E0 * std::exp(x[kE]);
-    z[kG] = G0 * std::exp(x[kG]);
+    ZetaVector z(size());
+    for (int i = 0; i < size(); ++i) z[i] = zeta[i].logarithmic ? start[i] * std::exp(x[i]) : x[i];
     return z;
   }
 
-  rod::RodModel
-      model;  ///< the scene's rod without actuators (the jets: eq. 24's tip wrench); stiffness, ũ per evaluation
+  const Zeta& zeta;
   rod::ShootingOptions solver_options;
-  actuation::JetGeometry jets;  ///< nozzle offset from the scene; misalignment per evaluation
-  double E0 = 1.0, G0 = 1.0;    ///< moduli at the start: internal coordinates are ln(E/E0), ln(G/G0)
-  double I = 0.0, J = 0.0;      ///< second and polar moments of the cross-section [m^4]
+  ZetaVector start;  ///< ζ at the start: internal coordinates of the positive parameters are ln(v/start)
   mutable std::atomic<int> solves{0}, failures{0};
 };
 
-/// Internal coordinates x → model and jet geometry.
-void build(const FitContext& c, const double* x, rod::RodModel* m, actuation::JetGeometry* g) {
-  *m = c.model;
-  const double E = c.E0 * std::exp(x[kE]), G = c.G0 * std::exp(x[kG]);
-  m->segments[0].stiffness = rod::Vec3(E * c.I, E * c.I, G * c.J);
-  m->segments[0].precurvature.x() = x[kUx];
-  m->segments[0].precurvature.y() = x[kUy];
-  *g = c.jets;
-  g->misalignment = Eigen::Vector3d(x[kDa], x[kDb], x[kDg]);
+/// The rods of two models are the same (only the mount, i.e. the tip wrench, differs).
+bool same_rod(const rod::RodModel& a, const rod::RodModel& b) {
+  for (size_t k = 0; k < a.segments.size(); ++k)
+    if (a.segments[k].stiffness != b.segments[k].stiffness || a.segments[k].precurvature != b.segments[k].precurvature)
+      return false;
+  return true;
 }
 
-/// r_i(x) for one sample, with its own rod solver. Central differences with an
-/// absolute step in the (O(1)) internal coordinates; blocks Ceres holds constant are skipped.
-class SampleCost : public ceres::SizedCostFunction<3, 1, 1, 1, 1, 1, 1, 1> {
+/// r_i(x) for one sample, with its own rod solver. One parameter block per component of ζ; central
+/// differences with an absolute step in the (O(1)) internal coordinates; blocks Ceres holds
+/// constant are skipped.
+class SampleCost : public ceres::CostFunction {
  public:
   static constexpr double kStep = 1e-6;
 
   SampleCost(const FitContext* ctx, const Sample& s)
       : ctx_(ctx),
-        q_(s.jet_force),
         R_meas_(s.tip_orientation.normalized().toRotationMatrix()),
-        solver_(ctx->model, ctx->solver_options) {}
+        solver_(ctx->zeta.rod_without_mount(ctx->start), ctx->solver_options) {
+    set_num_residuals(3);
+    mutable_parameter_block_sizes()->assign(ctx->size(), 1);
+    const Zeta& z = ctx->zeta;
+    q_body_.resize(static_cast<Eigen::Index>(z.body_inputs().size()));
+    for (size_t k = 0; k < z.body_inputs().size(); ++k) q_body_[k] = s.inputs[z.body_inputs()[k]];
+    q_mount_.resize(static_cast<Eigen::Index>(z.mount_inputs().size()));
+    for (size_t k = 0; k < z.mount_inputs().size(); ++k) q_mount_[k] = s.inputs[z.mount_inputs()[k]];
+    // The mount rotation changes only the wrench, not the rod: its differences run first, on the
+    // model of the base evaluation, warm-started from it.
+    for (int pass = 0; pass < 2; ++pass)
+      for (int i = 0; i < z.size(); ++i)
+        if ((z[i].kind == ParamKind::kMount) == (pass == 0)) order_.push_back(i);
+  }
 
   bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
-    double x[kNumParams];
-    for (int i = 0; i < kNumParams; ++i) x[i] = params[i][0];
+    std::vector<double> x(ctx_->size());
+    for (int i = 0; i < ctx_->size(); ++i) x[i] = params[i][0];
     Eigen::Vector3d r;
-    if (!residual(x, &r)) return false;
+    if (!residual(x.data(), &r)) return false;
     Eigen::Map<Eigen::Vector3d> res(residuals);
     res = r;
     if (!jacobians) return true;
-    // The misalignments change only the wrench, not the rod: their differences run first, on the
-    // model of the base evaluation, warm-started from it.
-    static constexpr int kOrder[kNumParams] = {kDa, kDb, kDg, kUx, kUy, kE, kG};
-    for (int i : kOrder) {
+    for (int i : order_) {
       if (!jacobians[i]) continue;
       Eigen::Vector3d rp, rm;
       const double xi = x[i];
       x[i] = xi + kStep;
-      const bool okp = residual(x, &rp);
+      const bool okp = residual(x.data(), &rp);
       x[i] = xi - kStep;
-      const bool okm = residual(x, &rm);
+      const bool okm = residual(x.data(), &rm);
       x[i] = xi;
       if (!okp || !okm) return false;
       Eigen::Map<Eigen::Vector3d> col(jacobians[i]);
@@ -108,23 +104,25 @@ class SampleCost : public ceres::SizedCostFunction<3, 1, 1, 1, 1, 1, 1, 1> {
   }
 
   bool residual(const double* x, Eigen::Vector3d* r) const {
-    rod::RodModel m;
-    actuation::JetGeometry g;
-    build(*ctx_, x, &m, &g);
-    const actuation::Vec6 w = actuation::JetMap(g).wrench(q_);
+    const Zeta& zeta = ctx_->zeta;
+    const ZetaVector z = ctx_->physical(x);
     rod::TipWrench tw;
-    tw.force = w.head<3>();
-    tw.moment = w.tail<3>();
-    // Same rod as the last solve (only the misalignments moved): keep the warm start. Otherwise
-    // set_model() resets it (RodSolver cannot keep a warm start across a model change), and
-    // the solve starts from the unloaded precurved shape with load continuation as fallback: the
-    // branch reached by loading the rod from rest, as the rig does.
-    const rod::RodModel& cur = solver_.model();
-    if (!solver_.has_solution() || cur.segments[0].stiffness != m.segments[0].stiffness ||
-        cur.segments[0].precurvature != m.segments[0].precurvature)
-      solver_.set_model(m);
+    if (q_mount_.size() > 0) {
+      Eigen::Vector3d delta = Eigen::Vector3d::Zero();
+      for (int i = 0; i < zeta.size(); ++i)
+        if (zeta[i].kind == ParamKind::kMount) delta[zeta[i].axis] = z[i];
+      const rod::Vec6 w = zeta.mount_wrenches(delta) * q_mount_;
+      tw.force = w.head<3>();
+      tw.moment = w.tail<3>();
+    }
+    // Same rod as the last solve (only the mount moved): keep the warm start. Otherwise set_model()
+    // resets it (RodSolver cannot keep a warm start across a model change), and the solve starts
+    // from the unloaded precurved shape with load continuation as fallback: the branch reached by
+    // loading the rod from rest, as the rig does.
+    const rod::RodModel m = zeta.rod_without_mount(z);
+    if (!solver_.has_solution() || !same_rod(solver_.model(), m)) solver_.set_model(m);
     ++ctx_->solves;
-    const rod::RodSolution sol = solver_.solve(tw);
+    const rod::RodSolution sol = solver_.solve(q_body_, tw);
     if (!sol.converged) {
       ++ctx_->failures;
       return false;
@@ -135,8 +133,10 @@ class SampleCost : public ceres::SizedCostFunction<3, 1, 1, 1, 1, 1, 1, 1> {
 
  private:
   const FitContext* ctx_;
-  Eigen::Vector3d q_;
   Eigen::Matrix3d R_meas_;
+  rod::InputVector q_body_;  ///< inputs of the actuators that stay in the rod model
+  Eigen::VectorXd q_mount_;  ///< inputs of the actuators at the tip mount
+  std::vector<int> order_;   ///< parameters in the order their differences run
   mutable rod::RodSolver solver_;
 };
 
@@ -185,41 +185,50 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-/// Throws for unusable input (see calibrate()); returns the number of fitted parameters.
-int check_inputs(const config::Scene& scene, const CrossSection& cs, const std::vector<Sample>& samples,
-                 const CalibrationOptions& opt) {
-  if (!scene.jets) throw config::SceneError("jets", "missing (the calibration needs the jet geometry, eq. 24)");
-  const std::string cse = cs.validate();
-  if (!cse.empty()) throw std::invalid_argument("cross-section " + cse);
-  int p = 0;
-  for (bool f : opt.fit) p += f ? 1 : 0;
-  validate_samples(samples, p);
-  return p;
+/// The mask the fit uses: the options' (checked against ζ) or ζ's default.
+ParamMask fit_mask(const Zeta& zeta, const CalibrationOptions& opt) {
+  if (opt.fit.empty()) return zeta.default_fit();
+  if (static_cast<int>(opt.fit.size()) != zeta.size())
+    throw std::invalid_argument("fit mask: " + std::to_string(opt.fit.size()) + " flags for " +
+                                std::to_string(zeta.size()) + " parameters (" + zeta.names() + ")");
+  return opt.fit;
 }
 
+int count(const ParamMask& m) { return static_cast<int>(std::count(m.begin(), m.end(), true)); }
+
 /// The result before the fit: what is fitted, the start and the bounds (the start must lie inside,
-/// the moduli's bounds be positive, the loss scale positive; std::invalid_argument otherwise).
-CalibrationResult start_result(const config::Scene& scene, const CrossSection& cs, const CalibrationOptions& opt) {
+/// the bounds of a positive parameter be positive, the loss scale positive; std::invalid_argument
+/// otherwise).
+CalibrationResult start_result(const Zeta& zeta, const ParamMask& fit, const CalibrationOptions& opt) {
+  const int n = zeta.size();
   CalibrationResult res;
-  res.fitted = opt.fit;
-  res.start = zeta_from_scene(scene, cs);
-  res.bounds = opt.has_bounds ? opt.bounds : default_bounds(res.start);
-  for (int i = 0; i < kNumParams; ++i) {
+  res.fitted = fit;
+  res.start = zeta.start();
+  res.zeta = res.start;
+  res.bounds = opt.has_bounds ? opt.bounds : default_bounds(zeta);
+  if (res.bounds.lower.size() != n || res.bounds.upper.size() != n)
+    throw std::invalid_argument("bounds: " + std::to_string(res.bounds.lower.size()) + " values for " +
+                                std::to_string(n) + " parameters");
+  for (int i = 0; i < n; ++i) {
     const double lo = res.bounds.lower[i], hi = res.bounds.upper[i], s = res.start[i];
     if (!(std::isfinite(lo) && std::isfinite(hi) && lo <= s && s <= hi))
-      throw std::invalid_argument(std::string("bounds of ") + param_name(i) + ": the start " + fmt("%g", s) +
-                                  " must lie in [" + fmt("%g", lo) + ", " + fmt("%g", hi) + "]");
-    if ((i == kE || i == kG) && !(lo > 0.0))
-      throw std::invalid_argument(std::string("bounds of ") + param_name(i) + ": must be positive");
+      throw std::invalid_argument("bounds of " + zeta[i].name + ": the start " + fmt("%g", s) + " must lie in [" +
+                                  fmt("%g", lo) + ", " + fmt("%g", hi) + "]");
+    if (zeta[i].logarithmic && !(lo > 0.0))
+      throw std::invalid_argument("bounds of " + zeta[i].name + ": must be positive");
   }
   if (!(opt.loss_scale > 0.0)) throw std::invalid_argument("loss scale must be positive");
+  res.stddev = ZetaVector::Constant(n, std::nan(""));
+  res.correlation = Eigen::MatrixXd::Constant(n, n, std::nan(""));
+  res.identifiable.assign(n, false);
+  res.at_bound.assign(n, false);
   return res;
 }
 
 /// The least-squares problem in internal coordinates, one parameter block per component of ζ
 /// (blocks held constant cost no derivative solves).
 struct FitProblem {
-  double x[kNumParams];
+  std::vector<double> x;
   std::vector<double*> fitted;    ///< the blocks Ceres estimates, in the order of ζ
   std::vector<int> fitted_index;  ///< their index in ζ
   ceres::Problem problem;
@@ -227,21 +236,22 @@ struct FitProblem {
 
 void build_problem(const FitContext& ctx, const std::vector<Sample>& samples, const CalibrationOptions& opt,
                    const CalibrationResult& res, FitProblem* fit) {
-  double* x = fit->x;
-  for (int i = 0; i < kNumParams; ++i) x[i] = res.start[i];
-  x[kE] = 0.0, x[kG] = 0.0;
+  const int n = ctx.size();
+  fit->x.resize(n);
+  for (int i = 0; i < n; ++i) fit->x[i] = ctx.internal(i, res.start[i]);
+  std::vector<double*> blocks;
+  for (double& v : fit->x) blocks.push_back(&v);
   for (const Sample& s : samples)
-    fit->problem.AddResidualBlock(new SampleCost(&ctx, s), make_loss(opt.loss, opt.loss_scale), &x[0], &x[1], &x[2],
-                                  &x[3], &x[4], &x[5], &x[6]);
-  for (int i = 0; i < kNumParams; ++i) {
-    if (!opt.fit[i]) {
-      fit->problem.SetParameterBlockConstant(&x[i]);
+    fit->problem.AddResidualBlock(new SampleCost(&ctx, s), make_loss(opt.loss, opt.loss_scale), blocks);
+  for (int i = 0; i < n; ++i) {
+    if (!res.fitted[i]) {
+      fit->problem.SetParameterBlockConstant(&fit->x[i]);
       continue;
     }
-    fit->fitted.push_back(&x[i]);
+    fit->fitted.push_back(&fit->x[i]);
     fit->fitted_index.push_back(i);
-    fit->problem.SetParameterLowerBound(&x[i], 0, ctx.internal(i, res.bounds.lower[i]));
-    fit->problem.SetParameterUpperBound(&x[i], 0, ctx.internal(i, res.bounds.upper[i]));
+    fit->problem.SetParameterLowerBound(&fit->x[i], 0, ctx.internal(i, res.bounds.lower[i]));
+    fit->problem.SetParameterUpperBound(&fit->x[i], 0, ctx.internal(i, res.bounds.upper[i]));
   }
 }
 
@@ -250,12 +260,11 @@ void report_start_failure(const config::Scene& scene, const std::vector<Sample>&
   std::string which;
   for (const Sample& smp : samples) {
     bool ok = false;
-    predict_tip_rotation(scene, smp.jet_force, &ok);
+    predict_tip_rotation(scene, smp.inputs, &ok);
     if (!ok) which += (which.empty() ? "" : ", ") + smp.origin;
   }
   res->message = "the rod model did not converge at the start" + (which.empty() ? std::string() : " for " + which);
   res->warnings.push_back(res->message);
-  res->zeta = res->start;
 }
 
 /// Levenberg–Marquardt (Ceres' trust region, dense QR).
@@ -290,24 +299,25 @@ void record_fit_quality(const ceres::Solver::Summary& summary, bool final_ok, co
 }
 
 /// Fitted parameters that ended at a bound (their estimate and std say nothing).
-void flag_bounds(const FitContext& ctx, const FitProblem& fit, const CalibrationOptions& opt, CalibrationResult* res) {
-  for (int i = 0; i < kNumParams; ++i) {
-    if (!opt.fit[i]) continue;
+void flag_bounds(const FitContext& ctx, const FitProblem& fit, CalibrationResult* res) {
+  const Zeta& zeta = ctx.zeta;
+  for (int i = 0; i < zeta.size(); ++i) {
+    if (!res->fitted[i]) continue;
     const double lo = ctx.internal(i, res->bounds.lower[i]), hi = ctx.internal(i, res->bounds.upper[i]);
     const double tol = 1e-6 * std::max(1.0, hi - lo);
     if (fit.x[i] <= lo + tol || fit.x[i] >= hi - tol) {
       res->at_bound[i] = true;
-      res->warnings.push_back(std::string(param_name(i)) + " ended at its bound (" + fmt("%.6g", res->zeta[i]) + " " +
-                              param_unit(i) + "): the data push it outside [" + fmt("%.6g", res->bounds.lower[i]) +
-                              ", " + fmt("%.6g", res->bounds.upper[i]) + "]; its estimate and std are not meaningful");
+      res->warnings.push_back(zeta[i].name + " ended at its bound (" + fmt("%.6g", res->zeta[i]) + " " + zeta[i].unit +
+                              "): the data push it outside [" + fmt("%.6g", res->bounds.lower[i]) + ", " +
+                              fmt("%.6g", res->bounds.upper[i]) + "]; its estimate and std are not meaningful");
     }
   }
 }
 
 /// Directions the data do not see at all: null space of the Jacobian J (3N × fitted; relative
 /// singular value below 1e-7, the threshold at which ceres::Covariance drops them below).
-ParamMask null_space(const Eigen::MatrixXd& J, const FitProblem& fit) {
-  ParamMask in_null{};
+ParamMask null_space(const Eigen::MatrixXd& J, const FitProblem& fit, int n) {
+  ParamMask in_null(n, false);
   const int p = static_cast<int>(fit.fitted.size());
   Eigen::JacobiSVD<Eigen::MatrixXd> svd(J, Eigen::ComputeFullV);
   const Eigen::VectorXd sv = svd.singularValues();
@@ -323,8 +333,8 @@ ParamMask null_space(const Eigen::MatrixXd& J, const FitProblem& fit) {
 
 /// Standard deviations and correlations of the parameters outside the null space: ceres::Covariance
 /// (pseudo-inverse, so that a rank-deficient problem still reports the identifiable part) scaled by
-/// σ̂², mapped to E and G by the delta method.
-void estimate_covariance(const CalibrationOptions& opt, const ParamMask& in_null, FitProblem* fit,
+/// σ̂², mapped to the positive parameters by the delta method.
+void estimate_covariance(const Zeta& zeta, const CalibrationOptions& opt, const ParamMask& in_null, FitProblem* fit,
                          CalibrationResult* res) {
   const int p = static_cast<int>(fit->fitted.size());
   ceres::Covariance::Options co;
@@ -344,7 +354,7 @@ void estimate_covariance(const CalibrationOptions& opt, const ParamMask& in_null
       const int i = idx[a];
       if (in_null[i]) continue;
       const double sd = std::sqrt(s2 * C(a, a));
-      res->stddev[i] = (i == kE || i == kG) ? res->zeta[i] * sd : sd;  // delta method for the moduli
+      res->stddev[i] = zeta[i].logarithmic ? res->zeta[i] * sd : sd;  // delta method for ln(v/start)
       for (int b = 0; b < p; ++b) {
         const int j = idx[b];
         if (in_null[j]) continue;
@@ -357,75 +367,51 @@ void estimate_covariance(const CalibrationOptions& opt, const ParamMask& in_null
 
 /// Which fitted parameters the data determine: not in the null space and std ≤ resolution; a
 /// warning for each that is not and for each strongly correlated pair.
-void assess_identifiability(const CalibrationOptions& opt, const ParamMask& in_null, CalibrationResult* res) {
-  for (int i = 0; i < kNumParams; ++i) {
-    if (!opt.fit[i]) continue;
+void assess_identifiability(const Zeta& zeta, const CalibrationOptions& opt, const ParamMask& in_null,
+                            CalibrationResult* res) {
+  for (int i = 0; i < zeta.size(); ++i) {
+    const Parameter& p = zeta[i];
+    if (!res->fitted[i]) continue;
     if (in_null[i]) {
-      res->warnings.push_back(std::string(param_name(i)) +
+      res->warnings.push_back(p.name +
                               " is not identifiable: the tip orientations do not depend on it (or only in a "
-                              "combination with others) for these jet forces; fix it (leave it out of --fit) or "
+                              "combination with others) for these inputs; fix it (leave it out of --fit) or "
                               "add samples that excite it");
       continue;
     }
     if (!res->covariance_ok) continue;
-    const bool modulus = i == kE || i == kG;
-    const double rel = modulus ? res->stddev[i] / res->zeta[i] : res->stddev[i];
-    if (rel <= opt.resolution[i]) {
+    const double rel = p.logarithmic ? res->stddev[i] / res->zeta[i] : res->stddev[i];
+    if (rel <= p.resolution) {
       res->identifiable[i] = true;
       continue;
     }
-    const std::string sd = modulus ? fmt("%.3g", 100.0 * rel) + " %" : fmt("%.3g", rel) + " " + param_unit(i);
+    const std::string sd = p.logarithmic ? fmt("%.3g", 100.0 * rel) + " %" : fmt("%.3g", rel) + " " + p.unit;
     const std::string lim =
-        modulus ? fmt("%.3g", 100.0 * opt.resolution[i]) + " %" : fmt("%.3g", opt.resolution[i]) + " " + param_unit(i);
-    res->warnings.push_back(std::string(param_name(i)) + " is poorly identifiable from these data: std " + sd + " > " +
-                            lim + "; fix it (leave it out of --fit) or add samples that excite it");
+        p.logarithmic ? fmt("%.3g", 100.0 * p.resolution) + " %" : fmt("%.3g", p.resolution) + " " + p.unit;
+    res->warnings.push_back(p.name + " is poorly identifiable from these data: std " + sd + " > " + lim +
+                            "; fix it (leave it out of --fit) or add samples that excite it");
   }
-  for (int i = 0; i < kNumParams; ++i)
-    for (int j = i + 1; j < kNumParams; ++j)
+  for (int i = 0; i < zeta.size(); ++i)
+    for (int j = i + 1; j < zeta.size(); ++j)
       if (std::abs(res->correlation(i, j)) > opt.max_correlation)
-        res->warnings.push_back(std::string(param_name(i)) + " and " + param_name(j) + " are strongly correlated (" +
+        res->warnings.push_back(zeta[i].name + " and " + zeta[j].name + " are strongly correlated (" +
                                 fmt("%.4f", res->correlation(i, j)) +
                                 "): the data determine mainly a combination of the two");
 }
 
-}  // namespace
-
-Bounds default_bounds(const ZetaVector& s) {
-  Bounds b;
-  b.lower = s, b.upper = s;
-  for (int i : {kUx, kUy}) b.lower[i] -= 20.0, b.upper[i] += 20.0;
-  for (int i : {kE, kG}) b.lower[i] = s[i] / 20.0, b.upper[i] = s[i] * 20.0;
-  for (int i : {kDa, kDb, kDg}) b.lower[i] -= 0.5, b.upper[i] += 0.5;
-  return b;
-}
-
-Eigen::Vector3d rotation_error(const Eigen::Matrix3d& R_meas, const Eigen::Matrix3d& R_model) {
-  return so3::log(R_meas.transpose() * R_model);
-}
-
-Eigen::Matrix3d predict_tip_rotation(const config::Scene& scene, const Eigen::Vector3d& q, bool* ok) {
-  rod::RodSolver solver(scene.rod.without_actuators(), scene.solver);
-  const actuation::Vec6 w = actuation::JetMap(scene.jets.value_or(actuation::JetGeometry())).wrench(q);
-  rod::TipWrench tw;
-  tw.force = w.head<3>();
-  tw.moment = w.tail<3>();
-  const rod::RodSolution sol = solver.solve(tw);
-  if (ok) *ok = sol.converged;
-  return sol.tip_rotation;
-}
-
-CalibrationResult calibrate(const config::Scene& scene, const CrossSection& cs, const std::vector<Sample>& samples,
-                            const CalibrationOptions& opt) {
+/// One fit of the parameters in `fit`.
+CalibrationResult fit_once(const Zeta& zeta, const std::vector<Sample>& samples, const ParamMask& mask,
+                           const CalibrationOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
-  const int p = check_inputs(scene, cs, samples, opt);
-  CalibrationResult res = start_result(scene, cs, opt);
-  const FitContext ctx(scene, cs, res.start);
+  validate_samples(samples, zeta.scene().rod.actuators, count(mask));
+  CalibrationResult res = start_result(zeta, mask, opt);
+  const FitContext ctx(zeta, zeta.scene());
   FitProblem fit;
   build_problem(ctx, samples, opt, res, &fit);
 
   Eigen::VectorXd r;
   if (!evaluate(&fit.problem, fit.fitted, false, &r, nullptr)) {
-    report_start_failure(scene, samples, &res);
+    report_start_failure(zeta.scene(), samples, &res);
     res.time_s = seconds_since(t0);
     return res;
   }
@@ -434,22 +420,84 @@ CalibrationResult calibrate(const config::Scene& scene, const CrossSection& cs, 
   const ceres::Solver::Summary summary = solve(opt, &fit);
   res.iterations = static_cast<int>(summary.iterations.size()) - 1;
   res.message = summary.message;
-  res.zeta = ctx.physical(fit.x);
+  res.zeta = ctx.physical(fit.x.data());
 
   // Residuals and Jacobian at the estimate (no loss: the geometric errors).
   Eigen::MatrixXd J;
   const bool final_ok = evaluate(&fit.problem, fit.fitted, false, &r, &J);
+  const int p = count(mask);
   record_fit_quality(summary, final_ok, r, p, &res);
-  flag_bounds(ctx, fit, opt, &res);
-  ParamMask in_null{};
-  if (final_ok && p > 0) in_null = null_space(J, fit);
-  if (final_ok && p > 0 && std::isfinite(res.sigma_rad)) estimate_covariance(opt, in_null, &fit, &res);
-  assess_identifiability(opt, in_null, &res);
+  flag_bounds(ctx, fit, &res);
+  ParamMask in_null(zeta.size(), false);
+  if (final_ok && p > 0) in_null = null_space(J, fit, zeta.size());
+  if (final_ok && p > 0 && std::isfinite(res.sigma_rad)) estimate_covariance(zeta, opt, in_null, &fit, &res);
+  assess_identifiability(zeta, opt, in_null, &res);
 
   res.rod_solves = ctx.solves.load();
   res.failed_solves = ctx.failures.load();
   res.time_s = seconds_since(t0);
   return res;
+}
+
+/// Why the fitted per-segment bending scales cannot be told apart ("" when they can).
+std::string per_segment_scales_problem(const Zeta& zeta, const CalibrationResult& res, double max_correlation) {
+  std::vector<int> fitted;
+  for (int k : zeta.segment_bending_scales())
+    if (res.fitted[k]) fitted.push_back(k);
+  if (fitted.size() < 2 || !res.converged) return "";
+  for (int k : fitted)
+    if (!res.identifiable[k]) return zeta[k].name + " is not identifiable";
+  for (size_t a = 0; a < fitted.size(); ++a)
+    for (size_t b = a + 1; b < fitted.size(); ++b)
+      if (std::abs(res.correlation(fitted[a], fitted[b])) > max_correlation)
+        return zeta[fitted[a]].name + " and " + zeta[fitted[b]].name + " are correlated (" +
+               fmt("%.4f", res.correlation(fitted[a], fitted[b])) + ")";
+  return "";
+}
+
+}  // namespace
+
+Bounds default_bounds(const Zeta& zeta) {
+  const ZetaVector& s = zeta.start();
+  Bounds b;
+  b.lower = s, b.upper = s;
+  for (int i = 0; i < zeta.size(); ++i) {
+    switch (zeta[i].kind) {
+      case ParamKind::kPrecurvatureX:
+      case ParamKind::kPrecurvatureY: b.lower[i] -= 20.0, b.upper[i] += 20.0; break;
+      case ParamKind::kMount: b.lower[i] -= 0.5, b.upper[i] += 0.5; break;
+      default: b.lower[i] = s[i] / 20.0, b.upper[i] = s[i] * 20.0; break;
+    }
+  }
+  return b;
+}
+
+Eigen::Vector3d rotation_error(const Eigen::Matrix3d& R_meas, const Eigen::Matrix3d& R_model) {
+  return so3::log(R_meas.transpose() * R_model);
+}
+
+Eigen::Matrix3d predict_tip_rotation(const config::Scene& scene, const rod::InputVector& q, bool* ok) {
+  rod::RodSolver solver(scene.rod, scene.solver);
+  const rod::RodSolution sol = solver.solve(q);
+  if (ok) *ok = sol.converged;
+  return sol.tip_rotation;
+}
+
+CalibrationResult calibrate(const Zeta& zeta, const std::vector<Sample>& samples, const CalibrationOptions& opt) {
+  const ParamMask mask = fit_mask(zeta, opt);
+  CalibrationResult res = fit_once(zeta, samples, mask, opt);
+  if (opt.bending_scale != BendingScale::kAuto) return res;
+  const std::string problem = per_segment_scales_problem(zeta, res, opt.max_correlation);
+  if (problem.empty()) return res;
+  CalibrationResult common = fit_once(zeta, samples, zeta.with_common_bending_scale(mask), opt);
+  common.common_bending_scale = true;
+  common.warnings.insert(common.warnings.begin(), "the data cannot tell the segments' bending stiffness apart (" +
+                                                      problem +
+                                                      "): fitted one common scale 'bend' instead of one per segment");
+  common.rod_solves += res.rod_solves;
+  common.failed_solves += res.failed_solves;
+  common.time_s += res.time_s;
+  return common;
 }
 
 }  // namespace calibration

@@ -125,7 +125,7 @@ void emit_sample(const Run& run, const QuasistaticOptions& o, Extraction* ex) {
   for (auto it = run.rbegin(); it != run.rend(); ++it) {
     if (it->first > last_end - o.end_guard + 1e-9) continue;
     Sample smp;
-    smp.jet_force = it->second.F_mean.cwiseMax(0.0);
+    smp.inputs = it->second.F_mean.cwiseMax(0.0);
     smp.tip_orientation = Eigen::Quaterniond(it->second.R_mean).normalized();
     char b[64];
     std::snprintf(b, sizeof(b), "bag t=%.2f s", it->first);
@@ -134,7 +134,7 @@ void emit_sample(const Run& run, const QuasistaticOptions& o, Extraction* ex) {
     // sample has the same jet forces (within max_force_drift) it is the same hold, and the later
     // (more settled) sample replaces it.
     if (!ex->samples.empty()) {
-      const double dF = (ex->samples.back().jet_force - smp.jet_force).cwiseAbs().maxCoeff();
+      const double dF = (ex->samples.back().inputs - smp.inputs).cwiseAbs().maxCoeff();
       if (dF <= o.max_force_drift) {
         ex->samples.pop_back();
         ex->sample_time.pop_back();

@@ -76,9 +76,12 @@ def configs():
     rig = open(os.path.join(ROOT, "config", "rig.yaml")).read()
     write("fuzz_rig_yaml", "rig.yaml", "scene: /tmp/s.yaml\n" + rig.replace('port: ""', 'port: /dev/null'))
     from_file("fuzz_rig_yaml", "rig_plain.yaml", "config/rig.yaml")
+    # First byte: the robot ('2': three jets; 'M': six actuators, every second one reversible).
     write("fuzz_calibration_csv", "basic.csv",
-          "# HydroJet samples\nq1,q2,q3,qw,qx,qy,qz\n0.1,0,0,1,0,0,0\n0,0.05,0.02,0.9998,0.0141,-0.0141,0\n")
-    write("fuzz_calibration_csv", "reordered.csv", "t, qw,qx,qy,qz, q3,q2,q1\n1.5,1,0,0,0,0.1,0.2,0.05\n")
+          "2# HydroJet samples\nq1,q2,q3,qw,qx,qy,qz\n0.1,0,0,1,0,0,0\n0,0.05,0.02,0.9998,0.0141,-0.0141,0\n")
+    write("fuzz_calibration_csv", "reordered.csv", "2t, qw,qx,qy,qz, q3,q2,q1\n1.5,1,0,0,0,0.1,0.2,0.05\n")
+    write("fuzz_calibration_csv", "six.csv",
+          "Mq1,q2,q3,q4,q5,q6,qw,qx,qy,qz\n0.1,-0.05,0,0.02,0.01,-0.1,1,0,0,0\n")
     write("fuzz_rod_fk_batch", "batch.txt", "# fx fy fz mx my mz\n0.1 0 0 0 0 0\n0,0.05,0,0,0,0.001\n\n-0.1\t0\t0\t0\t0\t0\r\n")
 
 
