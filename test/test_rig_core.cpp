@@ -603,11 +603,11 @@ TEST(RigOptions, InvalidKeysAreNamed) {
       {[](YAML::Node& n) { n["tracker"]["latency"] = -0.01; }, "tracker/latency: must lie in [0, 1] s"},
       {[](YAML::Node& n) { n["tracker"]["srom_files"] = "tip.rom"; }, "tracker/srom_files: must be a mapping"},
       {[](YAML::Node& n) { n["tracker"]["srom_files"]["0A"] = "/nonexistent/tip.rom"; },
-       "tracker/srom_files/0A: cannot read '/nonexistent/tip.rom'"},
+       "tracker/srom_files/0A: '/nonexistent/tip.rom': cannot be read (No such file or directory)"},
       {[](YAML::Node& n) { n["tracker"]["srom_files"]["zz"] = "/dev/null"; },
        "tracker/srom_files/zz: the key must be a port handle"},
       {[](YAML::Node& n) { n["tracker"]["srom_files"]["0A"] = "/dev/null"; },
-       "tracker/srom_files/0A: '/dev/null' is not a regular file"},
+       "tracker/srom_files/0A: '/dev/null': not a regular file"},
   };
   for (const Case& c : cases) {
     YAML::Node n = shipped();
@@ -645,7 +645,7 @@ TEST(RigOptions, SromFilesAreReadAndCheckedAtStart) {
   n["tracker"]["srom_files"] = YAML::Load("{11: " + ok + "}");
   EXPECT_EQ(parse_rig_options(n).tracker.srom_files.count(0x0B), 1u);
   n["tracker"]["srom_files"] = YAML::Load("{0A: " + big + "}");
-  EXPECT_EQ(error_of(n), "tracker/srom_files/0A: '" + big + "' has more than 1024 bytes");
+  EXPECT_EQ(error_of(n), "tracker/srom_files/0A: '" + big + "': 1025 bytes, more than the limit of 1024");
   const std::string empty = dir + "/empty.rom";
   std::ofstream(empty).close();
   n["tracker"]["srom_files"] = YAML::Load("{0A: " + empty + "}");
@@ -653,7 +653,7 @@ TEST(RigOptions, SromFilesAreReadAndCheckedAtStart) {
   std::remove(empty.c_str());
   // Not a regular file: a device would never end (found in review: /dev/zero hung the start).
   n["tracker"]["srom_files"] = YAML::Load("{0A: /dev/zero}");
-  EXPECT_EQ(error_of(n), "tracker/srom_files/0A: '/dev/zero' is not a regular file");
+  EXPECT_EQ(error_of(n), "tracker/srom_files/0A: '/dev/zero': not a regular file");
   std::remove(ok.c_str());
   std::remove(big.c_str());
   rmdir(dir.c_str());

@@ -13,8 +13,8 @@ root=$(cd "$build" && pwd)
 fail=0
 complain() { echo "check_tree: $*" >&2; fail=1; }
 grep -q '^HYDROJET_SANITIZE:BOOL=ON' "$root/CMakeCache.txt" 2>/dev/null || complain "$build is not configured with HYDROJET_SANITIZE=ON"
-chained=$(sed -n "s/^ *CMAKE_PREFIX_PATH = r\?'\(.*\)'\.split.*/\1/p" "$root/devel/_setup_util.py" 2>/dev/null | tr ';' '\n' |
-  grep -v -x -e "$root/devel" -e /usr -e '' || true)
+source "$(dirname "$0")/devel_parents.sh"
+chained=$(devel_parents "$root/devel")
 [ -z "$chained" ] || complain "$build/devel chains to other workspaces: $(echo $chained)"
 exes=("$@")
 [ ${#exes[@]} -gt 0 ] || mapfile -t exes < <(find "$root/devel/lib/hydrojet_control" -maxdepth 1 -type f -perm -u+x \

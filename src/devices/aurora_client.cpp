@@ -3,13 +3,12 @@
 
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
-#include <fstream>
 #include <iterator>
 #include <stdexcept>
 #include <thread>
 
 #include "hydrojet_control/devices/crc16.h"
+#include "hydrojet_control/util/files.h"
 
 namespace hydrojet {
 namespace devices {
@@ -54,39 +53,18 @@ std::string aurora_comm_params(int baud) {
 }
 
 bool load_srom(const std::string& path, std::vector<uint8_t>* data, std::string* err) {
-  // A regular file only, and never more than one byte past the limit read: a device or a FIFO
+  // A regular file only, and never more than the limit read (util/files.h): a device or a FIFO
   // (/dev/zero, a pipe) would otherwise hang or exhaust the node at start.
-  std::error_code ec;
-  const std::filesystem::file_status st = std::filesystem::status(path, ec);
-  if (ec || !std::filesystem::exists(st)) {
-    *err = "cannot read '" + path + "'";
+  std::string bytes;
+  if (const std::string e = util::read_regular_file(path, &bytes, kMaxSromBytes); !e.empty()) {
+    *err = "'" + path + "': " + e;
     return false;
   }
-  if (!std::filesystem::is_regular_file(st)) {
-    *err = "'" + path + "' is not a regular file";
-    return false;
-  }
-  std::ifstream f(path, std::ios::binary);
-  if (!f) {
-    *err = "cannot read '" + path + "'";
-    return false;
-  }
-  std::vector<uint8_t> v(kMaxSromBytes + 1);
-  f.read(reinterpret_cast<char*>(v.data()), static_cast<std::streamsize>(v.size()));
-  if (f.bad()) {
-    *err = "cannot read '" + path + "'";
-    return false;
-  }
-  v.resize(static_cast<size_t>(f.gcount()));
-  if (v.empty()) {
+  if (bytes.empty()) {
     *err = "'" + path + "' is empty";
     return false;
   }
-  if (v.size() > kMaxSromBytes) {
-    *err = "'" + path + "' has more than " + std::to_string(kMaxSromBytes) + " bytes";
-    return false;
-  }
-  *data = std::move(v);
+  data->assign(bytes.begin(), bytes.end());
   return true;
 }
 

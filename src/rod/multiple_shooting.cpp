@@ -40,6 +40,16 @@ struct RodSolver::Nodes {
   int segments() const { return static_cast<int>(s.size()) - 1; }
 };
 
+namespace {
+/// Force scale of the node residuals [N]: max EI / L², the force that bends the stiffest part by ~1 rad.
+double node_force_scale(const RodModel& m) {
+  double ei = 0.0;
+  for (const RodSegment& sg : m.segments) ei = std::max(ei, sg.stiffness.maxCoeff());
+  const double L = m.length();
+  return ei / (L * L);
+}
+}  // namespace
+
 struct RodSolver::MsEval {
   Eigen::VectorXd F;
   Eigen::MatrixXd J;
@@ -93,13 +103,11 @@ struct RodSolver::MultipleShooting {
 
   MultipleShooting(RodSolver& s, const Load& t, RodSolution* out, int segments)
       : solver(s), target(t), sol(out), M(segments) {
-    double ei = 0.0;
-    for (const RodSegment& sg : s.model_.segments) ei = std::max(ei, sg.stiffness.maxCoeff());
     const double L = s.model_.length();
     scale = Eigen::VectorXd::Ones(3 + 9 * (M - 1));
     for (int k = 1; k < M; ++k) {
       const int c = 3 + 9 * (M - 1 - k);
-      scale.segment<3>(c + 3).setConstant(L * L / ei);
+      scale.segment<3>(c + 3).setConstant(1.0 / node_force_scale(s.model_));
       scale.segment<3>(c + 6).setConstant(L / M);
     }
   }
@@ -232,10 +240,7 @@ void RodSolver::MsEval::add_sweep(const Nodes& x, int k, double Fs, int D, const
 // its steps (the Richardson estimate's second integration).
 bool RodSolver::ms_evaluate(const Nodes& x, const Load& load, MsEval* e, int* rhs, int step_multiplier) {
   const int M = x.segments(), N = 3 + 9 * (M - 1);
-  const double L = model_.length();
-  double ei = 0.0;
-  for (const RodSegment& sg : model_.segments) ei = std::max(ei, sg.stiffness.maxCoeff());
-  const double Fs = ei / (L * L);
+  const double Fs = node_force_scale(model_);
   e->F.setZero(N);
   e->J.setZero(N, N);
   e->dP_X.setZero(3, N);

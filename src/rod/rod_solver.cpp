@@ -226,8 +226,13 @@ template <class Evaluate>
 struct TipOrientationNewton {
   using Step = Vec3;
   Evaluate evaluate;
-  static double residual(const RodSolver::Eval& e) { return e.r.norm(); }
-  static bool step(const RodSolver::Eval& e, Vec3* dx) {
+  // (templates: the evaluation is the solver's private Eval)
+  template <class Eval>
+  static double residual(const Eval& e) {
+    return e.r.norm();
+  }
+  template <class Eval>
+  static bool step(const Eval& e, Vec3* dx) {
     *dx = -Eigen::PartialPivLU<Mat3>(e.J).solve(e.r);
     return dx->allFinite() && std::abs(e.J.determinant()) >= 1e-300;
   }

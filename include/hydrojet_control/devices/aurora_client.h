@@ -90,8 +90,9 @@ struct AuroraOptions {
   std::string validate() const;
 };
 
-/// Reads a tool-definition file: false with *err ("cannot read '<path>'", "'<path>' is empty",
-/// "'<path>' has N bytes, more than 1024") when it cannot be written with PVWR.
+/// Reads a tool-definition file (a regular file of at most kMaxSromBytes, util::read_regular_file):
+/// false with *err ("'<path>': not a regular file", "'<path>' is empty", "'<path>': N bytes, more
+/// than the limit of 1024", ...) when it cannot be written with PVWR.
 bool load_srom(const std::string& path, std::vector<uint8_t>* data, std::string* err);
 
 /// "bx" / "tx".

@@ -179,7 +179,8 @@ class RodSolver {
   /// Tip (s = L) first, then toward the base; s = 0 is not one.
   const std::vector<Station>& stations() const { return stations_; }
 
-  /// One evaluation of single shooting at a tip orientation (internal; public for the sweep kernels).
+ private:
+  /// One evaluation of single shooting at a tip orientation: the residual, its Jacobian, the base frame.
   struct Eval {
     Vec3 r = Vec3::Zero();  ///< residual log R(0)
     Mat3 J = Mat3::Zero();  ///< ∂r/∂x
@@ -205,7 +206,6 @@ class RodSolver {
     std::unique_ptr<KinsolWorkspace> kinsol_;
   };
 
- private:
   struct Shooting;  // single shooting posed for the load path (load_path.h)
   struct Nodes;     // multiple shooting's unknowns
   struct MultipleShooting;
