@@ -193,7 +193,9 @@ TEST(ControllerSources, TheConfiguredSpiralRunsUnclippedAnOperatorTargetThereIsC
       if (!c.reachable_set().contains(options.path.direction_at(t))) outside = options.path.direction_at(t);
     // At 0° the spiral's end (ϑ up to 1.04 rad) leaves the reserve set at some azimuths; at 30° it stays
     // inside both sets.
-    if (std::string(name) == "hydrojet_0deg") ASSERT_GT(outside.norm(), 0.0) << name << ": the sets do not differ";
+    if (std::string(name) == "hydrojet_0deg") {
+      ASSERT_GT(outside.norm(), 0.0) << name << ": the sets do not differ";
+    }
     StaticPlant plant(sc, test::bare(sc));
     c.start(0.0);
     ControllerOutput out;

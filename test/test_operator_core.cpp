@@ -613,7 +613,9 @@ TEST_P(LookAt, AimsThroughThePointColdAndWarm) {
     const Vec3 P = tip + 0.06 * d0 + 0.02 * std::cos(0.5 * i) * side + 0.015 * std::sin(0.5 * i) * up;
     const control::LookAtResult r = solver.solve(P);
     expect_aimed(GetParam(), P, r);
-    if (i > 0) EXPECT_LE(r.iterations, 5) << "warm";
+    if (i > 0) {
+      EXPECT_LE(r.iterations, 5) << "warm";
+    }
   }
   // A cold solve of the last point gives the same aim as the warm one.
   const Vec3 P = tip + 0.06 * d0 + 0.02 * std::cos(5.5) * side + 0.015 * std::sin(5.5) * up;

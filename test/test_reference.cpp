@@ -26,7 +26,9 @@ TEST(Reference, MovesTowardANewTargetAlongTheGreatCircleAtTheRateLimit) {
     EXPECT_LE(control::geodesic_error(prev, d), 0.2 * kDt + 1e-12) << k;
     EXPECT_NEAR(d.y(), 0.0, 1e-12);  // on the great circle through z and the target
     EXPECT_NEAR(d.norm(), 1.0, 1e-12);
-    if (k == 100) EXPECT_NEAR(control::bend_angle(d), 0.2, 1e-9);
+    if (k == 100) {
+      EXPECT_NEAR(control::bend_angle(d), 0.2, 1e-9);
+    }
     prev = d;
   }
   EXPECT_LT(control::geodesic_error(ref.direction(), target), 1e-12);  // there after 0.4 / 0.2 = 2 s
