@@ -233,6 +233,60 @@ TEST(ControllerSources, FollowedPathFinishesAndANewCommandRunsAgain) {
   EXPECT_EQ(out.source, control::Source::kHold);
 }
 
+// A path starts where it begins: the reference moves to its first direction at the rate limit, the
+// tip settles there, and only then does the path's clock start (path_time 0 until then); the path
+// then runs its whole duration. An approach that cannot settle fails, and the reference holds.
+TEST(ControllerSources, APathIsApproachedAndItsClockStartsOnceTheTipHasSettled) {
+  OperatorRig rig;
+  rig.c.start(0.0);
+  rig.run_for(0.5);
+  std::vector<control::Waypoint> w(2);
+  w[0].t = 0.0, w[0].direction = control::direction(0.4, 0.5);
+  w[1].t = 2.0, w[1].direction = control::direction(0.6, 0.5);
+  const double away = control::geodesic_error(rig.c.reference().direction(), w[0].direction);
+  const double rate = rig.c.params().max_angular_rate, window = rig.c.params().approach.settle_time;
+  rig.c.follow(control::make_waypoints(w), rig.t);
+  ControllerOutput out;
+  int approach_cycles = 0;
+  for (; approach_cycles < 2000; ++approach_cycles) {
+    out = rig.run_for(kDt);
+    ASSERT_EQ(out.state, ControllerState::kRunning) << out.reason;
+    ASSERT_TRUE(out.path_failure.empty()) << out.path_failure;
+    if (!out.approaching) break;
+    EXPECT_EQ(out.path_time, 0.0);
+  }
+  // The clock starts at this cycle: the way there at the rate limit, then at least one window.
+  EXPECT_EQ(out.path_time, 0.0);
+  EXPECT_GE(out.approach_time, away / rate + window - 2 * kDt);
+  EXPECT_LE(out.approach_time, away / rate + window + 1.5);
+  EXPECT_NEAR(out.approach_time, approach_cycles * kDt, 1.5 * kDt);
+  EXPECT_LT(out.error_geodesic, rig.c.params().approach.tolerance);
+  EXPECT_LT(control::geodesic_error(out.desired_direction, w[0].direction), 1e-9);
+  out = rig.run_for(1.0);
+  EXPECT_NEAR(out.path_time, 1.0, 1e-9);  // the cycles after the clock started: T + kDt .. T + 1
+  EXPECT_EQ(out.state, ControllerState::kRunning);
+  out = rig.run_for(1.05);
+  EXPECT_EQ(out.state, ControllerState::kFinished);
+
+  // A tolerance no real tip meets: after the way there and the timeout, a failure; the reference holds.
+  control::ControllerOptions strict = rig.c.params();
+  strict.approach.tolerance = 1e-9;
+  strict.approach.timeout = 0.5;
+  rig.c.set_params(strict);
+  w[0].direction = control::direction(0.2, -1.0), w[1].direction = control::direction(0.3, -1.0);
+  const double away2 = control::geodesic_error(rig.c.reference().direction(), w[0].direction);
+  rig.c.follow(control::make_waypoints(w), rig.t);
+  int cycles = 0;
+  for (; cycles < 2000 && out.path_failure.empty(); ++cycles) out = rig.run_for(kDt);
+  EXPECT_EQ(out.path_failure.rfind("approach: the tip did not settle", 0), 0u) << out.path_failure;
+  EXPECT_NEAR(cycles * kDt, away2 / rate + 0.5, 0.05);
+  EXPECT_EQ(out.state, ControllerState::kRunning);
+  EXPECT_EQ(out.source, control::Source::kHold);
+  out = rig.run_for(0.1);
+  EXPECT_TRUE(out.path_failure.empty());
+  EXPECT_EQ(out.source, control::Source::kHold);
+}
+
 // An operator's path (follow()) is clipped as operator targets are, to the set with the force reserve:
 // a raster of theta_max 3.0 (accepted: within [0, pi]) used to run to the edge of what the jets reach
 // at all, and abort on oscillation there. The configured spiral keeps the full set (the test above).
@@ -317,6 +371,9 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
       {"safety/unreachable_tolerance", f.unreachable_tolerance, d.unreachable_tolerance},
       {"safety/flow_fault_tolerance", f.flow_fault_tolerance, d.flow_fault_tolerance},
       {"safety/flow_fault_time", f.flow_fault_time, d.flow_fault_time},
+      {"approach/tolerance", f.approach.tolerance, d.approach.tolerance},
+      {"approach/settle_time", f.approach.settle_time, d.approach.settle_time},
+      {"approach/timeout", f.approach.timeout, d.approach.timeout},
       {"path/theta_start", f.path.theta_start, d.path.theta_start},
       {"path/theta_end", f.path.theta_end, d.path.theta_end},
       {"path/phi_start", f.path.phi_start, d.path.phi_start},

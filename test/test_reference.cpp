@@ -76,13 +76,12 @@ TEST(Reference, HugeTargetsAndRatesAreNotTakenForSomethingElse) {
   EXPECT_LT(control::geodesic_error(turning.direction(), Vec3(0, -std::sin(0.1), std::cos(0.1))), 1e-9);
 }
 
-// A path is followed as written once the reference is on it, even faster than max_angular_rate
-// (which still limits the way onto it); preview() looks ahead along it and is the reference itself
-// otherwise.
-TEST(Reference, APathIsFollowedAtItsOwnSpeedOnceJoined) {
+// A path is followed as written once its clock runs, even faster than max_angular_rate; preview()
+// looks ahead along it and is the reference itself otherwise.
+TEST(Reference, APathIsFollowedAtItsOwnSpeedOnceItsClockRuns) {
   control::Reference ref(0.25, nullptr, nullptr);
   const auto path = std::make_shared<ArcPath>(0.6, 2.0);  // 0.6 rad/s > 0.25
-  ref.follow(path, 0.0, /*starts_at_path=*/true);
+  ref.follow(path, 0.0, control::Reference::PathStart::kJump);
   ref.start(Vec3::UnitZ(), 0.0);
   for (int k = 1; k <= 100; ++k) {
     const double t = 0.01 * k;
@@ -91,19 +90,40 @@ TEST(Reference, APathIsFollowedAtItsOwnSpeedOnceJoined) {
   }
   EXPECT_NEAR(control::geodesic_error(ref.preview(1.0, 0.1), path->direction_at(1.1)), 0.0, 1e-12);
   EXPECT_EQ(ref.preview(1.0, 0.0), ref.direction());
-  // Joining from elsewhere: at most max_angular_rate until on the path, then the path's speed.
-  control::Reference join(0.25, nullptr, nullptr);
-  join.start(Vec3(std::sin(0.3), 0.0, std::cos(0.3)), 0.0);
-  join.follow(std::make_shared<ArcPath>(0.6, 10.0), 0.0);
-  Vec3 prev = join.direction();
-  bool joined = false;
-  for (int k = 1; k <= 300 && !joined; ++k) {
-    const Vec3 d = join.advance(0.01 * k, 0.01, control::Mat3::Identity());
-    joined = control::geodesic_error(d, ArcPath(0.6, 10.0).direction_at(0.01 * k)) < 1e-12;
-    // Rate-limited on the way; the step that joins adds at most the path's own step (0.006 rad).
-    EXPECT_LE(control::geodesic_error(prev, d), 0.25 * 0.01 + (joined ? 0.006 : 0.0) + 1e-12) << k;
+  EXPECT_EQ(ref.approach_time(), 0.0);  // a jump has no approach
+}
+
+// Approached from elsewhere: the reference moves to the path's first direction at most at
+// max_angular_rate and waits there, the path's clock standing at 0, until begin_path(); from then the
+// path runs as written from its start.
+TEST(Reference, APathIsApproachedThenItsClockStarts) {
+  control::Reference ref(0.25, nullptr, nullptr);
+  ref.start(Vec3(std::sin(0.3), 0.0, std::cos(0.3)), 0.0);
+  const auto path = std::make_shared<ArcPath>(0.6, 10.0);
+  ref.follow(path, 0.0);  // PathStart::kApproach
+  Vec3 prev = ref.direction();
+  int k = 1;
+  for (; k <= 300 && !ref.at_path_start(); ++k) {
+    const Vec3 d = ref.advance(0.01 * k, 0.01, control::Mat3::Identity());
+    EXPECT_LE(control::geodesic_error(prev, d), 0.25 * 0.01 + 1e-12) << k;  // rate-limited on the way
+    EXPECT_TRUE(ref.approaching());
+    EXPECT_EQ(ref.path_time(0.01 * k), 0.0);
+    EXPECT_EQ(ref.preview(0.01 * k, 0.1), d);
     prev = d;
   }
-  EXPECT_TRUE(joined);
-  EXPECT_EQ(join.preview(0.0, 0.0), join.direction());
+  ASSERT_TRUE(ref.at_path_start());
+  EXPECT_NEAR(k - 1, 120, 1);  // 0.3 rad at 0.0025 rad per step
+  EXPECT_NEAR(control::geodesic_error(ref.direction(), path->direction_at(0.0)), 0.0, 1e-12);
+  // Waiting there: the reference stays on the first direction; the path has not finished.
+  for (int w = 0; w < 50; ++w) ref.advance(2.0 + 0.01 * w, 0.01, control::Mat3::Identity());
+  EXPECT_NEAR(control::geodesic_error(ref.direction(), path->direction_at(0.0)), 0.0, 1e-12);
+  EXPECT_FALSE(ref.path_finished(100.0));
+  ref.begin_path(3.0);
+  EXPECT_FALSE(ref.approaching());
+  EXPECT_TRUE(ref.on_path());
+  EXPECT_NEAR(ref.approach_time(), 3.0, 1e-12);
+  EXPECT_NEAR(ref.path_time(4.0), 1.0, 1e-12);
+  const Vec3 d = ref.advance(4.0, 0.01, control::Mat3::Identity());
+  EXPECT_NEAR(control::geodesic_error(d, path->direction_at(1.0)), 0.0, 1e-12);
+  EXPECT_TRUE(ref.path_finished(13.0));
 }

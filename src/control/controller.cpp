@@ -43,7 +43,8 @@ Controller::Controller(const RobotModel& model, const ControllerOptions& params)
       reachable_(params.reachable_force_fraction == 1.0
                      ? path_reachable_
                      : sweep_reachable_set(model, params, params.reachable_force_fraction)),
-      reference_(params.max_angular_rate, reachable_, path_reachable_) {}
+      reference_(params.max_angular_rate, reachable_, path_reachable_),
+      approach_(params.approach) {}
 
 void Controller::start(double t) {
   state_ = ControllerState::kRunning;
@@ -69,10 +70,13 @@ void Controller::set_params(const ControllerOptions& p) {
   params_ = p;
   monitor_.set_options(p);
   reference_.set_max_angular_rate(p.max_angular_rate);
+  approach_.set_options(p.approach);
 }
 
-void Controller::follow(std::shared_ptr<const Path> path, double t) {
-  reference_.follow(std::move(path), t, /*starts_at_path=*/false, Reference::PathClip::kOperator);
+void Controller::follow(std::shared_ptr<const Path> path, double t, Reference::PathStart start,
+                        Reference::PathClip clip) {
+  reference_.follow(std::move(path), t, start, clip);
+  approach_.reset();
   commanded();
 }
 
@@ -95,7 +99,7 @@ void Controller::hold() {
 // The configured start: the spiral from its first point (as in the paper's experiment), or hold.
 void Controller::start_configured_path(double t) {
   if (params_.path_type == PathType::kSpiral)
-    reference_.follow(make_spiral(params_.path), t, /*starts_at_path=*/true);
+    reference_.follow(make_spiral(params_.path), t, Reference::PathStart::kJump);
   else
     reference_.hold();
 }
@@ -236,13 +240,41 @@ void Controller::track_reference(const ControllerInputs& in, const rod::RodSolut
   const Mat3 tip_frame = closed ? in.tip_rotation : sol.tip_rotation;  // the camera's axes for rate sources
   out.measured_direction = in.tip_rotation.col(2).normalized();
   out.observed_direction = closed && !predicted_ ? out.measured_direction : Vec3(sol.tip_rotation.col(2));
-  if (first_cycle_) reference_.start(out.observed_direction, t_start_);
+  if (first_cycle_) {
+    reference_.start(out.observed_direction, t_start_);
+    approach_.reset();
+  }
   out.desired_direction = reference_.advance(in.t, dt, tip_frame);
   out.source = reference_.source();
   out.clipped = reference_.clipped();
   out.clip_angle = reference_.clip_angle();
   out.error_geodesic = geodesic_error(out.desired_direction, out.measured_direction);
   out.error_pitch_yaw = pitch_yaw_error(out.desired_direction, out.measured_direction);
+  approach(in.t, out);
+}
+
+// A path being approached: its clock starts once the tip has settled on its first direction; one
+// that does not settle is a failure, and the reference holds where it is.
+void Controller::approach(double t, ControllerOutput& out) {
+  out.approaching = reference_.approaching();
+  if (out.approaching) {
+    const double loop_error = geodesic_error(out.desired_direction, out.observed_direction);
+    switch (approach_.update(t, reference_.at_path_start(), loop_error, out.measured_direction)) {
+      case ApproachMonitor::Verdict::kSettled:
+        reference_.begin_path(t);
+        out.approaching = false;
+        break;
+      case ApproachMonitor::Verdict::kFailed:
+        out.path_failure = "approach: " + approach_.failure();
+        reference_.hold();
+        out.source = reference_.source();
+        out.approaching = false;
+        break;
+      default: break;
+    }
+  }
+  out.approach_time = reference_.approach_time();
+  if (reference_.path()) out.path_time = reference_.path_time(t);  // other sources: time since start
 }
 
 // Lines 5, 7, 9/12: x_cntr by PD (eqs. 17–18), then the new inputs by eq. (19) on J_q within the

@@ -82,7 +82,7 @@ std::string ControllerOptions::validate() const {
     return bad("path.theta_end", path.theta_end, "must lie in [0, pi/2]");
   if (!std::isfinite(path.phi_start)) return bad("path.phi_start", path.phi_start, "must be finite");
   if (!std::isfinite(path.phi_end)) return bad("path.phi_end", path.phi_end, "must be finite");
-  return "";
+  return approach.validate();
 }
 
 }  // namespace control

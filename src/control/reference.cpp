@@ -23,14 +23,22 @@ Reference::Reference(double max_angular_rate, std::shared_ptr<const ReachableSet
                      std::shared_ptr<const ReachableSet> path_set)
     : max_rate_(max_angular_rate), target_set_(std::move(target_set)), path_set_(std::move(path_set)) {}
 
-void Reference::follow(std::shared_ptr<const Path> path, double t, bool starts_at_path, PathClip clip) {
+void Reference::follow(std::shared_ptr<const Path> path, double t, PathStart start, PathClip clip) {
   source_ = Source::kPath;
   path_ = std::move(path);
   path_clip_ = clip == PathClip::kOperator ? target_set_.get() : path_set_.get();
   path_start_ = t;
-  jump_to_path_ = starts_at_path;
+  jump_to_path_ = start == PathStart::kJump;
   on_path_ = false;
   path_advanced_ = false;
+  approach_time_ = 0.0;
+}
+
+void Reference::begin_path(double t) {
+  if (!approaching()) return;
+  approach_time_ = t - path_start_;
+  path_start_ = t;
+  on_path_ = true;
 }
 
 bool Reference::aim(const Vec3& target, Source source) {
@@ -59,23 +67,23 @@ void Reference::hold() {
 }
 
 void Reference::start(const Vec3& direction, double t) {
-  if (source_ == Source::kPath) path_start_ = t;
-  if (source_ == Source::kPath && jump_to_path_) return;  // advance() puts the reference on the path
+  if (source_ == Source::kPath) {
+    path_start_ = t, approach_time_ = 0.0;
+    if (jump_to_path_) return;          // advance() puts the reference on the path
+    on_path_ = path_advanced_ = false;  // the approach starts again from here
+  }
   reference_ = direction;
   if (source_ == Source::kHold || source_ == Source::kJoy || source_ == Source::kKeyboard) target_ = direction;
 }
 
 const Vec3& Reference::advance(double t, double dt, const Mat3& tip_frame) {
   if (source_ == Source::kPath) {
-    const Vec3 before = target_;
-    set_target(path_->direction_at(t - path_start_), path_clip_);
-    // On the path (jumped there at start, or reached it): follow it as written, whatever its speed.
-    // Reached: within this step's max_angular_rate·dt plus the path's own motion over the step (a
-    // path faster than the rate would otherwise be crossed and never caught).
-    const double path_motion = path_advanced_ ? geodesic_error(before, target_) : 0.0;
-    if (jump_to_path_ || on_path_ || geodesic_error(reference_, target_) <= max_rate_ * dt + path_motion)
-      reference_ = target_;
+    if (jump_to_path_) on_path_ = true;  // the paper's start: on the path, its clock running
     jump_to_path_ = false;
+    // On the path: followed as written, whatever its speed. Approaching: its first direction.
+    set_target(path_->direction_at(on_path_ ? t - path_start_ : 0.0), path_clip_);
+    if (on_path_) reference_ = target_;
+    if (!on_path_) approach_time_ = t - path_start_;
     path_advanced_ = true;
   } else if (source_ == Source::kJoy || source_ == Source::kKeyboard) {
     if (t > rate_until_) {
@@ -87,7 +95,6 @@ const Vec3& Reference::advance(double t, double dt, const Mat3& tip_frame) {
     }
   }
   move_toward_target(dt);
-  if (source_ == Source::kPath && reference_ == target_) on_path_ = true;
   return reference_;
 }
 

@@ -90,11 +90,12 @@ control::PathGoal to_path_goal(const hydrojet_control::FollowPathGoal& g) {
 
 /// The follow_path action (action/FollowPath.action). A goal's path is built off the control loop
 /// (control::make_goal_path on the Background thread: reading a file, checking every field against
-/// control::PathLimits) and drives the controller from the first cycle after it is ready, until it
-/// ends (succeeded), another source takes over or the controller aborts (aborted), a new goal arrives
-/// or the client cancels (preempted; a cancel holds the current direction). Its points are clipped to
-/// the reachable set as operator targets are; feedback and result say when (`clipped`). Callbacks and
-/// cycle() run on the node's spinner thread, between control cycles.
+/// control::PathLimits) and drives the controller from the first cycle after it is ready: approached
+/// first (its clock starts once the tip has settled on its first direction; the error statistics
+/// count from then), until it ends (succeeded), its approach fails (aborted), another source takes over or the
+/// controller aborts (aborted), a new goal arrives or the client cancels (preempted; a cancel holds the current
+/// direction). Its points are clipped to the reachable set as operator targets are; feedback and result say when
+/// (`clipped`). Callbacks and cycle() run on the node's spinner thread, between control cycles.
 class FollowPathServer {
  public:
   using Server = actionlib::SimpleActionServer<hydrojet_control::FollowPathAction>;
@@ -117,13 +118,17 @@ class FollowPathServer {
     if (!server_.isActive() || !path_) return;
     if (out.state == control::ControllerState::kAborted) return finish(false, "controller aborted: " + out.reason);
     if (out.state == control::ControllerState::kIdle) return finish(false, "controller stopped");
+    if (!out.path_failure.empty()) return finish(false, out.path_failure);
     const control::Reference& ref = controller_.reference();
     if (ref.path() != path_.get())
       return finish(false, std::string("superseded by the source '") + control::to_string(ref.source()) + "'");
-    sum_sq_ += out.error_geodesic * out.error_geodesic;
-    max_error_ = std::max(max_error_, out.error_geodesic);
+    approach_time_ = out.approach_time;
     max_clip_ = std::max(max_clip_, out.clip_angle);
-    ++samples_;
+    if (!out.approaching) {  // the error of a path counts from its clock's start
+      sum_sq_ += out.error_geodesic * out.error_geodesic;
+      max_error_ = std::max(max_error_, out.error_geodesic);
+      ++samples_;
+    }
     if (now - last_feedback_ >= ros::Duration(0.1)) {
       hydrojet_control::FollowPathFeedback f;
       f.path_time = ref.path_time(now.toSec());
@@ -131,6 +136,7 @@ class FollowPathServer {
       f.error = out.error_geodesic;
       f.clipped = out.clipped;
       f.clip_angle = out.clip_angle;
+      f.approaching = out.approaching;
       server_.publishFeedback(f);
       last_feedback_ = now;
     }
@@ -148,7 +154,7 @@ class FollowPathServer {
   void on_goal() {
     const auto goal = server_.acceptNewGoal();
     path_.reset();
-    sum_sq_ = max_error_ = max_clip_ = 0.0;
+    sum_sq_ = max_error_ = max_clip_ = approach_time_ = 0.0;
     samples_ = 0;
     building_ = ++goals_;
     if (controller_.state() == control::ControllerState::kAborted)
@@ -206,6 +212,7 @@ class FollowPathServer {
     r.max_error = max_error_;
     r.clipped = max_clip_ > 0.0;
     r.max_clip_angle = max_clip_;
+    r.approach_time = approach_time_;
     return r;
   }
 
@@ -219,6 +226,7 @@ class FollowPathServer {
   std::shared_ptr<const control::Path> path_;
   double sum_sq_ = 0.0, max_error_ = 0.0;  ///< [rad^2], [rad] over the goal's cycles
   double max_clip_ = 0.0;                  ///< [rad] the most a point of the path was clipped
+  double approach_time_ = 0.0;             ///< [s] the path's approach (so far)
   int samples_ = 0;
   ros::Time last_feedback_;
 };

@@ -39,9 +39,11 @@ RunSample record(const plant::Plant& plant, const control::ControllerOutput& out
   s.t = t;
   s.desired = out.desired_direction;
   s.measured = out.measured_direction;
+  s.truth = plant.tip_rotation().col(2).normalized();
   s.tip_position = plant.tip_position();
   s.error_geodesic = out.error_geodesic;
   s.error_pitch_yaw = out.error_pitch_yaw;
+  s.error_true = control::geodesic_error(out.desired_direction, s.truth);
   s.jet_force = plant.jet_forces();
   return s;
 }
@@ -49,15 +51,17 @@ RunSample record(const plant::Plant& plant, const control::ControllerOutput& out
 /// The error statistics of the recorded samples.
 void summarise(RunResult& r) {
   std::vector<double> e;
-  double s2 = 0.0, p2 = 0.0;
+  double s2 = 0.0, p2 = 0.0, t2 = 0.0;
   for (const RunSample& s : r.samples) {
     e.push_back(s.error_geodesic);
     s2 += s.error_geodesic * s.error_geodesic;
     p2 += s.error_pitch_yaw * s.error_pitch_yaw;
+    t2 += s.error_true * s.error_true;
   }
   if (e.empty()) return;
   r.rms = std::sqrt(s2 / e.size());
   r.rms_pitch_yaw = std::sqrt(p2 / e.size());
+  r.rms_true = std::sqrt(t2 / e.size());
   r.median = quantile(e, 0.5);
   r.q1 = quantile(e, 0.25);
   r.q3 = quantile(e, 0.75);
@@ -66,42 +70,69 @@ void summarise(RunResult& r) {
 
 }  // namespace
 
+const char* to_string(RunStart s) { return s == RunStart::kRest ? "rest" : "on-path"; }
+
 RunResult run_path(const control::RobotModel& model, const control::ControllerOptions& params,
-                   const plant::PlantModel& plant_params, unsigned seed, double dt, double settle) {
+                   const plant::PlantModel& plant_params, unsigned seed, const RunPlan& plan) {
   const auto wall0 = std::chrono::steady_clock::now();
   RunResult r;
+  r.start = plan.start;
+  const double dt = plan.control_period, settle = plan.settle;
   plant::Plant plant(plant_params, seed);
   control::Controller controller(model, params);
+  const std::shared_ptr<const control::Path> path =
+      plan.path ? plan.path : std::shared_ptr<const control::Path>(control::make_spiral(params.path));
+  const bool approach = plan.start == RunStart::kOnPath;
+  // The approach is bounded by the controller (the reference's way there at max_angular_rate, then
+  // approach.timeout); this only bounds the loop.
+  const double approach_bound = approach ? M_PI / params.max_angular_rate + params.approach.timeout + 1.0 : 0.0;
   const int settle_steps = static_cast<int>(std::lround(settle / dt));
-  const int path_steps = static_cast<int>(std::lround(params.path.duration / dt));
+  const int last_step = settle_steps + static_cast<int>(std::lround((approach_bound + path->duration()) / dt));
   control::ControllerInputs in;
-  for (int k = 0; k <= settle_steps + path_steps; ++k) {
+  double path_start = -1.0;  // [s] simulated time of the path clock's start
+  for (int k = 0; k <= last_step; ++k) {
     const double t = k * dt;
     if (!plant.advance_to(t)) {
       r.reason = "plant: " + plant.error();
-      r.aborted_at = t - settle;
+      r.aborted_at = path_start >= 0 ? t - path_start : 0.0;
       break;
     }
-    if (k == settle_steps) controller.start(t);
+    if (k == settle_steps) {
+      controller.follow(path, t,
+                        approach ? control::Reference::PathStart::kApproach : control::Reference::PathStart::kJump,
+                        control::Reference::PathClip::kDesigned);
+      controller.start(t);
+    }
     read_sensors(plant, t, in);
     const control::ControllerOutput out = controller.update(in);
     plant.command(out.valve_command, t);
     if (k < settle_steps) continue;
-    if (out.state == control::ControllerState::kAborted) {
-      r.aborted_at = t - settle;
-      r.reason = out.reason;
+    if (out.state == control::ControllerState::kAborted || !out.path_failure.empty()) {
+      r.aborted_at = path_start >= 0 ? t - path_start : 0.0;
+      r.reason = out.state == control::ControllerState::kAborted ? out.reason : out.path_failure;
       break;
     }
-    r.samples.push_back(record(plant, out, t - settle));
+    if (out.approaching) continue;
+    if (path_start < 0) path_start = t, r.approach_time = out.approach_time;
+    r.samples.push_back(record(plant, out, t - path_start));
     if (out.state == control::ControllerState::kFinished) {
       r.completed = true;
       break;
     }
   }
+  if (!r.completed && r.reason.empty()) r.reason = "the run's time bound passed before the path ended";
   summarise(r);
-  r.simulated_seconds = r.samples.empty() ? 0.0 : r.samples.back().t + settle;
+  r.simulated_seconds = r.samples.empty() ? 0.0 : r.samples.back().t + (path_start >= 0 ? path_start : 0.0);
   r.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   return r;
+}
+
+RunResult run_path(const control::RobotModel& model, const control::ControllerOptions& params,
+                   const plant::PlantModel& plant, unsigned seed, double control_period, double settle) {
+  RunPlan plan;
+  plan.control_period = control_period;
+  plan.settle = settle;
+  return run_path(model, params, plant, seed, plan);
 }
 
 }  // namespace sim

@@ -1,8 +1,11 @@
 // experiment: the paper's §7 experiment on the simulated plant, in one process (no transport).
-// The spiral of §7.1 in open and closed loop, at 0° and 30° base tilt, several seeds each. Prints a
-// table like §7.5–7.7, writes CSV per run and a summary, and as its last line one JSON object:
-//   {"runs": [{"mode", "tilt_deg", "seed", "rms_rad", "completed", "aborted_at_s"}, ...],
-//    "realtime_factor": r}
+// The spiral of §7.1 (or a path file, --path) in open and closed loop, at 0° and 30° base tilt,
+// several seeds each. --start rest (the default) is the paper's protocol: from rest, onto the path at
+// once; --start on-path approaches the path's first direction first and measures from its clock's
+// start. Prints a table like §7.5–7.7, writes CSV per run and a summary, and as its last line one
+// JSON object:
+//   {"runs": [{"mode", "tilt_deg", "seed", "rms_rad", "rms_true_rad", "start", "approach_time_s",
+//              "completed", "aborted_at_s"}, ...], "realtime_factor": r}
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -36,13 +39,19 @@ struct Job {
 void usage() {
   std::cerr << "usage: experiment (--scene0 FILE --scene30 FILE | --scene FILE) --plant FILE --controller FILE\n"
                "                  [--out DIR] [--quick] [--seeds N] [--duration S] [--threads N]\n"
-               "  --scene FILE: one scene (any robot) at the base tilt of its gravity, instead of the two\n";
+               "                  [--path FILE] [--start rest|on-path]\n"
+               "  --scene FILE: one scene (any robot) at the base tilt of its gravity, instead of the two\n"
+               "  --path FILE: a path file (t, theta, phi rows, CSV or YAML) instead of the spiral; its own\n"
+               "               duration sets the run's (--duration is the spiral's)\n"
+               "  --start rest: the paper's protocol (default); on-path: approach the path's first direction,\n"
+               "               then start its clock; the error counts from there\n";
 }
 
 void write_run_csv(const std::string& path, const sim::RunResult& r) {
   std::ofstream f(path);
   const int n = r.samples.empty() ? 3 : static_cast<int>(r.samples.front().jet_force.size());
-  f << "t,des_x,des_y,des_z,meas_x,meas_y,meas_z,tip_x,tip_y,tip_z,err_geodesic,err_pitch_yaw";
+  f << "t,des_x,des_y,des_z,meas_x,meas_y,meas_z,tip_x,tip_y,tip_z,err_geodesic,err_pitch_yaw,true_x,true_y,true_z,"
+       "err_true";
   for (int i = 0; i < n; ++i) f << ",q" << i + 1;  // actuator forces [N]
   f << "\n";
   char buf[512];
@@ -50,6 +59,8 @@ void write_run_csv(const std::string& path, const sim::RunResult& r) {
     std::snprintf(buf, sizeof(buf), "%.3f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6e,%.6e,%.6e,%.6e,%.6e", s.t, s.desired.x(),
                   s.desired.y(), s.desired.z(), s.measured.x(), s.measured.y(), s.measured.z(), s.tip_position.x(),
                   s.tip_position.y(), s.tip_position.z(), s.error_geodesic, s.error_pitch_yaw);
+    f << buf;
+    std::snprintf(buf, sizeof(buf), ",%.6f,%.6f,%.6f,%.6e", s.truth.x(), s.truth.y(), s.truth.z(), s.error_true);
     f << buf;
     for (int i = 0; i < s.jet_force.size(); ++i) {
       std::snprintf(buf, sizeof(buf), ",%.5f", s.jet_force[i]);
@@ -62,6 +73,8 @@ void write_run_csv(const std::string& path, const sim::RunResult& r) {
 /// The command line.
 struct Args {
   std::string scene0, scene30, scene, plant_file, controller_file, out = ".build/experiment";
+  std::string path_file;                       ///< --path: a path file instead of the spiral
+  sim::RunStart start = sim::RunStart::kRest;  ///< --start
   bool quick = false;
   int seeds = 5, threads = 2;
   double duration = 0.0;  ///< path duration [s]; 0 = the controller file's
@@ -75,6 +88,7 @@ struct Setup {
   int tilt_deg[2] = {0, 30};
   control::RobotModel model[2];
   plant::PlantModel plant[2];
+  std::shared_ptr<const control::Path> path;  ///< --path's (null: the controller file's spiral)
 };
 
 /// Parses the command line into *a; returns false (after printing why) on a usage error.
@@ -108,7 +122,16 @@ bool parse_args(int argc, char** argv, Args* a) {
       a->duration = std::atof(next().c_str());
     else if (arg == "--threads")
       a->threads = std::atoi(next().c_str());
-    else {
+    else if (arg == "--path")
+      a->path_file = next();
+    else if (arg == "--start") {
+      const std::string v = next();
+      if (v != "rest" && v != "on-path") {
+        std::cerr << "experiment: --start: must be rest or on-path, got '" << v << "'\n";
+        return false;
+      }
+      a->start = v == "rest" ? sim::RunStart::kRest : sim::RunStart::kOnPath;
+    } else {
       std::cerr << "experiment: " << arg << ": unknown argument\n";
       usage();
       return false;
@@ -141,6 +164,7 @@ bool load_setup(const Args& a, Setup* s) {
   try {
     s->copt = config::load_controller_options(a.controller_file);
     if (a.duration > 0.0) s->copt.controller.path.duration = a.duration;
+    if (!a.path_file.empty()) s->path = control::load_path_file(a.path_file);
     const std::string scenes[2] = {a.scene.empty() ? a.scene0 : a.scene, a.scene30};
     s->count = a.scene.empty() ? 2 : 1;
     for (int k = 0; k < s->count; ++k) {
@@ -167,7 +191,7 @@ std::vector<Job> make_jobs(const Setup& setup, int seeds) {
 }
 
 /// Runs the jobs on `threads` threads, reporting each on stderr as it ends.
-void run_jobs(std::vector<Job>& jobs, const Setup& setup, int threads) {
+void run_jobs(std::vector<Job>& jobs, const Setup& setup, int threads, sim::RunStart start) {
   std::mutex mu;
   size_t next_job = 0;
   auto worker = [&]() {
@@ -181,7 +205,11 @@ void run_jobs(std::vector<Job>& jobs, const Setup& setup, int threads) {
       Job& job = jobs[j];
       control::ControllerOptions p = setup.copt.controller;
       p.mode = job.mode;
-      job.result = sim::run_path(setup.model[job.config], p, setup.plant[job.config], job.seed, 1.0 / setup.copt.rate);
+      sim::RunPlan plan;
+      plan.path = setup.path;
+      plan.start = start;
+      plan.control_period = 1.0 / setup.copt.rate;
+      job.result = sim::run_path(setup.model[job.config], p, setup.plant[job.config], job.seed, plan);
       std::lock_guard<std::mutex> lock(mu);
       std::fprintf(stderr, "  %-6s %2d deg seed %u: rms %.4f rad, %s (%.1f s simulated in %.1f s)\n",
                    control::to_string(job.mode), job.tilt_deg, job.seed, job.result.rms,
@@ -200,7 +228,7 @@ std::string write_results(const std::vector<Job>& jobs, const std::string& out, 
   mkdir(out.c_str(), 0755);
   std::ofstream summary(out + "/summary.csv");
   summary << "mode,tilt_deg,seed,completed,aborted_at_s,rms_rad,median_rad,q1_rad,q3_rad,max_rad,rms_pitch_yaw_rad,"
-             "reason\n";
+             "reason,start,approach_time_s,rms_true_rad\n";
   double sim_s = 0.0, wall_s = 0.0;
   std::string runs = "[";
   for (size_t j = 0; j < jobs.size(); ++j) {
@@ -211,12 +239,15 @@ std::string write_results(const std::vector<Job>& jobs, const std::string& out, 
     write_run_csv(out + "/run_" + name + ".csv", r);
     summary << control::to_string(job.mode) << "," << job.tilt_deg << "," << job.seed << "," << (r.completed ? 1 : 0)
             << "," << (r.aborted_at >= 0 ? std::to_string(r.aborted_at) : "") << "," << r.rms << "," << r.median << ","
-            << r.q1 << "," << r.q3 << "," << r.max << "," << r.rms_pitch_yaw << ",\"" << r.reason << "\"\n";
+            << r.q1 << "," << r.q3 << "," << r.max << "," << r.rms_pitch_yaw << ",\"" << r.reason << "\","
+            << sim::to_string(r.start) << "," << r.approach_time << "," << r.rms_true << "\n";
     sim_s += r.simulated_seconds;
     wall_s += r.wall_seconds;
     util::JsonObject o;
     o.add("mode", control::to_string(job.mode)).add("tilt_deg", job.tilt_deg).add("seed", static_cast<int>(job.seed));
-    o.add("rms_rad", r.rms).add("completed", r.completed);
+    o.add("rms_rad", r.rms).add("rms_true_rad", r.rms_true);
+    o.add("start", sim::to_string(r.start)).add("approach_time_s", r.approach_time);
+    o.add("completed", r.completed);
     if (r.aborted_at >= 0)
       o.add("aborted_at_s", r.aborted_at);
     else
@@ -253,7 +284,7 @@ int main(int argc, char** argv) {
   Setup setup;
   if (!load_setup(args, &setup)) return 2;
   std::vector<Job> jobs = make_jobs(setup, args.seeds);
-  run_jobs(jobs, setup, args.threads);
+  run_jobs(jobs, setup, args.threads, args.start);
   double realtime_factor = 0.0;
   const std::string runs = write_results(jobs, args.out, &realtime_factor);
   print_table(jobs, args, setup.copt.controller.path.duration);

@@ -234,7 +234,8 @@ void joy(Graph& g) {
   expect_holds_from(g, g.now() + 0.5 + 0.1);
 }
 
-// 4: waypoints complete with RMS ≤ 0.02 rad; a second goal preempts the first; cancel holds.
+// 4: waypoints complete with RMS ≤ 0.02 rad; a path that begins elsewhere is approached first; a second
+// goal preempts the first; cancel holds.
 void follow_path(Graph& g) {
   using Client = actionlib::SimpleActionClient<hydrojet_control::FollowPathAction>;
   Client first(names::kFollowPathAction, false), second(names::kFollowPathAction, false);
@@ -257,6 +258,34 @@ void follow_path(Graph& g) {
   EXPECT_GE(feedback, 5 * 12 - 5) << "feedback below 5 Hz";
   std::printf("follow_path: waypoints RMS %.4f rad, max %.4f rad, %d feedbacks\n", result->rms_error, result->max_error,
               feedback);
+
+  // A path that begins 0.3 rad away: approached first (feedback `approaching`, path_time 0), its clock
+  // started once the tip has settled there, its error counted from then.
+  const Vector3d here = g.mean_measured(g.now() - 0.3, g.now());
+  const Vector3d begin = tilted(here, 0.3);
+  hydrojet_control::FollowPathGoal away;
+  away.type = "waypoints";
+  away.times = {0.0, 6.0};
+  away.directions = {msg(begin), msg(Eigen::AngleAxisd(0.4, here) * begin)};
+  std::vector<hydrojet_control::FollowPathFeedback> fb;
+  first.sendGoal(away, Client::SimpleDoneCallback(), Client::SimpleActiveCallback(),
+                 [&](const hydrojet_control::FollowPathFeedbackConstPtr& f) { fb.push_back(*f); });
+  ASSERT_TRUE(g.wait_until(g.now() + 30.0, [&] { return first.getState().isDone(); }));
+  ASSERT_EQ(first.getState(), actionlib::SimpleClientGoalState::SUCCEEDED) << first.getState().getText();
+  const auto approached = first.getResult();
+  ASSERT_FALSE(fb.empty());
+  EXPECT_TRUE(fb.front().approaching);
+  size_t k = 0;
+  for (; k < fb.size() && fb[k].approaching; ++k) EXPECT_EQ(fb[k].path_time, 0.0) << k;
+  ASSERT_LT(k, fb.size()) << "the clock never started";
+  EXPECT_LT(fb[k].error, 0.04) << "the clock started before the tip had settled";
+  for (; k < fb.size(); ++k) EXPECT_FALSE(fb[k].approaching) << k;
+  // The way there at ≤ 0.25 rad/s (max_angular_rate), then at least the 0.3 s window.
+  EXPECT_GE(approached->approach_time, 0.3 / 0.25 + 0.3 - 0.05);
+  EXPECT_LE(approached->approach_time, 0.3 / 0.25 + 5.0);
+  EXPECT_LE(approached->rms_error, 0.02);  // the 0.3 rad of the approach are not in it
+  std::printf("follow_path: approached in %.2f s, then RMS %.4f rad\n", approached->approach_time,
+              approached->rms_error);
 
   // A second goal preempts the running one.
   goal.times = {0.0, 20.0, 40.0};

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "hydrojet_control/control/approach.h"
 #include "hydrojet_control/control/controller_io.h"
 #include "hydrojet_control/control/controller_options.h"
 #include "hydrojet_control/control/disturbance_observer.h"
@@ -46,9 +47,11 @@ class Controller {
 
   // Operator commands (the latest wins; see Reference). Running: they take effect on the next
   // update() (a finished path goes back to running). Idle or aborted: kept for the next start().
-  /// Follow the operator's `path` from time t [s], clipped to the reachable set as operator targets
-  /// are (Reference::PathClip::kOperator).
-  void follow(std::shared_ptr<const Path> path, double t);
+  /// Follow `path` from time t [s]: by default approached first (its clock starts once the tip has
+  /// settled on its first direction, approach.h) and clipped to the reachable set as operator
+  /// targets are (an operator's path); the experiment follows its designed paths as the paper did.
+  void follow(std::shared_ptr<const Path> path, double t, Reference::PathStart start = Reference::PathStart::kApproach,
+              Reference::PathClip clip = Reference::PathClip::kOperator);
   /// Move to the fixed direction `target` (base frame, any length); kDirection or kLookAt. False,
   /// and nothing changes, when `target` is not finite or is zero (Reference::aim).
   bool aim(const Vec3& target, Source source);
@@ -100,6 +103,7 @@ class Controller {
   void start_configured_path(double t);
   void commanded();
   void track_reference(const ControllerInputs& in, const rod::RodSolution& sol, double dt, ControllerOutput& out);
+  void approach(double t, ControllerOutput& out);
   std::string command_inputs(const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin, double dt,
                              ControllerOutput& out);
   InputVector running_lower(double dt);
@@ -123,6 +127,7 @@ class Controller {
   std::shared_ptr<const ReachableSet> path_reachable_;  ///< full q_max: path points
   std::shared_ptr<const ReachableSet> reachable_;       ///< with reserve: operator targets
   Reference reference_;
+  ApproachMonitor approach_;       ///< when a path's clock may start
   bool commands_pending_ = false;  ///< commands given while idle or aborted, for the next start()
   ControllerState state_ = ControllerState::kIdle;
   std::string abort_reason_;

@@ -50,7 +50,10 @@ struct ControllerOutput {
   Mat3 model_tip_rotation = Mat3::Identity();
   double error_geodesic = 0.0;   ///< ∠(x_des, measured) [rad]
   double error_pitch_yaw = 0.0;  ///< the paper's norm of the (pitch, yaw) difference [rad]
-  double path_time = 0.0;        ///< [s] since start
+  double path_time = 0.0;        ///< [s] along the path (0 while it is approached); other sources: since start
+  bool approaching = false;      ///< a path drives and is being approached: its clock has not started
+  double approach_time = 0.0;    ///< [s] the path's approach took (while approaching: so far; 0 for a jump)
+  std::string path_failure;      ///< on the cycle a path's approach failed: why (the reference then holds)
   bool solver_converged = false;
   double stability_margin = 0.0;   ///< σ_c [N/m]
   double stability_eig_min = 0.0;  ///< min Re eig(S) [N/m]

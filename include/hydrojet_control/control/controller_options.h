@@ -6,6 +6,7 @@
 
 #include <string>
 
+#include "hydrojet_control/control/approach.h"
 #include "hydrojet_control/control/task_space.h"
 
 namespace hydrojet {
@@ -94,16 +95,18 @@ struct ControllerOptions {
   /// w_a as printed in Algorithm 1, line 9.
   bool integrate_from_measured = false;
   // Safety (§7.3 and the brief); see SafetyMonitor.
-  double max_oscillation = 0.5;            ///< abort when the desired–measured tip angle exceeds this [rad]
-                                           ///< (armed once the tip has come within the limit)
-  double sample_period = 0.01;             ///< tracker and flow sample period [s]
-  int stale_periods = 3;                   ///< data older than stale_periods·sample_period is stale
-  int max_solver_failures = 2;             ///< abort after this many non-converged solves in a row
-  double min_stability_margin = 0.5;       ///< abort when σ_c (eq. 23) falls below this [N/m]
-  double unreachable_tolerance = 1e-3;     ///< allocation residual [N] above which the force is out of reach
-  double flow_fault_tolerance = 3e-6;      ///< |measured − commanded flow| that counts as a jet fault [m^3/s]
-  double flow_fault_time = 0.5;            ///< a deviation twice the tolerance trips after this long [s]
-                                           ///< (the excess over the tolerance is integrated)
+  double max_oscillation = 0.5;         ///< abort when the desired–measured tip angle exceeds this [rad]
+                                        ///< (armed once the tip has come within the limit)
+  double sample_period = 0.01;          ///< tracker and flow sample period [s]
+  int stale_periods = 3;                ///< data older than stale_periods·sample_period is stale
+  int max_solver_failures = 2;          ///< abort after this many non-converged solves in a row
+  double min_stability_margin = 0.5;    ///< abort when σ_c (eq. 23) falls below this [N/m]
+  double unreachable_tolerance = 1e-3;  ///< allocation residual [N] above which the force is out of reach
+  double flow_fault_tolerance = 3e-6;   ///< |measured − commanded flow| that counts as a jet fault [m^3/s]
+  double flow_fault_time = 0.5;         ///< a deviation twice the tolerance trips after this long [s]
+                                        ///< (the excess over the tolerance is integrated)
+  /// When an approached path's clock starts (approach.h): the tip settled on its first direction.
+  ApproachOptions approach;
   PathType path_type = PathType::kSpiral;  ///< at start: the spiral `path`, or hold (kNone)
   SpiralPath path;
 

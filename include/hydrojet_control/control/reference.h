@@ -1,7 +1,9 @@
 // The reference x_des the controller tracks: who commands it (one source at a time, the
 // latest command wins) and how it moves. A new target is not a step: the reference moves toward it
-// along the great circle at most max_angular_rate [rad/s]; a path, once the reference is on it,
-// is followed as written at its own speed (the paper's printed rates). Its own motion per
+// along the great circle at most max_angular_rate [rad/s]; a path is first approached (the
+// reference moves to its first direction that way and waits there until the controller says the tip
+// has settled, approach.h), then followed as written at its own speed (the paper's printed rates);
+// the paper's experiment instead jumps onto its spiral at start. Its own motion per
 // step is the PD's feedforward (DirectionPd takes the change of x_des, eq. 17; preview() gives the
 // path ahead for a lead). Every commanded direction goes
 // through ReachableSet::clip first, so the reference never leaves the reachable set. Two sets:
@@ -47,9 +49,17 @@ class Reference {
   /// Which set a path's points are clipped to: a designed path (the configured §7 spiral) only to
   /// what the jets reach at all; an operator's path (a follow_path goal) as operator targets are.
   enum class PathClip { kDesigned, kOperator };
-  /// Follow `path` from time t [s]; `starts_at_path`: the reference jumps onto the path at its
-  /// first step (the configured path at start, as the paper's experiment does) instead of moving there.
-  void follow(std::shared_ptr<const Path> path, double t, bool starts_at_path = false,
+  /// How a path begins.
+  enum class PathStart {
+    /// The reference jumps onto the path at its first step and the clock runs from start (the
+    /// paper's experiment: the configured spiral from rest).
+    kJump,
+    /// The approach (approach.h): the reference moves to the path's first direction at
+    /// max_angular_rate and holds it there; the path's clock starts at begin_path().
+    kApproach,
+  };
+  /// Follow `path` from time t [s] (the approach, or the clock, starts then).
+  void follow(std::shared_ptr<const Path> path, double t, PathStart start = PathStart::kApproach,
               PathClip clip = PathClip::kDesigned);
   /// Move to the fixed `target` (base frame, any length: normalised without overflow); source
   /// kDirection or kLookAt. False, and nothing changes, when `target` is not finite or is zero.
@@ -60,8 +70,8 @@ class Reference {
   /// Stop where the reference is now.
   void hold();
 
-  /// The reference at the first cycle after start: `direction` (unit), unless a path that starts at
-  /// itself drives; a path's clock restarts at t [s].
+  /// The reference at the first cycle after start: `direction` (unit), unless a path that jumps
+  /// onto itself drives; a path's clock (or its approach) restarts at t [s].
   void start(const Vec3& direction, double t);
 
   /// One step to time t [s] (dt [s] since the last): moves the target of a path or of a rate source,
@@ -70,8 +80,16 @@ class Reference {
   const Vec3& advance(double t, double dt, const Mat3& tip_frame);
 
   Source source() const { return source_; }
-  /// On a path and joined to it: the reference moves with time, as the path is written.
+  /// On a path and its clock running: the reference moves with time, as the path is written.
   bool on_path() const { return source_ == Source::kPath && on_path_; }
+  /// A path drives and is being approached: its clock has not started.
+  bool approaching() const { return source_ == Source::kPath && !on_path_; }
+  /// Approaching, and the reference is on the path's first direction (clipped as the path's points).
+  bool at_path_start() const { return approaching() && reference_ == target_ && path_advanced_; }
+  /// Starts the path's clock at t [s] (the tip has settled on its first direction).
+  void begin_path(double t);
+  /// [s] the last path's approach took (0 for a jump; while approaching: so far, at the last advance).
+  double approach_time() const { return approach_time_; }
   const Vec3& direction() const { return reference_; }
   /// The last target was outside the reachable set and moved by clip_angle() [rad].
   bool clipped() const { return clip_angle_ > 0.0; }
@@ -79,12 +97,12 @@ class Reference {
   /// The path being followed (null when another source drives).
   const Path* path() const { return source_ == Source::kPath ? path_.get() : nullptr; }
   /// The direction the reference will have `lead` [s] after t [s] on a path it is on (clipped as the
-  /// path's points); the reference itself for any other source, or before it has joined the path.
+  /// path's points); the reference itself for any other source, or while the path is approached.
   Vec3 preview(double t, double lead) const;
-  /// Time along the path at t [s] (0 when no path drives).
-  double path_time(double t) const { return path() ? t - path_start_ : 0.0; }
-  /// A path drives and has reached its end.
-  bool path_finished(double t) const { return path() && path_time(t) >= path_->duration(); }
+  /// Time along the path at t [s] (0 when no path drives or while it is approached).
+  double path_time(double t) const { return on_path() ? t - path_start_ : 0.0; }
+  /// A path drives, its clock runs and it has reached its end.
+  bool path_finished(double t) const { return on_path() && path_time(t) >= path_->duration(); }
 
  private:
   void set_target(const Vec3& target, const ReachableSet* set);
@@ -99,10 +117,11 @@ class Reference {
   double clip_angle_ = 0.0;         ///< how far the last target was moved by the clip [rad]
   std::shared_ptr<const Path> path_;
   const ReachableSet* path_clip_ = nullptr;         ///< the set path_'s points are clipped to (null: none)
-  double path_start_ = 0.0;                         ///< [s]
+  double path_start_ = 0.0;                         ///< [s] the clock's start (or the approach's, until it has begun)
   bool jump_to_path_ = false;                       ///< the next advance() puts the reference on the path
-  bool on_path_ = false;                            ///< the reference has joined the path: it follows it as written
+  bool on_path_ = false;                            ///< the path's clock runs: the reference follows it as written
   bool path_advanced_ = false;                      ///< advance() has set a path target since follow()
+  double approach_time_ = 0.0;                      ///< [s] see approach_time()
   Eigen::Vector2d rate_ = Eigen::Vector2d::Zero();  ///< (up, right) [rad/s], tip frame
   double rate_until_ = 0.0;                         ///< [s]
 };

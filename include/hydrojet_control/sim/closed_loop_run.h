@@ -4,6 +4,7 @@
 #pragma once
 
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -13,14 +14,35 @@
 namespace hydrojet {
 namespace sim {
 
+/// How a run begins.
+enum class RunStart {
+  /// The paper's protocol: from rest, the controller jumps onto the path and its clock runs from start.
+  kRest,
+  /// The path is approached first (control/approach.h); its clock, and the error, start once the tip
+  /// has settled on its first direction.
+  kOnPath,
+};
+/// "rest", "on-path" (the experiment's --start values).
+const char* to_string(RunStart s);
+
+/// What one run follows and how it begins.
+struct RunPlan {
+  std::shared_ptr<const control::Path> path;  ///< null: the controller's spiral (params.path)
+  RunStart start = RunStart::kRest;
+  double control_period = 0.01;  ///< [s]
+  double settle = 1.0;           ///< [s] at rest before the controller starts
+};
+
 /// One control cycle as recorded.
 struct RunSample {
   double t = 0.0;                ///< path time [s]
   Eigen::Vector3d desired;       ///< x_des, tip z-axis (base frame)
   Eigen::Vector3d measured;      ///< from the tracker
+  Eigen::Vector3d truth;         ///< the plant's true tip z-axis (base frame)
   Eigen::Vector3d tip_position;  ///< true tip position [m], base frame
   double error_geodesic = 0.0;   ///< [rad]
   double error_pitch_yaw = 0.0;  ///< [rad]
+  double error_true = 0.0;       ///< ∠(x_des, truth) [rad]: tracking without the tracker's noise
   rod::InputVector jet_force;    ///< true actuator forces [N], one per actuator
 };
 
@@ -30,13 +52,20 @@ struct RunResult {
   std::string reason;                                             ///< abort reason
   double rms = 0.0, median = 0.0, q1 = 0.0, q3 = 0.0, max = 0.0;  ///< of error_geodesic [rad]
   double rms_pitch_yaw = 0.0;                                     ///< of the paper's metric [rad]
+  double rms_true = 0.0;                                          ///< of error_true [rad]
+  RunStart start = RunStart::kRest;
+  double approach_time = 0.0;  ///< [s] from the controller's start to the path clock's (0 for kRest)
   double wall_seconds = 0.0;
   double simulated_seconds = 0.0;
   std::vector<RunSample> samples;
 };
 
-/// Runs the controller's path (params.path) on the plant from rest until the path ends (plus
-/// `settle` seconds before starting) or an abort. The error statistics cover the path only.
+/// Runs the plan's path on the plant, `settle` seconds at rest, then the controller: until the path
+/// ends, the controller aborts or an approach fails. The error statistics cover the path from its
+/// clock's start.
+RunResult run_path(const control::RobotModel& model, const control::ControllerOptions& params,
+                   const plant::PlantModel& plant, unsigned seed, const RunPlan& plan);
+/// The controller's spiral (params.path) from rest, as the paper ran it.
 RunResult run_path(const control::RobotModel& model, const control::ControllerOptions& params,
                    const plant::PlantModel& plant, unsigned seed, double control_period = 0.01, double settle = 1.0);
 
