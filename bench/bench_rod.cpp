@@ -16,6 +16,8 @@
 //                            the tip that moves by 0.2 mm per call (one control cycle)
 //   BM_ReachableClip         ReachableSet::clip of a random direction outside the set
 //   BM_ReachableSetCompute   ReachableSet::compute (the controller's start), 30° scene
+//   BM_LateralModes          the rod's two lowest lateral modes about the equilibrium
+//                            (control/modal_model.h: five warm solves and their shapes), along the path
 //   BM_ControlCycle          one Controller::update of the 20 s spiral, closed loop (counter p99_us)
 //   BM_ControlCyclePapersLaw the same with the fast-path elements off (the paper's law)
 // The path benchmarks report the counter tip_error_m: the largest tip-position error along the
@@ -36,6 +38,7 @@
 #include "hydrojet_control/config/scene.h"
 #include "hydrojet_control/control/controller.h"
 #include "hydrojet_control/control/look_at.h"
+#include "hydrojet_control/control/modal_model.h"
 #include "hydrojet_control/control/reachable_set.h"
 #include "hydrojet_control/rod/rod_solver.h"
 #include "hydrojet_control/rod/rod_solver.h"
@@ -116,6 +119,17 @@ void BM_WarmSolveCompliance(benchmark::State& state) {
     benchmark::DoNotOptimize(s.compliance());
   }
   state.counters["tip_error_m"] = path_tip_error(sc);
+}
+
+void BM_LateralModes(benchmark::State& state) {
+  const auto sc = scene();
+  hydrojet::rod::RodSolver s(hydrojet::numerics::bare(sc), sc.solver);
+  size_t i = 0;
+  for (auto _ : state) {
+    const TipWrench& w = path()[i++ % path().size()];
+    s.solve(w);  // the controller's warm start moves along the path
+    benchmark::DoNotOptimize(hydrojet::control::lateral_modes(s, hydrojet::rod::InputVector(0), w));
+  }
 }
 
 hydrojet::rod::ShootingOptions general(hydrojet::rod::ShootingOptions s) {
@@ -307,6 +321,7 @@ BENCHMARK(BM_StabilityMap3000)->Arg(0)->Arg(30)->Unit(benchmark::kMillisecond)->
 BENCHMARK(BM_LookAt)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ReachableClip)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ReachableSetCompute)->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_LateralModes)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ControlCycle)->UseManualTime()->Unit(benchmark::kMicrosecond)->MinTime(0.5);
 BENCHMARK(BM_ControlCyclePapersLaw)->UseManualTime()->Unit(benchmark::kMicrosecond)->MinTime(0.5);
 BENCHMARK_MAIN();
