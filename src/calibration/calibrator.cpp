@@ -27,22 +27,21 @@ std::string fmt(const char* f, double v) {
 
 /// Everything the per-sample residuals share.
 struct FitContext {
-  FitContext(const Zeta& z, const config::Scene& scene) : zeta(z), solver_options(scene.solver), start(z.start()) {
+  explicit FitContext(const Zeta& z) : zeta(z), solver_options(z.scene().solver) {
     solver_options.residual_tolerance = std::min(solver_options.residual_tolerance, 1e-12);
   }
   int size() const { return zeta.size(); }
   /// A physical value of parameter i → its internal coordinate.
-  double internal(int i, double v) const { return zeta[i].logarithmic ? std::log(v / start[i]) : v; }
+  double internal(int i, double v) const { return zeta[i].logarithmic ? std::log(v / zeta.start()[i]) : v; }
   /// Internal coordinates x → ζ in physical units.
   ZetaVector physical(const double* x) const {
     ZetaVector z(size());
-    for (int i = 0; i < size(); ++i) z[i] = zeta[i].logarithmic ? start[i] * std::exp(x[i]) : x[i];
+    for (int i = 0; i < size(); ++i) z[i] = zeta[i].logarithmic ? zeta.start()[i] * std::exp(x[i]) : x[i];
     return z;
   }
 
-  const Zeta& zeta;
+  const Zeta& zeta;  ///< its start: internal coordinates of the positive parameters are ln(v/start)
   rod::ShootingOptions solver_options;
-  ZetaVector start;  ///< ζ at the start: internal coordinates of the positive parameters are ln(v/start)
   mutable std::atomic<int> solves{0}, failures{0};
 };
 
@@ -64,7 +63,7 @@ class SampleCost : public ceres::CostFunction {
   SampleCost(const FitContext* ctx, const Sample& s)
       : ctx_(ctx),
         R_meas_(s.tip_orientation.normalized().toRotationMatrix()),
-        solver_(ctx->zeta.rod_without_mount(ctx->start), ctx->solver_options) {
+        solver_(ctx->zeta.rod_without_mount(ctx->zeta.start()), ctx->solver_options) {
     set_num_residuals(3);
     mutable_parameter_block_sizes()->assign(ctx->size(), 1);
     const Zeta& z = ctx->zeta;
@@ -108,10 +107,7 @@ class SampleCost : public ceres::CostFunction {
     const ZetaVector z = ctx_->physical(x);
     rod::TipWrench tw;
     if (q_mount_.size() > 0) {
-      Eigen::Vector3d delta = Eigen::Vector3d::Zero();
-      for (int i = 0; i < zeta.size(); ++i)
-        if (zeta[i].kind == ParamKind::kMount) delta[zeta[i].axis] = z[i];
-      const rod::Vec6 w = zeta.mount_wrenches(delta) * q_mount_;
+      const rod::Vec6 w = zeta.mount_wrenches(zeta.mount_rotation(z)) * q_mount_;
       tw.force = w.head<3>();
       tw.moment = w.tail<3>();
     }
@@ -405,7 +401,7 @@ CalibrationResult fit_once(const Zeta& zeta, const std::vector<Sample>& samples,
   const auto t0 = std::chrono::steady_clock::now();
   validate_samples(samples, zeta.scene().rod.actuators, count(mask));
   CalibrationResult res = start_result(zeta, mask, opt);
-  const FitContext ctx(zeta, zeta.scene());
+  const FitContext ctx(zeta);
   FitProblem fit;
   build_problem(ctx, samples, opt, res, &fit);
 

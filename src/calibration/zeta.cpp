@@ -105,6 +105,9 @@ Zeta::Zeta(const config::Scene& scene, const CrossSection& cs) : scene_(scene), 
     }
     add("twist", "", ParamKind::kTorsionScale, -1, 0, true, kScaleResolution, 1.0);
   }
+  body_rod_ = m;
+  body_rod_.actuators.clear();
+  for (int i : body_inputs_) body_rod_.actuators.push_back(m.actuators[i]);
   if (!mount_inputs_.empty()) {
     first_mount_ = size();
     static const char* names[3] = {"da", "db", "dg"};
@@ -177,10 +180,7 @@ Eigen::Vector3d Zeta::mount_rotation(const ZetaVector& z) const {
 }
 
 rod::RodModel Zeta::rod_without_mount(const ZetaVector& z) const {
-  rod::RodModel m = scene_.rod;
-  std::vector<rod::Actuator> body;
-  for (int i : body_inputs_) body.push_back(m.actuators[i]);
-  m.actuators = body;
+  rod::RodModel m = body_rod_;
   for (int i = 0; i < size(); ++i) {
     const Parameter& p = params_[i];
     const double v = z[i];

@@ -113,6 +113,8 @@ class Zeta {
   rod::RodModel rod_without_mount(const ZetaVector& zeta) const;
   /// 6 × (tip actuators) unit body wrenches at mount rotation δ = (δα, δβ, δγ).
   Eigen::Matrix<double, 6, Eigen::Dynamic> mount_wrenches(const Eigen::Vector3d& delta) const;
+  /// (δα, δβ, δγ) of ζ [rad] (zero when no actuator sits at the tip).
+  Eigen::Vector3d mount_rotation(const ZetaVector& zeta) const;
   /// Inputs (indices into the scene's actuators) at the tip mount and elsewhere, in scene order.
   const std::vector<int>& mount_inputs() const { return mount_inputs_; }
   const std::vector<int>& body_inputs() const { return body_inputs_; }
@@ -123,9 +125,9 @@ class Zeta {
  private:
   void add(const std::string& name, const std::string& unit, ParamKind kind, int segment, int axis, bool logarithmic,
            double resolution, double start);
-  Eigen::Vector3d mount_rotation(const ZetaVector& zeta) const;
 
   config::Scene scene_;
+  rod::RodModel body_rod_;  ///< the scene's rod with only the actuators off the tip mount (rod_without_mount's base)
   CrossSection cs_;
   bool paper_form_ = false;
   std::vector<Parameter> params_;
