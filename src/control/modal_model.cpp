@@ -12,16 +12,12 @@ namespace {
 
 using rod::Vec3;
 
-/// One static solve's backbone.
-struct Shape {
-  std::vector<Vec3> backbone;
-};
-
-bool solve_shape(rod::RodSolver& s, const rod::InputVector& q, const rod::TipWrench& w, int samples, Shape* out) {
-  const rod::RodSolution sol = s.solve(q, w);
-  if (!sol.converged) return false;
-  out->backbone = s.shape(samples);
-  return static_cast<int>(out->backbone.size()) == samples + 1;
+/// The backbone (samples + 1 points) at the equilibrium under q and w; false when the solve fails.
+bool solve_shape(rod::RodSolver& s, const rod::InputVector& q, const rod::TipWrench& w, int samples,
+                 std::vector<Vec3>* backbone) {
+  if (!s.solve(q, w).converged) return false;
+  *backbone = s.shape(samples);
+  return static_cast<int>(backbone->size()) == samples + 1;
 }
 
 /// ρA at arc length s [kg/m].
@@ -53,7 +49,7 @@ ModalModel failed(const std::string& why) {
 /// lateral tip force by central differences of the static shape.
 bool add_body_mass(rod::RodSolver& s, const rod::InputVector& q, const rod::TipWrench& w, const ModalOptions& o,
                    Eigen::Matrix2d* Mf) {
-  const rod::RodModel m = s.model();
+  const rod::RodModel& m = s.model();
   const double L = m.length();
   double ei = 0.0;
   for (const rod::RodSegment& g : m.segments) ei = std::max(ei, g.stiffness.head<2>().maxCoeff());
@@ -61,11 +57,11 @@ bool add_body_mass(rod::RodSolver& s, const rod::InputVector& q, const rod::TipW
   const int K = std::max(4, o.samples);
   std::vector<Eigen::Matrix<double, 3, 2>> phi(K + 1);
   for (int j = 0; j < 2; ++j) {
-    Shape plus, minus;
+    std::vector<Vec3> plus, minus;
     rod::TipWrench wp = w, wm = w;
     wp.force[j] += h, wm.force[j] -= h;
     if (!solve_shape(s, q, wp, K, &plus) || !solve_shape(s, q, wm, K, &minus)) return false;
-    for (int k = 0; k <= K; ++k) phi[k].col(j) = (plus.backbone[k] - minus.backbone[k]) / (2 * h);  // base frame
+    for (int k = 0; k <= K; ++k) phi[k].col(j) = (plus[k] - minus[k]) / (2 * h);  // base frame
   }
   for (int k = 0; k <= K; ++k) {
     const double ds = L / K * ((k == 0 || k == K) ? 0.5 : 1.0), sk = L * k / K;
