@@ -371,6 +371,14 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
       {"safety/unreachable_tolerance", f.unreachable_tolerance, d.unreachable_tolerance},
       {"safety/flow_fault_tolerance", f.flow_fault_tolerance, d.flow_fault_tolerance},
       {"safety/flow_fault_time", f.flow_fault_time, d.flow_fault_time},
+      {"modal/kp", f.modal.kp, d.modal.kp},
+      {"modal/ki", f.modal.ki, d.modal.ki},
+      {"modal/damping_gain", f.modal.damping_gain, d.modal.damping_gain},
+      {"modal/tip_mass_scale", f.modal.tip_mass_scale, d.modal.tip_mass_scale},
+      {"modal/damping_time", f.modal.damping_time, d.modal.damping_time},
+      {"modal/tracker_sigma", f.modal.tracker_sigma, d.modal.tracker_sigma},
+      {"modal/velocity_noise", f.modal.velocity_noise, d.modal.velocity_noise},
+      {"modal/disturbance_noise", f.modal.disturbance_noise, d.modal.disturbance_noise},
       {"approach/tolerance", f.approach.tolerance, d.approach.tolerance},
       {"approach/settle_time", f.approach.settle_time, d.approach.settle_time},
       {"approach/timeout", f.approach.timeout, d.approach.timeout},
@@ -390,8 +398,10 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
     EXPECT_TRUE(in_file(n.key)) << n.key << " is not in " << path;
     EXPECT_EQ(n.file, n.def) << n.key;
   }
-  for (const char* key : {"mode", "autostart", "base_frame", "path/type"}) EXPECT_TRUE(in_file(key)) << key;
+  for (const char* key : {"mode", "control_law", "autostart", "base_frame", "path/type"})
+    EXPECT_TRUE(in_file(key)) << key;
   EXPECT_EQ(f.mode, d.mode);
+  EXPECT_EQ(f.control_law, d.control_law);
   EXPECT_EQ(f.path_type, d.path_type);
   EXPECT_EQ(file.autostart, def.autostart);
   EXPECT_EQ(file.base_frame, def.base_frame);
@@ -399,7 +409,7 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
   // And the file names nothing else (the parser rejects unknown keys, so this is the full list).
   size_t keys = 0;
   for (const auto& top : yaml) keys += top.second.IsMap() ? top.second.size() : 1;
-  EXPECT_EQ(keys, sizeof(numbers) / sizeof(numbers[0]) + 4);
+  EXPECT_EQ(keys, sizeof(numbers) / sizeof(numbers[0]) + 5);
 }
 
 // config/teleop.yaml is the source of the joystick defaults (TeleopOptions), key by key.
@@ -492,6 +502,7 @@ TEST(Controller, TheSpeedWeightedIntegralRemovesTheRampErrorOfAGainMismatch) {
   double ramp_error[3];  // the paper's law; K_i weighted (the default); K_i unweighted
   for (int law = 0; law < 3; ++law) {
     control::ControllerOptions p;  // K_p 3/s
+    p.control_law = control::ControlLaw::kPapers;
     p.ki = law == 0 ? 0.0 : 6.0;
     p.fast_path_rate = law == 2 ? 0.0 : 0.1;
     p.min_jet_force = 0.0;

@@ -67,11 +67,27 @@ void read_controller_options(Tree& p, control::ControllerOptions& c) {
       {"path/phi_start", "path.phi_start", &c.path.phi_start},
       {"path/phi_end", "path.phi_end", &c.path.phi_end},
       {"path/duration", "path.duration", &c.path.duration},
+      {"modal/kp", "modal.kp", &c.modal.kp},
+      {"modal/ki", "modal.ki", &c.modal.ki},
+      {"modal/damping_gain", "modal.damping_gain", &c.modal.damping_gain},
+      {"modal/tip_mass_scale", "modal.tip_mass_scale", &c.modal.tip_mass_scale},
+      {"modal/damping_time", "modal.damping_time", &c.modal.damping_time},
+      {"modal/actuator_lag", "modal.actuator_lag", &c.modal.actuator_lag},
+      {"modal/tracker_sigma", "modal.tracker_sigma", &c.modal.tracker_sigma},
+      {"modal/velocity_noise", "modal.velocity_noise", &c.modal.velocity_noise},
+      {"modal/disturbance_noise", "modal.disturbance_noise", &c.modal.disturbance_noise},
   };
   for (const auto& n : numbers) *n.value = p.number(n.key, *n.value);
   c.stale_periods = p.integer("safety/stale_periods", c.stale_periods);
   c.max_solver_failures = p.integer("safety/max_solver_failures", c.max_solver_failures);
   c.integrate_from_measured = p.boolean("integrate_from_measured", c.integrate_from_measured);
+  const std::string law = p.text("control_law", control::to_string(c.control_law));
+  if (law == "papers")
+    c.control_law = control::ControlLaw::kPapers;
+  else if (law == "modal")
+    c.control_law = control::ControlLaw::kModal;
+  else
+    p.fail("control_law", "must be 'papers' or 'modal', got '" + law + "'");
   c.observer = p.boolean("observer/enabled", c.observer);
   c.observer_prediction = p.boolean("observer/prediction", c.observer_prediction);
   const std::string type = p.text("path/type", control::to_string(c.path_type));

@@ -4,6 +4,9 @@
 #include <limits>
 #include <cmath>
 
+#include "hydrojet_control/control/modal_model.h"
+#include "hydrojet_control/rod/so3.h"
+
 namespace hydrojet {
 namespace control {
 
@@ -53,6 +56,9 @@ void Controller::start(double t) {
   t_last_ = t;
   first_cycle_ = true;
   observer_.reset();
+  modal_.reset();
+  shaping_primed_ = false;
+  omega_ = 0.0;
   monitor_.reset();
   pd_.reset();
   reset_actuation();
@@ -152,6 +158,7 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
     }
   }
   track_reference(in, control, dt, out);
+  estimate_modes(in, sol, out.jet_force_observed, dt);
   if (std::string why = monitor_.check_oscillation(out.error_geodesic); !why.empty()) return abort(out, why);
 
   if (std::string why = command_inputs(control, lin, dt, out); !why.empty()) return abort(out, why);
@@ -277,6 +284,60 @@ void Controller::approach(double t, ControllerOutput& out) {
   if (reference_.path()) out.path_time = reference_.path_time(t);  // other sources: time since start
 }
 
+// The modal law's estimator (closed loop): the first mode at this equilibrium (with the capsule's
+// expected fill), then one filter step with the model's direction at the last measured inputs and the
+// tracker's direction.
+void Controller::estimate_modes(const ControllerInputs& in, const rod::RodSolution& sol, const InputVector& q_obs,
+                                double dt) {
+  if (params_.control_law != ControlLaw::kModal || params_.mode != LoopMode::kClosed) return;
+  ModalOptions mo;
+  mo.tip_mass_scale = params_.modal.tip_mass_scale;
+  const ModalModel modes = lateral_modes(model_.solver(), q_obs, rod::TipWrench(), mo);
+  if (modes.ok) omega_ = modes.frequency(0);
+  if (!(omega_ > 0.0)) return;  // none yet: the paper's law drives
+  const Vec3 s = sol.tip_rotation.col(2);
+  const Vec3 z = in.tip_rotation.col(2).normalized();
+  if (!modal_.initialised())
+    modal_.start(z, s, omega_, params_.modal);
+  else
+    modal_.step(modal_input_, z, omega_, 0.5 * omega_ * params_.modal.damping_time, dt, params_.modal);
+  modal_input_ = s;
+}
+
+// The modal law drives a path whose clock runs, in closed loop, once its estimator has started.
+bool Controller::modal_drives() const {
+  return params_.control_law == ControlLaw::kModal && params_.mode == LoopMode::kClosed && modal_.initialised() &&
+         reference_.on_path();
+}
+
+// The PD's gains: the modal law's own while it drives.
+ControllerOptions Controller::law_gains() const {
+  ControllerOptions gains = params_;
+  if (modal_drives()) gains.kp = params_.modal.kp, gains.ki = params_.modal.ki;
+  return gains;
+}
+
+// The modal law's shaping (modal_shaping), as the change since the last step: x_cntr moves the
+// forces by increments, so an added direction m(t) enters as the rotation d × (m(t) − m(t − dt)).
+Vec3 Controller::shaping_step(const rod::RodSolution& sol, const ControllerOutput& out) {
+  if (!modal_drives()) {
+    shaping_primed_ = false;
+    return Vec3::Zero();
+  }
+  const double h = params_.sample_period;
+  const Vec3 a = reference_.preview(t_last_, h), b = reference_.preview(t_last_, 2 * h),
+             c = reference_.preview(t_last_, 3 * h);
+  ReferenceMotion r;
+  r.rate = (c - a) / (2 * h);
+  r.accel = (c - 2 * b + a) / (h * h);
+  r.rate_now = (a - out.desired_direction) / h;
+  const Vec3 m = modal_shaping(r, modal_.rate(), omega_, 0.5 * omega_ * params_.modal.damping_time, params_.modal);
+  const Vec3 step = shaping_primed_ ? Vec3(Vec3(sol.tip_rotation.col(2)).cross(m - previous_shaping_)) : Vec3::Zero();
+  previous_shaping_ = m;
+  shaping_primed_ = true;
+  return step;
+}
+
 // Lines 5, 7, 9/12: x_cntr by PD (eqs. 17–18), then the new inputs by eq. (19) on J_q within the
 // bounds of eq. (20), rate- and magnitude-limited (input_step). The paper's base is w_a (measured);
 // by default the previous command is the base, which keeps the flow loop's lag out of this
@@ -284,7 +345,8 @@ void Controller::approach(double t, ControllerOutput& out) {
 std::string Controller::command_inputs(const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin, double dt,
                                        ControllerOutput& out) {
   const Vec3 ahead = reference_.preview(t_last_, params_.lead_time);
-  const Vec3 x_cntr = pd_.correction(out.observed_direction, out.desired_direction, ahead, dt, params_);
+  Vec3 x_cntr = pd_.correction(out.observed_direction, out.desired_direction, ahead, dt, law_gains());
+  x_cntr += shaping_step(sol, out);
   if (first_cycle_) previous_command_ = out.jet_force_observed;
   InputStepOptions o;
   o.damping = params_.damping;

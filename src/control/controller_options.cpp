@@ -27,6 +27,7 @@ std::string check_range(const char* field, double v, double lo, double hi) {
 }  // namespace
 
 const char* to_string(LoopMode m) { return m == LoopMode::kClosed ? "closed" : "open"; }
+const char* to_string(ControlLaw l) { return l == ControlLaw::kModal ? "modal" : "papers"; }
 const char* to_string(PathType t) { return t == PathType::kSpiral ? "spiral" : "none"; }
 
 std::string ControllerOptions::validate() const {
@@ -82,6 +83,7 @@ std::string ControllerOptions::validate() const {
     return bad("path.theta_end", path.theta_end, "must lie in [0, pi/2]");
   if (!std::isfinite(path.phi_start)) return bad("path.phi_start", path.phi_start, "must be finite");
   if (!std::isfinite(path.phi_end)) return bad("path.phi_end", path.phi_end, "must be finite");
+  if (std::string err = modal.validate(); !err.empty()) return err;
   return approach.validate();
 }
 

@@ -96,8 +96,8 @@ ModalModel lateral_modes(const rod::RodSolver& solver, const rod::InputVector& q
   const Eigen::Matrix<double, 3, 2> dtip = c.body.block<3, 2>(0, 0), dtheta = c.body.block<3, 2>(3, 0);
 
   // Mass in force coordinates f (x = C f): the tip, the capsule's inertia, then ρA and point masses.
-  Eigen::Matrix2d Mf =
-      s.model().tip_mass * dtip.transpose() * dtip + dtheta.transpose() * o.tip_inertia.asDiagonal() * dtheta;
+  Eigen::Matrix2d Mf = o.tip_mass_scale * (s.model().tip_mass * dtip.transpose() * dtip +
+                                            dtheta.transpose() * o.tip_inertia.asDiagonal() * dtheta);
   if (has_body_mass(s.model()) && !add_body_mass(s, q, w, o, &Mf)) return failed("a probe solve did not converge");
 
   const Eigen::Matrix2d C = 0.5 * (dtip.topRows<2>() + dtip.topRows<2>().transpose());

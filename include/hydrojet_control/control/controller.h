@@ -21,6 +21,7 @@
 #include "hydrojet_control/control/controller_options.h"
 #include "hydrojet_control/control/disturbance_observer.h"
 #include "hydrojet_control/control/jet_actuation.h"
+#include "hydrojet_control/control/modal_law.h"
 #include "hydrojet_control/control/reachable_set.h"
 #include "hydrojet_control/control/reference.h"
 #include "hydrojet_control/control/resolved_rates.h"
@@ -104,6 +105,10 @@ class Controller {
   void commanded();
   void track_reference(const ControllerInputs& in, const rod::RodSolution& sol, double dt, ControllerOutput& out);
   void approach(double t, ControllerOutput& out);
+  void estimate_modes(const ControllerInputs& in, const rod::RodSolution& sol, const InputVector& q_obs, double dt);
+  bool modal_drives() const;
+  ControllerOptions law_gains() const;
+  Vec3 shaping_step(const rod::RodSolution& sol, const ControllerOutput& out);
   std::string command_inputs(const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin, double dt,
                              ControllerOutput& out);
   InputVector running_lower(double dt);
@@ -119,6 +124,11 @@ class Controller {
   SafetyMonitor monitor_;
   DirectionPd pd_;
   DisturbanceObserver observer_;
+  ModalEstimator modal_;               ///< the modal law's state estimate (closed loop)
+  Vec3 modal_input_ = Vec3::UnitZ();   ///< s: the model's direction at the last measured inputs
+  bool shaping_primed_ = false;           ///< previous_shaping_ holds the last step's m
+  Vec3 previous_shaping_ = Vec3::Zero();  ///< the modal law's m at the last step (modal_shaping)
+  double omega_ = 0.0;                 ///< the first mode at the current equilibrium [rad/s] (0: none yet)
   bool predicted_ = false;        ///< this cycle closes on the observer's prediction (observer_prediction)
   InputVector previous_command_;  ///< the last step's inputs [N], before the rounding (the base of the next step)
   double common_force_ = 0.0;     ///< a: the rounding's offset along common_mode_ now [N] (round_corners)

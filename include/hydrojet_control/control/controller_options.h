@@ -7,6 +7,7 @@
 #include <string>
 
 #include "hydrojet_control/control/approach.h"
+#include "hydrojet_control/control/modal_law.h"
 #include "hydrojet_control/control/task_space.h"
 
 namespace hydrojet {
@@ -19,9 +20,16 @@ const char* to_string(LoopMode m);
 enum class PathType { kSpiral, kNone };
 const char* to_string(PathType t);
 
+/// The law that turns the error into inputs: the paper's (eqs. 17–20 with the fast-path elements), or
+/// the model-based one (modal_law.h) on a path whose clock runs, the paper's for every other source.
+enum class ControlLaw { kPapers, kModal };
+const char* to_string(ControlLaw l);
+
 /// Gains, limits and safety thresholds. validate() names the first bad field.
 struct ControllerOptions {
   LoopMode mode = LoopMode::kClosed;
+  ControlLaw control_law = ControlLaw::kModal;
+  ModalLawOptions modal;  ///< the modal law's gains and estimator (modal_law.h)
   double kp = 3.0;  ///< K_p of eq. (17) [1/s]: fraction of the direction error corrected per second
   double kd = 0.0;  ///< K_d of eq. (17) [-]: weight of the error change per step
   /// K_i [1/s²]: the integral of the direction error (for fast paths): the law of eq. (17) integrates the

@@ -57,6 +57,8 @@ class ActuatedModel {
   const InputVector& lower() const { return lower_; }  ///< q_min [N] per input
   const InputVector& upper() const { return upper_; }  ///< q_max [N] per input
   const rod::RodModel& rod() const { return solver_.model(); }
+  /// The solver (warm-started at the last solve): for models built about that equilibrium.
+  const rod::RodSolver& solver() const { return solver_; }
 
   /// The equilibrium at inputs q [N] (input_count() entries), the tip loaded besides with `extra`
   /// (a follower wrench, tip frame: the disturbance observer's estimate).

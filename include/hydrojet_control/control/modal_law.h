@@ -1,0 +1,84 @@
+// The model-based law ("modal"): the paper's law is quasi-static; this one knows that the tip moves
+// through the rod's first bending mode toward the equilibrium of the forces the jets make.
+//
+// Estimator. Per Cartesian component of the tip direction (base frame), with s the model's
+// quasi-static direction at the measured actuator forces (the solve of Algorithm 1, line 6, at
+// q_obs: the flow sensors measure the actuators, so their lag needs no state of its own):
+//   ẏ = v,   v̇ = ω² (s + d − y) − 2ζω v,   ḋ = noise     (y the tip direction, d the model's error),
+// a Kalman filter (linear_quadratic.h's equations; the components share one covariance) estimates
+// (y, v, d) from the tracker. ω is the first lateral mode (modal_model.h) at the current
+// equilibrium with the capsule's expected fill; ζ = ω τ_kv / 2 (Kelvin–Voigt damping).
+//
+// Law. The paper's PD on the tracker (eq. 17, with its own gains: DirectionPd) plus the change,
+// step to step, of a direction the forces should add quasi-statically,
+//   m = (2ζ/ω) ṙ + r̈/ω² − k_v (v̂ − ṙ)/ω,
+// r the path ahead (its preview): the first two terms invert the mode for the path's own motion
+// (the feedforward of a second-order plant), the last damps the mode on the estimated rate. Damped,
+// the mode lets the PD's gains rise (K_p 4.5, K_i 12: they ring the undamped rod). ROS-free (Eigen).
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+
+#include "hydrojet_control/control/task_space.h"
+
+namespace hydrojet {
+namespace control {
+
+struct ModalLawOptions {
+  double kp = 4.5;                 ///< K_p of the PD under the modal law [1/s]
+  double ki = 12.0;                ///< K_i of the PD under the modal law [1/s²]
+  double damping_gain = 0.3;       ///< k_v: feedback on ṙ − v̂, per ω [-]
+  double tip_mass_scale = 3.0;     ///< the capsule's expected mass over the scene's (water fills it) [-]
+  double damping_time = 0.02;      ///< τ_kv the law assumes: ζ = ω τ / 2 [s]
+  double actuator_lag = 0.0;       ///< τ_a: the flow loop's lag the shaping leads the path by [s]
+  double tracker_sigma = 0.0075;   ///< tracker noise per direction component [-]
+  double velocity_noise = 0.5;     ///< process noise on v̇ [1/s^1.5] (unmodelled forces)
+  double disturbance_noise = 0.1;  ///< random walk of d [1/√s] (the model error moves with the path)
+  /// Empty when valid, else "modal.<field>: <what is wrong>".
+  std::string validate() const;
+};
+
+/// The Kalman filter of the modal law (see above).
+class ModalEstimator {
+ public:
+  bool initialised() const { return initialised_; }
+  void reset() { initialised_ = false; }
+  /// Starts at tracker direction z and model direction s: at rest, d = z − s, with the covariance
+  /// diag(σ², (σω)², (0.03)²) (σ: tracker_sigma).
+  void start(const Vec3& z, const Vec3& s, double omega, const ModalLawOptions& o);
+  /// One step of dt [s] with the model's direction s held over it (mode ω [rad/s], ζ), then the
+  /// update with the tracker's z (skipped when z is not finite).
+  void step(const Vec3& s, const Vec3& z, double omega, double zeta, double dt, const ModalLawOptions& o);
+  Vec3 direction() const { return x_.row(0).transpose(); }
+  Vec3 rate() const { return x_.row(1).transpose(); }
+  Vec3 model_error() const { return x_.row(2).transpose(); }
+  /// Rows y, v, d; columns the base frame's x, y, z.
+  const Eigen::Matrix3d& state() const { return x_; }
+  /// The covariance of each component's (y, v, d).
+  const Eigen::Matrix3d& covariance() const { return P_; }
+
+ private:
+  bool initialised_ = false;
+  Eigen::Matrix3d x_ = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d P_ = Eigen::Matrix3d::Zero();
+};
+
+/// The (A, B) of one component's (y, v, d) over dt [s] with s held (exact: the exponential of the
+/// augmented generator).
+void modal_transition(double omega, double zeta, double dt, Eigen::Matrix3d* A, Eigen::Vector3d* B);
+
+/// The path near now (base frame): ṙ and r̈ a step ahead, and ṙ now.
+struct ReferenceMotion {
+  Vec3 rate = Vec3::Zero();      ///< ṙ [1/s]
+  Vec3 accel = Vec3::Zero();     ///< r̈ [1/s²]
+  Vec3 rate_now = Vec3::Zero();  ///< ṙ now [1/s]
+};
+
+/// m = (2ζ/ω + τ_a) ṙ + (1/ω² + 2ζτ_a/ω) r̈ − k_v (v̂ − ṙ_now)/ω: the direction the forces add to the
+/// PD's (see above; τ_a inverts a first-order actuator lag besides the mode).
+Vec3 modal_shaping(const ReferenceMotion& r, const Vec3& estimated_rate, double omega, double zeta,
+                   const ModalLawOptions& o);
+
+}  // namespace control
+}  // namespace hydrojet
