@@ -121,8 +121,8 @@ TEST(ClosedLoopRun, TheModalLawTracksAFastSpiralBetterThanThePapers) {
     const sim::RunResult papers = sim::run_path(setup.model, c, setup.plant, seed, on);
     ASSERT_TRUE(modal.completed) << modal.reason;
     ASSERT_TRUE(papers.completed) << papers.reason;
-    std::printf("20 s spiral, seed %d: modal %.4f rad (true %.4f), paper's law %.4f (true %.4f)\n", seed,
-                modal.rms, modal.rms_true, papers.rms, papers.rms_true);
+    std::printf("20 s spiral, seed %d: modal %.4f rad (true %.4f), paper's law %.4f (true %.4f)\n", seed, modal.rms,
+                modal.rms_true, papers.rms, papers.rms_true);
     EXPECT_LT(modal.rms_true, 0.85 * papers.rms_true) << seed;
   }
 }

@@ -52,10 +52,11 @@ TEST(ModalLaw, TheEstimatorIsTheKalmanFilterOnEachComponent) {
   Eigen::Matrix3d A;
   Eigen::Vector3d B;
   modal_transition(w, zeta, dt, &A, &B);
-  const Eigen::MatrixXd Q = Eigen::Vector3d(0.0, o.velocity_noise * o.velocity_noise * dt,
-                                            o.disturbance_noise * o.disturbance_noise * dt)
-                                .asDiagonal();
-  const Eigen::MatrixXd H = Eigen::RowVector3d(1, 0, 0), R = Eigen::MatrixXd::Constant(1, 1, o.tracker_sigma * o.tracker_sigma);
+  const Eigen::MatrixXd Q =
+      Eigen::Vector3d(0.0, o.velocity_noise * o.velocity_noise * dt, o.disturbance_noise * o.disturbance_noise * dt)
+          .asDiagonal();
+  const Eigen::MatrixXd H = Eigen::RowVector3d(1, 0, 0),
+                        R = Eigen::MatrixXd::Constant(1, 1, o.tracker_sigma * o.tracker_sigma);
   KalmanFilter k[3];
   for (int c = 0; c < 3; ++c) k[c].reset(Eigen::Vector3d(z0(c), 0.0, z0(c) - s0(c)), e.covariance());
   for (int step = 0; step < 200; ++step) {

@@ -56,8 +56,8 @@ void ModalEstimator::step(const Vec3& s, const Vec3& z, double omega, double zet
   modal_transition(omega, zeta, dt, &A, &B);
   x_ = A * x_ + B * s.transpose();
   P_ = A * P_ * A.transpose();
-  P_.diagonal() += Eigen::Vector3d(0.0, o.velocity_noise * o.velocity_noise * dt,
-                                   o.disturbance_noise * o.disturbance_noise * dt);
+  P_.diagonal() +=
+      Eigen::Vector3d(0.0, o.velocity_noise * o.velocity_noise * dt, o.disturbance_noise * o.disturbance_noise * dt);
   if (!z.allFinite()) return;
   // z = y + noise: H = (1, 0, 0); Joseph form.
   const double R = o.tracker_sigma * o.tracker_sigma;

@@ -97,7 +97,7 @@ ModalModel lateral_modes(const rod::RodSolver& solver, const rod::InputVector& q
 
   // Mass in force coordinates f (x = C f): the tip, the capsule's inertia, then ρA and point masses.
   Eigen::Matrix2d Mf = o.tip_mass_scale * (s.model().tip_mass * dtip.transpose() * dtip +
-                                            dtheta.transpose() * o.tip_inertia.asDiagonal() * dtheta);
+                                           dtheta.transpose() * o.tip_inertia.asDiagonal() * dtheta);
   if (has_body_mass(s.model()) && !add_body_mass(s, q, w, o, &Mf)) return failed("a probe solve did not converge");
 
   const Eigen::Matrix2d C = 0.5 * (dtip.topRows<2>() + dtip.topRows<2>().transpose());

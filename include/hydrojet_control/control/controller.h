@@ -124,12 +124,12 @@ class Controller {
   SafetyMonitor monitor_;
   DirectionPd pd_;
   DisturbanceObserver observer_;
-  ModalEstimator modal_;               ///< the modal law's state estimate (closed loop)
-  Vec3 modal_input_ = Vec3::UnitZ();   ///< s: the model's direction at the last measured inputs
+  ModalEstimator modal_;                  ///< the modal law's state estimate (closed loop)
+  Vec3 modal_input_ = Vec3::UnitZ();      ///< s: the model's direction at the last measured inputs
   bool shaping_primed_ = false;           ///< previous_shaping_ holds the last step's m
   Vec3 previous_shaping_ = Vec3::Zero();  ///< the modal law's m at the last step (modal_shaping)
-  double omega_ = 0.0;                 ///< the first mode at the current equilibrium [rad/s] (0: none yet)
-  bool predicted_ = false;        ///< this cycle closes on the observer's prediction (observer_prediction)
+  double omega_ = 0.0;                    ///< the first mode at the current equilibrium [rad/s] (0: none yet)
+  bool predicted_ = false;                ///< this cycle closes on the observer's prediction (observer_prediction)
   InputVector previous_command_;  ///< the last step's inputs [N], before the rounding (the base of the next step)
   double common_force_ = 0.0;     ///< a: the rounding's offset along common_mode_ now [N] (round_corners)
   InputVector common_mode_;       ///< the jets' common mode last found (empty: none yet)

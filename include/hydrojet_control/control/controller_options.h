@@ -30,8 +30,8 @@ struct ControllerOptions {
   LoopMode mode = LoopMode::kClosed;
   ControlLaw control_law = ControlLaw::kModal;
   ModalLawOptions modal;  ///< the modal law's gains and estimator (modal_law.h)
-  double kp = 3.0;  ///< K_p of eq. (17) [1/s]: fraction of the direction error corrected per second
-  double kd = 0.0;  ///< K_d of eq. (17) [-]: weight of the error change per step
+  double kp = 3.0;        ///< K_p of eq. (17) [1/s]: fraction of the direction error corrected per second
+  double kd = 0.0;        ///< K_d of eq. (17) [-]: weight of the error change per step
   /// K_i [1/s²]: the integral of the direction error (for fast paths): the law of eq. (17) integrates the
   /// tip force, so it is type 1 and a path at speed v leaves an error ≈ (1 − gain ratio)·v/K_p when
   /// the model's gain differs from the plant's; K_i makes it type 2 (no steady error on a ramp).

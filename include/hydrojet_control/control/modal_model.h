@@ -36,7 +36,7 @@ struct ModalOptions {
   /// The tip's mass and inertia in the modes over the scene's tip mass (a capsule that fills with
   /// water is heavier than its weight in the statics says) [-].
   double tip_mass_scale = 1.0;
-  int samples = 64;                           ///< backbone intervals for the distributed mass
+  int samples = 64;  ///< backbone intervals for the distributed mass
   /// Probe force of the central differences, relative to the rod's force scale max EI / L².
   double probe = 1e-3;
 };
