@@ -36,8 +36,8 @@ endforeach()
 add_dependencies(test_rod_fk_cli rod_fk)
 # Operator control's core pieces: paths, reachable set, look-at solver.
 hydrojet_gtest(test_operator_core LIBS hydrojet_config)
-# The simulated plant's parts, its valve model, the disturbance observer on it, and closed-loop runs.
-foreach(t test_plant test_hydraulics test_disturbance_observer test_closed_loop_run)
+# The simulated plant's parts, its valve model, and closed-loop runs.
+foreach(t test_plant test_hydraulics test_closed_loop_run)
   hydrojet_gtest(${t} LIBS hydrojet_sim hydrojet_config)
 endforeach()
 hydrojet_gtest(test_devices LIBS hydrojet_devices hydrojet_config)

@@ -350,13 +350,8 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
       {"fast_path_rate", f.fast_path_rate, d.fast_path_rate},
       {"gains/feedforward", f.feedforward, d.feedforward},
       {"gains/damping", f.damping, d.damping},
-      {"gains/lead_time", f.lead_time, d.lead_time},
-      {"observer/enabled", double(f.observer), double(d.observer)},
-      {"observer/time_constant", f.observer_time_constant, d.observer_time_constant},
-      {"observer/prediction", double(f.observer_prediction), double(d.observer_prediction)},
       {"limits/max_force", f.max_force, d.max_force},
       {"limits/max_force_rate", f.max_force_rate, d.max_force_rate},
-      {"limits/min_jet_force", f.min_jet_force, d.min_jet_force},
       {"limits/max_common_force_rate", f.max_common_force_rate, d.max_common_force_rate},
       {"limits/max_angular_rate", f.max_angular_rate, d.max_angular_rate},
       {"limits/reachable_force_fraction", f.reachable_force_fraction, d.reachable_force_fraction},
@@ -373,6 +368,7 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
       {"safety/flow_fault_time", f.flow_fault_time, d.flow_fault_time},
       {"modal/kp", f.modal.kp, d.modal.kp},
       {"modal/ki", f.modal.ki, d.modal.ki},
+      {"modal/gain_speed", f.modal.gain_speed, d.modal.gain_speed},
       {"modal/damping_gain", f.modal.damping_gain, d.modal.damping_gain},
       {"modal/tip_mass_scale", f.modal.tip_mass_scale, d.modal.tip_mass_scale},
       {"modal/damping_time", f.modal.damping_time, d.modal.damping_time},
@@ -438,7 +434,7 @@ TEST(ControllerOptions, TeleopDefaultsEqualConfigTeleopYaml) {
   EXPECT_LT(def.scale_right, 0.0);
 }
 
-TEST(ControllerOptions, BadTeleopAndPathTypeAreRefusedNamingTheKey) {
+TEST(ControllerOptions, BadTeleopPathTypeAndLawAreRefusedNamingTheKey) {
   const struct {
     const char* yaml;
     const char* key;
@@ -447,7 +443,12 @@ TEST(ControllerOptions, BadTeleopAndPathTypeAreRefusedNamingTheKey) {
                {"{teleop: {scale_right: .nan}}", "teleop/scale_right"},
                {"{path: {type: circle}}", "path/type"},
                {"{limits: {max_angular_rate: 0}}", "limits/max_angular_rate"},
-               {"{limits: {reachable_force_fraction: 1.5}}", "limits/reachable_force_fraction"}};
+               {"{limits: {reachable_force_fraction: 1.5}}", "limits/reachable_force_fraction"},
+               {"{control_law: lqr}", "control_law"},
+               {"{modal: {damping_gain: -1}}", "modal/damping_gain"},
+               {"{modal: {tip_mass_scale: .nan}}", "modal/tip_mass_scale"},
+               {"{observer: {enabled: true}}", "observer/enabled"},
+               {"{limits: {min_jet_force: 0.005}}", "limits/min_jet_force"}};
   for (const auto& c : cases) {
     try {
       config::parse_controller_options(YAML::Load(c.yaml));
@@ -505,7 +506,6 @@ TEST(Controller, TheSpeedWeightedIntegralRemovesTheRampErrorOfAGainMismatch) {
     p.control_law = control::ControlLaw::kPapers;
     p.ki = law == 0 ? 0.0 : 6.0;
     p.fast_path_rate = law == 2 ? 0.0 : 0.1;
-    p.min_jet_force = 0.0;
     p.path_type = control::PathType::kNone;
     Controller c(config::make_controller_model(sc, flow_gains()), p);
     StaticPlant plant(sc, truth);
@@ -528,7 +528,7 @@ TEST(Controller, TheSpeedWeightedIntegralRemovesTheRampErrorOfAGainMismatch) {
   EXPECT_LT(ramp_error[2], 0.1 * ramp_error[0]);
 }
 
-// Held still, the fast-path elements (K_i, idling jets, rounded allocation) do nothing: config/controller.yaml's law
+// Held still, the fast-path elements (K_i, rounded allocation) do nothing: config/controller.yaml's law
 // commands what the paper's law does, bit for bit, on a still target with a mismatched plant.
 TEST(Controller, OnAStillTargetTheFastPathElementsAreThePapersLaw) {
   const config::Scene sc = test::scene("hydrojet_0deg");
@@ -536,11 +536,9 @@ TEST(Controller, OnAStillTargetTheFastPathElementsAreThePapersLaw) {
   truth.segments[0].stiffness *= 0.8;
   control::ControllerOptions bare = static_target(0.6, 1.0);
   bare.ki = 0.0;
-  bare.min_jet_force = 0.0;
   bare.allocation_smoothing = 0.0;
-  const control::ControllerOptions fast = static_target(0.6, 1.0);  // the defaults: K_i 6, idle, rounding
+  const control::ControllerOptions fast = static_target(0.6, 1.0);  // the defaults: K_i 6, rounding
   ASSERT_GT(fast.ki, 0.0);
-  ASSERT_GT(fast.min_jet_force, 0.0);
   ASSERT_GT(fast.allocation_smoothing, 0.0);
   Controller paper(config::make_controller_model(sc, flow_gains()), bare);
   Controller scheduled(config::make_controller_model(sc, flow_gains()), fast);
@@ -552,39 +550,6 @@ TEST(Controller, OnAStillTargetTheFastPathElementsAreThePapersLaw) {
     ASSERT_EQ(oa.jet_force_command, ob.jet_force_command) << k;
     a.apply(oa.valve_command);
     b.apply(ob.valve_command);
-  }
-}
-
-// Idling jets (min_jet_force, here at every speed: fast_path_rate 0): every jet stays at or above
-// the idle force while the controller runs, and the targets are reached as before (the jets' common
-// force adds no net tip force the law cannot correct). Without it the allocation closes a jet at
-// these targets (so the check can fail). Stopped, the jets are at zero.
-TEST(Controller, IdlingJetsStayOpenAndTheTargetIsStillReached) {
-  const config::Scene sc = test::scene("hydrojet_0deg");
-  for (const auto& target : {std::make_pair(0.4, 0.5), std::make_pair(0.9, 2.5)}) {
-    for (double idle : {0.0, 0.01}) {
-      control::ControllerOptions p = static_target(target.first, target.second);
-      p.min_jet_force = idle;
-      p.fast_path_rate = 0.0;
-      p.ki = 0.0;
-      p.allocation_smoothing = 0.0;  // the idle alone
-      Controller c(config::make_controller_model(sc, flow_gains()), p);
-      StaticPlant plant(sc, test::bare(sc));
-      c.start(0.0);
-      double lowest = 1e9;
-      ControllerOutput out;
-      for (int k = 0; k < 800; ++k) {
-        out = c.update(plant.inputs(k * kDt));
-        ASSERT_EQ(out.state, ControllerState::kRunning) << out.reason;
-        plant.apply(out.valve_command);
-        lowest = std::min(lowest, out.jet_force_command.minCoeff());
-      }
-      EXPECT_LT(out.error_geodesic, 1e-3) << "idle " << idle;
-      if (idle > 0.0)
-        EXPECT_GE(lowest, idle - 1e-12);
-      else
-        EXPECT_LT(out.jet_force_command.minCoeff(), 1e-9);
-    }
   }
 }
 
@@ -608,8 +573,8 @@ TEST(Controller, TheRoundedAllocationSmoothsTheJetsAndLeavesTheTip) {
   for (int round : {0, 1}) {
     control::ControllerOptions p;
     p.path_type = control::PathType::kNone;
+    p.control_law = control::ControlLaw::kPapers;  // the allocation alone
     p.ki = 0.0;
-    p.min_jet_force = 0.0;
     p.allocation_smoothing = round ? 0.3 : 0.0;
     Controller c(config::make_controller_model(sc, flow_gains()), p);
     StaticPlant plant(sc, test::bare(sc));
@@ -643,29 +608,4 @@ TEST(Controller, TheRoundedAllocationSmoothsTheJetsAndLeavesTheTip) {
       second[0], second[1], rms[0], rms[1]);
   EXPECT_LT(second[1], 0.25 * second[0]);
   EXPECT_LE(rms[1], rms[0]);
-}
-
-// With the default weighting, on an arc at 0.3 rad/s (w = 0.9): once the reference moves at that
-// speed and the idle force has risen (at most max_force_rate), every jet is at least 0.9 × the idle
-// force; a still reference before the arc starts leaves the jets free to close.
-TEST(Controller, JetsIdleInProportionToTheReferenceSpeed) {
-  const config::Scene sc = test::scene("hydrojet_0deg");
-  control::ControllerOptions p;
-  p.path_type = control::PathType::kNone;
-  p.min_jet_force = 0.01;
-  Controller c(config::make_controller_model(sc, flow_gains()), p);
-  StaticPlant plant(sc, test::bare(sc));
-  c.start(0.0);
-  double lowest_still = 1e9, lowest_moving = 1e9;
-  for (int k = 0; k < 400; ++k) {
-    const double t = k * kDt;
-    if (k == 100) c.follow(std::make_shared<ArcPath>(0.3, 10.0), t);  // from the rest direction
-    const ControllerOutput out = c.update(plant.inputs(t));
-    ASSERT_EQ(out.state, ControllerState::kRunning) << out.reason;
-    plant.apply(out.valve_command);
-    if (k < 100) lowest_still = std::min(lowest_still, out.jet_force_command.minCoeff());
-    if (t >= 2.5) lowest_moving = std::min(lowest_moving, out.jet_force_command.minCoeff());
-  }
-  EXPECT_LT(lowest_still, 1e-9);
-  EXPECT_GE(lowest_moving, 0.9 * p.min_jet_force - 1e-9);
 }

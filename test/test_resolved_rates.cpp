@@ -33,19 +33,13 @@ control::ControllerOptions pd_terms(double kp, double ki, double feedforward) {
 
 }  // namespace
 
-// The lead enters the feedforward once, when it starts; after that the feedforward is the motion
-// ahead; when the lead ends it is not taken back in one step.
-TEST(DirectionPd, TheLeadEntersOnceAndIsNotTakenBackAtOnce) {
+// The feedforward is x_des's own motion per step (none on the priming step); K_i integrates.
+TEST(DirectionPd, TheFeedforwardIsTheReferencesMotionAndTheIntegralAccumulates) {
   const control::ControllerOptions g = pd_terms(0.0, control::ControllerOptions().ki, 1.0);
   control::DirectionPd pd;
-  // Cycle 1 primes on x_des = dir(0) with x_ff = dir(0.05): the lead (0.05 rad about +y) enters.
-  Vec3 x = pd.correction(dir(0.0), dir(0.0), dir(0.05), 0.01, g);
-  EXPECT_NEAR((x - Vec3(0.0, 0.05, 0.0)).norm(), 0.0, 1e-12);
-  // Then the motion ahead: 0.01 rad per step.
-  x = pd.correction(dir(0.01), dir(0.01), dir(0.06), 0.01, g);
-  EXPECT_NEAR((x - Vec3(0.0, 0.01, 0.0)).norm(), 0.0, 1e-12);
-  // The lead ends (x_ff = x_des): x_des's own motion, no step back by 0.05.
-  x = pd.correction(dir(0.02), dir(0.02), dir(0.02), 0.01, g);
+  Vec3 x = pd.correction(dir(0.0), dir(0.0), 0.01, g);  // primes: no motion known yet
+  EXPECT_EQ(x.norm(), 0.0);
+  x = pd.correction(dir(0.01), dir(0.01), 0.01, g);  // 0.01 rad about +y
   EXPECT_NEAR((x - Vec3(0.0, 0.01, 0.0)).norm(), 0.0, 1e-12);
   // K_i: the integral of a constant error e over n steps of dt adds K_i dt (n dt) e, bounded.
   control::ControllerOptions gi = pd_terms(0.0, 2.0, 0.0);
@@ -54,7 +48,7 @@ TEST(DirectionPd, TheLeadEntersOnceAndIsNotTakenBackAtOnce) {
   control::DirectionPd pi;
   const Vec3 e(0.0, 0.02, 0.0);
   for (int n = 1; n <= 5; ++n) {
-    x = pi.correction(dir(0.0), dir(0.02), dir(0.02), 0.01, gi);
+    x = pi.correction(dir(0.0), dir(0.02), 0.01, gi);
     EXPECT_NEAR((x - gi.ki * 0.01 * (n * 0.01) * e).norm(), 0.0, 1e-12) << n;
   }
 }
@@ -73,21 +67,21 @@ TEST(DirectionPd, TheIntegralIsWeightedByTheReferenceSpeedAndLeaksWhenItStops) {
   const double dt = 0.01, e = 0.02;
   // Still: no integral at all.
   control::DirectionPd still;
-  for (int n = 0; n < 5; ++n) EXPECT_EQ(still.correction(dir(0.0), dir(e), dir(e), dt, g).norm(), 0.0) << n;
+  for (int n = 0; n < 5; ++n) EXPECT_EQ(still.correction(dir(0.0), dir(e), dt, g).norm(), 0.0) << n;
   // Moving at 0.3 rad/s (w = 0.9), the tip e behind: after the priming step, K_i dt Σ w e dt.
   control::DirectionPd moving;
-  moving.correction(dir(-e), dir(0.0), dir(0.0), dt, g);  // primes (v unknown: 0)
+  moving.correction(dir(-e), dir(0.0), dt, g);  // primes (v unknown: 0)
   Vec3 x;
   for (int n = 1; n <= 5; ++n) {
     const double a = 0.3 * dt * n;
-    x = moving.correction(dir(a - e), dir(a), dir(a), dt, g);
+    x = moving.correction(dir(a - e), dir(a), dt, g);
     EXPECT_NEAR(x.y(), g.ki * dt * (n * dt * 0.9 * e), 1e-9) << n;
   }
   // It stops: with K_p the integral leaks by (1 − K_p dt) per step (and K_p's own term adds K_p dt e).
   g.kp = 3.0;
   const double before = x.y() / (g.ki * dt);
   const double a = 0.3 * dt * 5;
-  x = moving.correction(dir(a - e), dir(a), dir(a), dt, g);
+  x = moving.correction(dir(a - e), dir(a), dt, g);
   EXPECT_NEAR(x.y(), g.kp * dt * e + g.ki * dt * before * (1.0 - g.kp * dt), 1e-9);
 }
 
@@ -100,19 +94,19 @@ TEST(DirectionPd, AHeldCycleCountsInTheReferenceSpeed) {
   const double dt = 0.01, v = 0.2;
   control::DirectionPd pd;
   pd.skip(dt);  // before the first correction: nothing to carry
-  pd.correction(dir(0.0), dir(0.0), dir(0.0), dt, g);
-  pd.correction(dir(v * dt), dir(v * dt), dir(v * dt), dt, g);
+  pd.correction(dir(0.0), dir(0.0), dt, g);
+  pd.correction(dir(v * dt), dir(v * dt), dt, g);
   EXPECT_NEAR(pd.speed(), v, 1e-9);
   pd.skip(dt);  // the held cycle; x_des moved on by v dt
-  const Vec3 x = pd.correction(dir(3 * v * dt), dir(3 * v * dt), dir(3 * v * dt), dt, g);
+  const Vec3 x = pd.correction(dir(3 * v * dt), dir(3 * v * dt), dt, g);
   EXPECT_NEAR(pd.speed(), v, 1e-9);
   EXPECT_NEAR(x.y(), 2 * v * dt, 1e-12);
-  pd.correction(dir(4 * v * dt), dir(4 * v * dt), dir(4 * v * dt), dt, g);  // the skip is spent
+  pd.correction(dir(4 * v * dt), dir(4 * v * dt), dt, g);  // the skip is spent
   EXPECT_NEAR(pd.speed(), v, 1e-9);
   pd.reset();
   pd.skip(dt);
-  pd.correction(dir(0.0), dir(0.0), dir(0.0), dt, g);
-  pd.correction(dir(v * dt), dir(v * dt), dir(v * dt), dt, g);
+  pd.correction(dir(0.0), dir(0.0), dt, g);
+  pd.correction(dir(v * dt), dir(v * dt), dt, g);
   EXPECT_NEAR(pd.speed(), v, 1e-9);
 }
 

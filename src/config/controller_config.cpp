@@ -41,12 +41,9 @@ void read_controller_options(Tree& p, control::ControllerOptions& c) {
       {"gains/ki", "ki", &c.ki},
       {"gains/max_integral", "max_integral", &c.max_integral},
       {"gains/feedforward", "feedforward", &c.feedforward},
-      {"gains/lead_time", "lead_time", &c.lead_time},
-      {"observer/time_constant", "observer_time_constant", &c.observer_time_constant},
       {"gains/damping", "damping", &c.damping},
       {"limits/max_force", "max_force", &c.max_force},
       {"limits/max_force_rate", "max_force_rate", &c.max_force_rate},
-      {"limits/min_jet_force", "min_jet_force", &c.min_jet_force},
       {"limits/max_common_force_rate", "max_common_force_rate", &c.max_common_force_rate},
       {"fast_path_rate", "fast_path_rate", &c.fast_path_rate},
       {"limits/max_angular_rate", "max_angular_rate", &c.max_angular_rate},
@@ -69,10 +66,10 @@ void read_controller_options(Tree& p, control::ControllerOptions& c) {
       {"path/duration", "path.duration", &c.path.duration},
       {"modal/kp", "modal.kp", &c.modal.kp},
       {"modal/ki", "modal.ki", &c.modal.ki},
+      {"modal/gain_speed", "modal.gain_speed", &c.modal.gain_speed},
       {"modal/damping_gain", "modal.damping_gain", &c.modal.damping_gain},
       {"modal/tip_mass_scale", "modal.tip_mass_scale", &c.modal.tip_mass_scale},
       {"modal/damping_time", "modal.damping_time", &c.modal.damping_time},
-      {"modal/actuator_lag", "modal.actuator_lag", &c.modal.actuator_lag},
       {"modal/tracker_sigma", "modal.tracker_sigma", &c.modal.tracker_sigma},
       {"modal/velocity_noise", "modal.velocity_noise", &c.modal.velocity_noise},
       {"modal/disturbance_noise", "modal.disturbance_noise", &c.modal.disturbance_noise},
@@ -88,8 +85,6 @@ void read_controller_options(Tree& p, control::ControllerOptions& c) {
     c.control_law = control::ControlLaw::kModal;
   else
     p.fail("control_law", "must be 'papers' or 'modal', got '" + law + "'");
-  c.observer = p.boolean("observer/enabled", c.observer);
-  c.observer_prediction = p.boolean("observer/prediction", c.observer_prediction);
   const std::string type = p.text("path/type", control::to_string(c.path_type));
   if (type == "spiral")
     c.path_type = control::PathType::kSpiral;

@@ -55,7 +55,6 @@ void Controller::start(double t) {
   t_start_ = t;
   t_last_ = t;
   first_cycle_ = true;
-  observer_.reset();
   modal_.reset();
   shaping_primed_ = false;
   omega_ = 0.0;
@@ -141,27 +140,14 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   if (std::string why = monitor_.check_solver(sol); !why.empty()) return abort(out, why);
   if (!sol.converged) return hold(out, in.flows, dt);
   out.model_tip_rotation = sol.tip_rotation;
-  ActuatedModel::Linearisation lin = model_.linearise();  // C^b (eq. 14) and J_q of line 6
+  const ActuatedModel::Linearisation lin = model_.linearise();  // C^b (eq. 14) and J_q of line 6
   if (std::string why = check_stability(lin, out); !why.empty()) return abort(out, why);
-  observe_model_error(in, sol, lin, dt);
 
-  // With the observer's prediction the loop closes on the corrected model at the commanded inputs
-  // (checked for stability as the measured point is); if that solve fails, on the tracker this cycle.
-  rod::RodSolution control = sol;
-  predicted_ = false;
-  if (predicting()) {
-    const rod::RodSolution predicted = solve_model(previous_command_);
-    const ActuatedModel::Linearisation at = predicted.converged ? model_.linearise() : lin;
-    if (predicted.converged && at.ok) {
-      if (std::string why = check_stability(at, out); !why.empty()) return abort(out, why);
-      control = predicted, lin = at, predicted_ = true;
-    }
-  }
-  track_reference(in, control, dt, out);
-  estimate_modes(in, sol, out.jet_force_observed, dt);
+  track_reference(in, sol, dt, out);
+  estimate_modes(in, sol, out.jet_force_observed);
   if (std::string why = monitor_.check_oscillation(out.error_geodesic); !why.empty()) return abort(out, why);
 
-  if (std::string why = command_inputs(control, lin, dt, out); !why.empty()) return abort(out, why);
+  if (std::string why = command_inputs(sol, lin, dt, out); !why.empty()) return abort(out, why);
   if (std::string why = actuate(in.flows, dt, out); !why.empty()) return abort(out, why);
   return finish_cycle(out);
 }
@@ -194,27 +180,7 @@ std::string Controller::observe_jets(const ControllerInputs& in, ControllerOutpu
 
 // Line 6: forward kinematics at the inputs q (eqs. 6, 9, 12, 14); C^b and J_q follow from
 // model_.linearise().
-rod::RodSolution Controller::solve_model(const InputVector& q) {
-  return params_.observer ? model_.solve(q, observer_.wrench()) : model_.solve(q);
-}
-
-// Closed loop with the observer, after the first cycle (the base of the prediction is then a command).
-bool Controller::predicting() const {
-  return params_.observer && params_.observer_prediction && params_.mode == LoopMode::kClosed && !first_cycle_;
-}
-
-// The disturbance observer compares the model at the measured inputs (with its estimate) with the
-// tracker, in closed loop.
-void Controller::observe_model_error(const ControllerInputs& in, const rod::RodSolution& sol,
-                                     const ActuatedModel::Linearisation& lin, double dt) {
-  if (!params_.observer || params_.mode != LoopMode::kClosed) return;
-  DisturbanceObserverOptions o;
-  o.time_constant = params_.observer_time_constant;
-  o.max_force = params_.max_force;
-  o.damping = params_.damping;
-  observer_.set_options(o);
-  observer_.update(sol.tip_rotation.col(2), in.tip_rotation.col(2), sol.tip_rotation, lin.body_compliance, dt);
-}
+rod::RodSolution Controller::solve_model(const InputVector& q) { return model_.solve(q); }
 
 // The solver did not converge (fewer times in a row than max_solver_failures): no new force this
 // cycle; the flow regulators keep the jets at the flows of the observed jet forces.
@@ -246,7 +212,7 @@ void Controller::track_reference(const ControllerInputs& in, const rod::RodSolut
   const bool closed = params_.mode == LoopMode::kClosed;
   const Mat3 tip_frame = closed ? in.tip_rotation : sol.tip_rotation;  // the camera's axes for rate sources
   out.measured_direction = in.tip_rotation.col(2).normalized();
-  out.observed_direction = closed && !predicted_ ? out.measured_direction : Vec3(sol.tip_rotation.col(2));
+  out.observed_direction = closed ? out.measured_direction : Vec3(sol.tip_rotation.col(2));
   if (first_cycle_) {
     reference_.start(out.observed_direction, t_start_);
     approach_.reset();
@@ -287,9 +253,11 @@ void Controller::approach(double t, ControllerOutput& out) {
 // The modal law's estimator (closed loop): the first mode at this equilibrium (with the capsule's
 // expected fill), then one filter step with the model's direction at the last measured inputs and the
 // tracker's direction.
-void Controller::estimate_modes(const ControllerInputs& in, const rod::RodSolution& sol, const InputVector& q_obs,
-                                double dt) {
-  if (params_.control_law != ControlLaw::kModal || params_.mode != LoopMode::kClosed) return;
+void Controller::estimate_modes(const ControllerInputs& in, const rod::RodSolution& sol, const InputVector& q_obs) {
+  if (params_.control_law != ControlLaw::kModal || params_.mode != LoopMode::kClosed) {
+    modal_.reset();  // starts afresh when the loop closes again
+    return;
+  }
   ModalOptions mo;
   mo.tip_mass_scale = params_.modal.tip_mass_scale;
   const ModalModel modes = lateral_modes(model_.solver(), q_obs, rod::TipWrench(), mo);
@@ -299,9 +267,10 @@ void Controller::estimate_modes(const ControllerInputs& in, const rod::RodSoluti
   const Vec3 z = in.tip_rotation.col(2).normalized();
   if (!modal_.initialised())
     modal_.start(z, s, omega_, params_.modal);
-  else
-    modal_.step(modal_input_, z, omega_, 0.5 * omega_ * params_.modal.damping_time, dt, params_.modal);
+  else  // over the time since its last step (a held cycle, a solve that failed, is skipped)
+    modal_.step(modal_input_, z, omega_, 0.5 * omega_ * params_.modal.damping_time, in.t - modal_time_, params_.modal);
   modal_input_ = s;
+  modal_time_ = in.t;
 }
 
 // The modal law drives a path whose clock runs, in closed loop, once its estimator has started.
@@ -310,10 +279,15 @@ bool Controller::modal_drives() const {
          reference_.on_path();
 }
 
-// The PD's gains: the modal law's own while it drives.
+// The PD's gains: while the modal law drives, from gains/* toward modal/* with the weight of the
+// reference's speed (modal/gain_speed).
 ControllerOptions Controller::law_gains() const {
   ControllerOptions gains = params_;
-  if (modal_drives()) gains.kp = params_.modal.kp, gains.ki = params_.modal.ki;
+  if (modal_drives()) {
+    const double w = fast_path_weight(pd_.speed(), params_.modal.gain_speed);
+    gains.kp = params_.kp + w * (params_.modal.kp - params_.kp);
+    gains.ki = params_.ki + w * (params_.modal.ki - params_.ki);
+  }
   return gains;
 }
 
@@ -331,7 +305,10 @@ Vec3 Controller::shaping_step(const rod::RodSolution& sol, const ControllerOutpu
   r.rate = (c - a) / (2 * h);
   r.accel = (c - 2 * b + a) / (h * h);
   r.rate_now = (a - out.desired_direction) / h;
-  const Vec3 m = modal_shaping(r, modal_.rate(), omega_, 0.5 * omega_ * params_.modal.damping_time, params_.modal);
+  // Weighted by the path's speed as the other fast-path elements (fast_path_rate): a slow path (the
+  // paper's 600 s spiral) gets nearly the paper's law, without the estimated rate's noise.
+  const Vec3 m = fast_path_weight(pd_.speed(), params_.fast_path_rate) *
+                 modal_shaping(r, modal_.rate(), omega_, 0.5 * omega_ * params_.modal.damping_time, params_.modal);
   const Vec3 step = shaping_primed_ ? Vec3(Vec3(sol.tip_rotation.col(2)).cross(m - previous_shaping_)) : Vec3::Zero();
   previous_shaping_ = m;
   shaping_primed_ = true;
@@ -344,9 +321,8 @@ Vec3 Controller::shaping_step(const rod::RodSolution& sol, const ControllerOutpu
 // integrator (docs/controller.md).
 std::string Controller::command_inputs(const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin, double dt,
                                        ControllerOutput& out) {
-  const Vec3 ahead = reference_.preview(t_last_, params_.lead_time);
-  Vec3 x_cntr = pd_.correction(out.observed_direction, out.desired_direction, ahead, dt, law_gains());
-  x_cntr += shaping_step(sol, out);
+  const Vec3 x_cntr =
+      pd_.correction(out.observed_direction, out.desired_direction, dt, law_gains()) + shaping_step(sol, out);
   if (first_cycle_) previous_command_ = out.jet_force_observed;
   InputStepOptions o;
   o.damping = params_.damping;
@@ -355,28 +331,13 @@ std::string Controller::command_inputs(const rod::RodSolution& sol, const Actuat
   o.max_force = params_.max_force;
   o.length = model_.rod().length();
   const InputVector& base = params_.integrate_from_measured ? out.jet_force_observed : previous_command_;
-  const InputStep step = input_step(sol.tip_rotation, lin, x_cntr, base, running_lower(dt), model_.upper(), o);
+  const InputStep step = input_step(sol.tip_rotation, lin, x_cntr, base, model_.lower(), model_.upper(), o);
   if (!step.ok) return step.message;
   previous_command_ = step.q;
   out.jet_force_command = round_corners(step.q, lin, dt);
   out.force_reachable = step.bound_cost <= params_.unreachable_tolerance;
   out.wrench_command = model_.tip_wrench(out.jet_force_command);
   return "";
-}
-
-// The inputs' lower bounds while running: each jet idles at w min_jet_force (at most half its q_max),
-// w the fast-path weight of the reference's speed. The idle force moves no faster than the tip force
-// may (limits/max_force_rate): a jet raised to it is a tip-force step that input_step's rate limit
-// does not see (it clamps the base into the bounds first).
-InputVector Controller::running_lower(double dt) {
-  const double target = params_.min_jet_force * fast_path_weight(pd_.speed(), params_.fast_path_rate);
-  const double step = params_.max_force_rate * dt;
-  idle_force_ = std::clamp(target, idle_force_ - step, idle_force_ + step);
-  InputVector lower = model_.lower();
-  if (idle_force_ > 0.0)
-    for (int i = 0; i < jets_.input_count(); ++i)
-      if (jets_.is_jet(i)) lower[i] = std::max(lower[i], std::min(idle_force_, 0.5 * model_.upper()[i]));
-  return lower;
 }
 
 // allocation_smoothing: the step's inputs with their corners rounded along the jets' common
@@ -404,7 +365,7 @@ InputVector Controller::round_corners(const InputVector& q, const ActuatedModel:
     }
   }
   if (common_mode_.size() != q.size()) return q;  // never rounded
-  const AllocationRounding r = round_allocation(q, running_lower(0.0), common_mode_, scale);
+  const AllocationRounding r = round_allocation(q, model_.lower(), common_mode_, scale);
   const double target = fresh ? (r.amount - r.excess) * fast_path_weight(pd_.speed(), params_.fast_path_rate) : 0.0;
   // The bounds along the mode: down to the least common mode; up to the first jet at q_max on a
   // path, at the operator reserve (reachable_force_fraction q_max) for any other source, as the
@@ -438,14 +399,13 @@ ControllerOutput Controller::finish_cycle(ControllerOutput out) {
   return out;
 }
 
-// The actuation as at rest: no previous command; flow regulators, the jets' idle force and rounding at zero
+// The actuation as at rest: no previous command; flow regulators and rounding at zero
 // (start, stop, abort).
 void Controller::reset_actuation() {
   common_force_ = 0.0;
   common_mode_.resize(0);
   previous_command_ = jets_.zeros();
   jets_.reset();
-  idle_force_ = 0.0;
 }
 
 // Stops the jets and latches the reason until the next start().

@@ -51,12 +51,6 @@ std::string ControllerOptions::validate() const {
     return bad("max_integral", max_integral, "must lie in [0, 10] rad s");
   if (!(fast_path_rate >= 0.0 && fast_path_rate <= 10.0))
     return bad("fast_path_rate", fast_path_rate, "must lie in [0, 10] rad/s");
-  if (!(lead_time >= 0.0 && lead_time <= 1.0)) return bad("lead_time", lead_time, "must lie in [0, 1] s");
-  if (!(min_jet_force >= 0.0 && min_jet_force <= 1.0))
-    return bad("min_jet_force", min_jet_force, "must lie in [0, 1] N");
-  if (observer_prediction && !observer) return bad("observer_prediction", 1.0, "needs observer (observer/enabled)");
-  if (!(observer_time_constant >= 0.01 && observer_time_constant <= 100.0))
-    return bad("observer_time_constant", observer_time_constant, "must lie in [0.01, 100] s");
   if (!finite_pos(max_angular_rate)) return bad("max_angular_rate", max_angular_rate, "must be finite and > 0");
   if (!(reachable_force_fraction > 0.0 && reachable_force_fraction <= 1.0))
     return bad("reachable_force_fraction", reachable_force_fraction, "must lie in (0, 1]");

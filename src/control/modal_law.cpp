@@ -14,10 +14,10 @@ std::string ModalLawOptions::validate() const {
   } ranges[] = {
       {"modal.kp", kp, 0.0, 50.0},
       {"modal.ki", ki, 0.0, 100.0},
+      {"modal.gain_speed", gain_speed, 0.0, 10.0},
       {"modal.damping_gain", damping_gain, 0.0, 10.0},
       {"modal.tip_mass_scale", tip_mass_scale, 0.1, 100.0},
       {"modal.damping_time", damping_time, 0.0, 1.0},
-      {"modal.actuator_lag", actuator_lag, 0.0, 1.0},
       {"modal.tracker_sigma", tracker_sigma, 1e-6, 1.0},
       {"modal.velocity_noise", velocity_noise, 1e-6, 1e3},
       {"modal.disturbance_noise", disturbance_noise, 1e-6, 1e3},
@@ -70,8 +70,7 @@ void ModalEstimator::step(const Vec3& s, const Vec3& z, double omega, double zet
 
 Vec3 modal_shaping(const ReferenceMotion& r, const Vec3& estimated_rate, double omega, double zeta,
                    const ModalLawOptions& o) {
-  const double lag = o.actuator_lag;
-  return (2.0 * zeta / omega + lag) * r.rate + (1.0 / (omega * omega) + 2.0 * zeta * lag / omega) * r.accel -
+  return (2.0 * zeta / omega) * r.rate + r.accel / (omega * omega) -
          o.damping_gain * (estimated_rate - r.rate_now) / omega;
 }
 

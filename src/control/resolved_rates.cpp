@@ -19,14 +19,11 @@ double fast_path_weight(double rate, double min_rate) {
   return std::isfinite(v2) ? v2 / (v2 + min_rate * min_rate) : 1.0;
 }
 
-Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, const Vec3& ahead, double dt,
-                             const ControllerOptions& gains) {
+Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, double dt, const ControllerOptions& gains) {
   const Vec3 err = rotation_between(observed, desired);  // x_err of eq. (17)
-  const bool lead = ahead != desired;                    // Reference::preview returns x_des itself without a lead
   if (!primed_) {
     prev_error_ = err;
-    prev_desired_ = prev_ahead_ = desired;
-    prev_lead_ = false;
+    prev_desired_ = desired;
     integral_.setZero();
     primed_ = true;
   }
@@ -42,16 +39,10 @@ Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, const Ve
     integral_ += dt * w * err - std::min(1.0, dt * (1.0 - w) * gains.kp) * integral_;
     if (integral_.norm() > gains.max_integral) integral_ *= gains.max_integral / integral_.norm();
   }
-  // The path's motion over the step: ahead of it while the lead is on (and was), else x_des's own.
-  // The lead itself enters once, when it starts (∠(x_des → x_ff) on that step); when it ends (the
-  // path is cut off or done), it is not taken back in one step: the feedback removes it.
-  const Vec3 motion = lead ? rotation_between(prev_lead_ ? prev_ahead_ : prev_desired_, ahead) : own_motion;
   const Vec3 x_cntr =
-      gains.kp * dt * err + gains.ki * dt * integral_ + gains.kd * (err - prev_error_) + gains.feedforward * motion;
+      gains.kp * dt * err + gains.ki * dt * integral_ + gains.kd * (err - prev_error_) + gains.feedforward * own_motion;
   prev_error_ = err;
   prev_desired_ = desired;
-  prev_ahead_ = ahead;
-  prev_lead_ = lead;
   return x_cntr;
 }
 

@@ -68,6 +68,17 @@ void summarise(RunResult& r) {
   r.max = *std::max_element(e.begin(), e.end());
 }
 
+/// The jets' mean total flow over the samples by eq. (26) [m^3/s].
+double water_flow(const control::RobotModel& model, const std::vector<RunSample>& samples) {
+  if (samples.empty()) return 0.0;
+  double sum = 0.0;
+  for (const RunSample& s : samples)
+    for (int i = 0; i < s.jet_force.size(); ++i)
+      if (model.rod.actuators[i].type == rod::ActuatorType::kJet)
+        sum += actuation::flow_from_force(std::max(s.jet_force[i], 0.0), model.nozzle);
+  return sum / samples.size();
+}
+
 }  // namespace
 
 const char* to_string(RunStart s) { return s == RunStart::kRest ? "rest" : "on-path"; }
@@ -122,6 +133,7 @@ RunResult run_path(const control::RobotModel& model, const control::ControllerOp
   }
   if (!r.completed && r.reason.empty()) r.reason = "the run's time bound passed before the path ended";
   summarise(r);
+  r.water_flow = water_flow(model, r.samples);
   r.simulated_seconds = r.samples.empty() ? 0.0 : r.samples.back().t + (path_start >= 0 ? path_start : 0.0);
   r.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   return r;

@@ -4,8 +4,9 @@
 // once; --start on-path approaches the path's first direction first and measures from its clock's
 // start. Prints a table like §7.5–7.7, writes CSV per run and a summary, and as its last line one
 // JSON object:
-//   {"runs": [{"mode", "tilt_deg", "seed", "rms_rad", "rms_true_rad", "start", "approach_time_s",
-//              "completed", "aborted_at_s"}, ...], "realtime_factor": r}
+//   {"runs": [{"mode", "tilt_deg", "seed", "rms_rad", "rms_true_rad", "water_ml_per_min", "start",
+//              "approach_time_s", "completed", "aborted_at_s"}, ...], "realtime_factor": r}
+// water_ml_per_min: the jets' mean total flow by eq. (26) on the plant's jet forces.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -245,7 +246,7 @@ std::string write_results(const std::vector<Job>& jobs, const std::string& out, 
     wall_s += r.wall_seconds;
     util::JsonObject o;
     o.add("mode", control::to_string(job.mode)).add("tilt_deg", job.tilt_deg).add("seed", static_cast<int>(job.seed));
-    o.add("rms_rad", r.rms).add("rms_true_rad", r.rms_true);
+    o.add("rms_rad", r.rms).add("rms_true_rad", r.rms_true).add("water_ml_per_min", r.water_flow * 6e7);
     o.add("start", sim::to_string(r.start)).add("approach_time_s", r.approach_time);
     o.add("completed", r.completed);
     if (r.aborted_at >= 0)

@@ -1,5 +1,5 @@
 // Controller options (config/controller.yaml, controller_node's private parameters): gains, limits,
-// safety, path, flow regulator, observer, teleop. Contract (config/controller_config.h): a YAML
+// safety, path, flow regulator, modal law, teleop. Contract (config/controller_config.h): a YAML
 // syntax error is the loader's (YAML::Exception, turned into ParamError by
 // load_controller_options); parse_controller_options() fails only with ParamError naming the key;
 // accepted options validate.

@@ -4,9 +4,10 @@
 //   time and sensor checks (SafetyMonitor) → observe_jets (Algorithm 1, line 4) → solve_model
 //   (line 6: equilibrium, C^b and the actuation Jacobian J_q, ActuatedModel) → solver and stability
 //   checks → track_reference (x_des from the Reference: the operator's source, rate-limited and
-//   clipped to the reachable set; x_obs) → oscillation check → command_inputs (lines 5, 7, 9/12:
-//   DirectionPd, then input_step: eq. 19 on J_q and eq. 20's bounds in one box QP, rate and magnitude
-//   limits) → actuate (eq. 26, flow regulators: JetActuation) → finish_cycle.
+//   clipped to the reachable set; x_obs) → estimate_modes (the modal law's first mode and Kalman
+//   filter, modal_law.h) → oscillation check → command_inputs (lines 5, 7, 9/12: DirectionPd, plus the
+//   modal law's shaping on a path, then input_step: eq. 19 on J_q and eq. 20's bounds in one box QP,
+//   rate and magnitude limits) → actuate (eq. 26, flow regulators: JetActuation) → finish_cycle.
 // Any follower-actuated robot (segments, point loads, N actuators anywhere); the HydroJet's results are
 // those of the tip-force formulation (resolved_rates.h).
 // ROS-free (Eigen, the rod and actuation libraries). Time is passed in; nothing reads a clock.
@@ -19,7 +20,6 @@
 #include "hydrojet_control/control/approach.h"
 #include "hydrojet_control/control/controller_io.h"
 #include "hydrojet_control/control/controller_options.h"
-#include "hydrojet_control/control/disturbance_observer.h"
 #include "hydrojet_control/control/jet_actuation.h"
 #include "hydrojet_control/control/modal_law.h"
 #include "hydrojet_control/control/reachable_set.h"
@@ -85,9 +85,6 @@ class Controller {
   /// Backbone of the model at the last converged solve: segments+1 points [m], base frame.
   std::vector<Vec3> model_shape(int segments) const { return model_.shape(segments); }
 
-  /// The disturbance observer's estimate of the model error (zero when it is off).
-  const DisturbanceObserver& observer() const { return observer_; }
-
   /// The model's forward kinematics at inputs q [N] (for open-loop prediction and tests).
   rod::RodSolution model_fk(const InputVector& q);
 
@@ -96,22 +93,18 @@ class Controller {
   ControllerOutput resting_output() const;
   std::string observe_jets(const ControllerInputs& in, ControllerOutput& out) const;
   rod::RodSolution solve_model(const InputVector& q);
-  bool predicting() const;
-  void observe_model_error(const ControllerInputs& in, const rod::RodSolution& sol,
-                           const ActuatedModel::Linearisation& lin, double dt);
   ControllerOutput hold(ControllerOutput out, const InputVector& flows, double dt);
   std::string check_stability(const ActuatedModel::Linearisation& lin, ControllerOutput& out) const;
   void start_configured_path(double t);
   void commanded();
   void track_reference(const ControllerInputs& in, const rod::RodSolution& sol, double dt, ControllerOutput& out);
   void approach(double t, ControllerOutput& out);
-  void estimate_modes(const ControllerInputs& in, const rod::RodSolution& sol, const InputVector& q_obs, double dt);
+  void estimate_modes(const ControllerInputs& in, const rod::RodSolution& sol, const InputVector& q_obs);
   bool modal_drives() const;
   ControllerOptions law_gains() const;
   Vec3 shaping_step(const rod::RodSolution& sol, const ControllerOutput& out);
   std::string command_inputs(const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin, double dt,
                              ControllerOutput& out);
-  InputVector running_lower(double dt);
   InputVector round_corners(const InputVector& q, const ActuatedModel::Linearisation& lin, double dt);
   std::string actuate(const InputVector& flows, double dt, ControllerOutput& out);
   ControllerOutput finish_cycle(ControllerOutput out);
@@ -123,17 +116,15 @@ class Controller {
   JetActuation jets_;
   SafetyMonitor monitor_;
   DirectionPd pd_;
-  DisturbanceObserver observer_;
   ModalEstimator modal_;                  ///< the modal law's state estimate (closed loop)
   Vec3 modal_input_ = Vec3::UnitZ();      ///< s: the model's direction at the last measured inputs
+  double modal_time_ = 0.0;               ///< [s] of the estimator's last step
   bool shaping_primed_ = false;           ///< previous_shaping_ holds the last step's m
   Vec3 previous_shaping_ = Vec3::Zero();  ///< the modal law's m at the last step (modal_shaping)
   double omega_ = 0.0;                    ///< the first mode at the current equilibrium [rad/s] (0: none yet)
-  bool predicted_ = false;                ///< this cycle closes on the observer's prediction (observer_prediction)
   InputVector previous_command_;  ///< the last step's inputs [N], before the rounding (the base of the next step)
   double common_force_ = 0.0;     ///< a: the rounding's offset along common_mode_ now [N] (round_corners)
   InputVector common_mode_;       ///< the jets' common mode last found (empty: none yet)
-  double idle_force_ = 0.0;       ///< the jets' idle force now [N] (running_lower; limits/min_jet_force)
   std::shared_ptr<const ReachableSet> path_reachable_;  ///< full q_max: path points
   std::shared_ptr<const ReachableSet> reachable_;       ///< with reserve: operator targets
   Reference reference_;

@@ -39,33 +39,12 @@ struct ControllerOptions {
   /// ramp error becomes (1 − gain ratio)·v / (K_p + K_i w / ((1 − w) K_p)), 7× smaller than K_p's
   /// alone at 0.3 rad/s with the defaults, 1.7× at 0.1 rad/s; fast_path_rate 0 gives type 2.
   double ki = 6.0;
-  double max_integral = 0.1;  ///< |∫x_err dt| is kept below this [rad s] (anti-windup)
-  double feedforward = 1.0;   ///< weight of the path's own motion per step [-] (0 = pure PD)
-  /// The feedforward follows the path this far ahead [s]: the loop's lag (flow loop, the rod's
-  /// first mode) that a fast path would otherwise leave as error. 0: no lead.
-  double lead_time = 0.0;
-  /// The disturbance observer (disturbance_observer.h) in closed loop: the model is
-  /// loaded with its estimate of the model error as a tip force (so J_q and C^b are taken nearer the
-  /// plant's equilibrium). observer_time_constant: τ [s] of the estimate.
-  bool observer = false;
-  double observer_time_constant = 0.25;
-  /// With the observer: the loop closes on the corrected model's direction at the commanded inputs
-  /// (where the plant will settle) instead of the tracker's, which lags it (flow loop, rod dynamics,
-  /// tracker latency); the tracker enters through the observer.
-  bool observer_prediction = false;
+  double max_integral = 0.1;    ///< |∫x_err dt| is kept below this [rad s] (anti-windup)
+  double feedforward = 1.0;     ///< weight of the path's own motion per step [-] (0 = pure PD)
   double damping = 0.02;        ///< μ of the damped pseudo-inverse of eq. (19) [rad/N]
   double max_force = 0.30;      ///< magnitude limit of the commanded tip force [N]
   double max_force_rate = 1.0;  ///< rate limit of the commanded tip force [N/s]
-  /// While the reference moves, each jet's force is at least w · min_jet_force [N] (w: fast_path_rate;
-  /// force actuators: unaffected; at most half a jet's q_max). The jets idle instead of closing, so
-  /// that their flows do not cross the valves' dead zone, nor the thrust law's √ at zero, each time the
-  /// tip force turns past a jet: on a fast path every such switch kicked the first bending mode.
-  /// Held still, the jets close as before (no water spent on idling). 0: jets close.
-  /// The idle force rises and falls at most at max_force_rate; the jets' common force can take the
-  /// command's magnitude up to about min_jet_force over max_force, and path points on the edge of the
-  /// reachable set (swept without idling) out of reach by as much.
-  double min_jet_force = 0.005;
-  /// v₀ [rad/s] of the fast-path elements: K_i, min_jet_force and allocation_smoothing act with the weight
+  /// v₀ [rad/s] of the fast-path elements: K_i and allocation_smoothing act with the weight
   /// w = v²/(v² + v₀²) of the reference's speed v (fast_path_weight()); the integral leaks at
   /// (1 − w) K_p. A moving path (the ramp the integral is for) gets them nearly whole; a slow one (the
   /// paper's 600 s spiral, w ≤ 0.04) nearly the paper's law, without the integral's hunting through

@@ -10,11 +10,14 @@
 // equilibrium with the capsule's expected fill; ζ = ω τ_kv / 2 (Kelvin–Voigt damping).
 //
 // Law. The paper's PD on the tracker (eq. 17, with its own gains: DirectionPd) plus the change,
-// step to step, of a direction the forces should add quasi-statically,
-//   m = (2ζ/ω) ṙ + r̈/ω² − k_v (v̂ − ṙ)/ω,
+// step to step, of a direction the forces should add quasi-statically, w·m with
+//   m = (2ζ/ω) ṙ + r̈/ω² − k_v (v̂ − ṙ)/ω
+// and w the fast-path weight of the path's speed (fast_path_rate: a slow path gets the paper's law),
 // r the path ahead (its preview): the first two terms invert the mode for the path's own motion
 // (the feedforward of a second-order plant), the last damps the mode on the estimated rate. Damped,
-// the mode lets the PD's gains rise (K_p 4.5, K_i 12: they ring the undamped rod). ROS-free (Eigen).
+// the mode lets the PD's gains rise with the path's speed (to K_p 5, K_i 12: they ring the undamped
+// rod; a slow path keeps the paper's gains, which let less of the tracker's noise through). ROS-free
+// (Eigen).
 #pragma once
 
 #include <Eigen/Core>
@@ -26,12 +29,14 @@ namespace hydrojet {
 namespace control {
 
 struct ModalLawOptions {
-  double kp = 4.5;                 ///< K_p of the PD under the modal law [1/s]
-  double ki = 12.0;                ///< K_i of the PD under the modal law [1/s²]
+  double kp = 5.0;   ///< K_p of the PD under the modal law [1/s]
+  double ki = 12.0;  ///< K_i of the PD under the modal law [1/s²]
+  /// v_s [rad/s]: the PD's gains move from the paper's law's (gains/*) to kp, ki with the weight
+  /// v²/(v² + v_s²) of the reference's speed v (fast_path_weight); 0: kp, ki at every speed.
+  double gain_speed = 0.25;
   double damping_gain = 0.3;       ///< k_v: feedback on ṙ − v̂, per ω [-]
   double tip_mass_scale = 3.0;     ///< the capsule's expected mass over the scene's (water fills it) [-]
   double damping_time = 0.02;      ///< τ_kv the law assumes: ζ = ω τ / 2 [s]
-  double actuator_lag = 0.0;       ///< τ_a: the flow loop's lag the shaping leads the path by [s]
   double tracker_sigma = 0.0075;   ///< tracker noise per direction component [-]
   double velocity_noise = 0.5;     ///< process noise on v̇ [1/s^1.5] (unmodelled forces)
   double disturbance_noise = 0.1;  ///< random walk of d [1/√s] (the model error moves with the path)
@@ -75,8 +80,7 @@ struct ReferenceMotion {
   Vec3 rate_now = Vec3::Zero();  ///< ṙ now [1/s]
 };
 
-/// m = (2ζ/ω + τ_a) ṙ + (1/ω² + 2ζτ_a/ω) r̈ − k_v (v̂ − ṙ_now)/ω: the direction the forces add to the
-/// PD's (see above; τ_a inverts a first-order actuator lag besides the mode).
+/// m = (2ζ/ω) ṙ + r̈/ω² − k_v (v̂ − ṙ_now)/ω: the direction the forces add to the PD's (see above).
 Vec3 modal_shaping(const ReferenceMotion& r, const Vec3& estimated_rate, double omega, double zeta,
                    const ModalLawOptions& o);
 

@@ -22,7 +22,7 @@ double fast_path_weight(double rate, double min_rate);
 /// error and desired direction for the derivative and feedforward terms.
 class DirectionPd {
  public:
-  /// Starts afresh: the next step has no derivative term; its feedforward is the lead alone.
+  /// Starts afresh: the next step has neither a derivative nor a feedforward term.
   void reset() {
     primed_ = false;
     speed_ = 0.0;
@@ -38,15 +38,11 @@ class DirectionPd {
 
   /// x_err is the rotation vector taking the observed tip direction onto the desired one (both
   /// unit, base frame); returns
-  ///   x_cntr = K_p dt x_err + K_i dt ∫w x_err dt + K_d (x_err − x_err,prev) + k_ff ∠(x_ff,prev → x_ff)   [rad],
+  ///   x_cntr = K_p dt x_err + K_i dt ∫w x_err dt + K_d (x_err − x_err,prev) + k_ff ∠(x_des,prev → x_des)   [rad],
   /// the rotation (base frame) the tip direction should make this step. dt [s]. w: fast_path_weight()
-  /// of x_des's speed; the integral leaks at (1 − w) K_p. x_ff is the
-  /// reference `lead_time` ahead (Reference::preview; x_des itself without a lead): the feedforward
-  /// moves the inputs by the path's motion that far ahead, so that the loop's lag (valves, rod) is
-  /// covered; the step on which the lead starts adds ∠(x_des → x_ff), the lead itself, and when it
-  /// ends (x_ff = x_des again) the feedforward is x_des's own motion (no step back).
-  Vec3 correction(const Vec3& observed, const Vec3& desired, const Vec3& ahead, double dt,
-                  const ControllerOptions& gains);
+  /// of x_des's speed; the integral leaks at (1 − w) K_p. The gains are `gains`' (the modal law passes
+  /// its own K_p and K_i).
+  Vec3 correction(const Vec3& observed, const Vec3& desired, double dt, const ControllerOptions& gains);
   /// The reference's speed over the last correction() [rad/s] (0 before the second).
   double speed() const { return speed_; }
 
@@ -54,8 +50,6 @@ class DirectionPd {
   bool primed_ = false;
   Vec3 prev_error_ = Vec3::Zero();
   Vec3 prev_desired_ = Vec3::UnitZ();
-  Vec3 prev_ahead_ = Vec3::UnitZ();
-  bool prev_lead_ = false;
   Vec3 integral_ = Vec3::Zero();  ///< ∫ w x_err dt [rad s]
   double speed_ = 0.0;            ///< x_des's speed over the last step [rad/s]
   double skipped_ = 0.0;          ///< time since the last correction, before this step [s] (skip)

@@ -60,11 +60,8 @@ class ActuatedModel {
   /// The solver (warm-started at the last solve): for models built about that equilibrium.
   const rod::RodSolver& solver() const { return solver_; }
 
-  /// The equilibrium at inputs q [N] (input_count() entries), the tip loaded besides with `extra`
-  /// (a follower wrench, tip frame: the disturbance observer's estimate).
-  rod::RodSolution solve(const InputVector& q, const rod::TipWrench& extra = rod::TipWrench()) {
-    return solver_.solve(q, extra);
-  }
+  /// The equilibrium at inputs q [N] (input_count() entries).
+  rod::RodSolution solve(const InputVector& q) { return solver_.solve(q, rod::TipWrench()); }
   /// C^b and J_q at the last converged solve (ok = false when there is none).
   Linearisation linearise();
   /// σ_c and eig_min of eq. (23) on the span of lin.wrenches (stability.h).

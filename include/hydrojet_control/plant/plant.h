@@ -44,7 +44,7 @@ struct PlantModel {
   /// Force actuators (type force): first-order lag of the force behind its drive [s].
   double thruster_time_constant = 0.02;
   /// An external follower wrench at the tip, tip frame [N] and [N m] (a disturbance: tissue contact,
-  /// a tether; the disturbance observer's test). Zero by default.
+  /// a tether). Zero by default.
   Eigen::Vector3d external_tip_force = Eigen::Vector3d::Zero();
   Eigen::Vector3d external_tip_moment = Eigen::Vector3d::Zero();
   double base_tilt = 0.0;  ///< base turned about its own x-axis [rad] (§7: 0 or 30°)

@@ -53,6 +53,9 @@ struct RunResult {
   double rms = 0.0, median = 0.0, q1 = 0.0, q3 = 0.0, max = 0.0;  ///< of error_geodesic [rad]
   double rms_pitch_yaw = 0.0;                                     ///< of the paper's metric [rad]
   double rms_true = 0.0;                                          ///< of error_true [rad]
+  /// The water the jets use: Σ_jets Q(q_i) by eq. (26) on the plant's jet forces, mean over the
+  /// recorded samples [m^3/s].
+  double water_flow = 0.0;
   RunStart start = RunStart::kRest;
   double approach_time = 0.0;  ///< [s] from the controller's start to the path clock's (0 for kRest)
   double wall_seconds = 0.0;
