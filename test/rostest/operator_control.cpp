@@ -150,15 +150,27 @@ Vector3d tilted(const Vector3d& d, double by) {
   return Eigen::AngleAxisd(by, d.cross(axis).normalized()) * d;
 }
 
-/// From simulated time t [s] on the source is hold: the reference stays put and the tip drifts by
-/// ≤ 0.02 rad over 3 s.
+/// The tip, held from simulated time t [s] on `held`: it settles on it (mean over the last 0.3 s of
+/// 3 s within 0.02 rad) and does not wander once settled (≤ 0.02 rad from 1 s to 3 s). The first
+/// second is the loop's settling, 3/K_p: a hold that begins while the tip still lags a reference that
+/// moved finishes that motion first (≈ v/K_p, 0.015 rad at 0.1 rad/s), which is not drift.
+void expect_settles_and_holds(Graph& g, const Vector3d& held, double t) {
+  ASSERT_TRUE(g.wait_until(t + 3.0));
+  const double error = angle(held, g.mean_measured(t + 2.7, t + 3.0));
+  const double drift = angle(g.mean_measured(t + 1.0, t + 1.3), g.mean_measured(t + 2.7, t + 3.0));
+  std::printf("held from %.2f s: error %.4f rad after 3 s, drift %.4f rad from 1 s to 3 s\n", t, error, drift);
+  EXPECT_LE(error, 0.02) << "error";
+  EXPECT_LE(drift, 0.02) << "drift";
+}
+
+/// From simulated time t [s] on the source is hold: the reference stays put and the tip settles on
+/// it and holds (expect_settles_and_holds).
 void expect_holds_from(Graph& g, double t) {
   ASSERT_TRUE(g.wait_until(t));
   EXPECT_EQ(g.last().source, "hold");
   const Vector3d held = vec(g.last().desired_direction);
-  ASSERT_TRUE(g.wait_until(t + 3.0));
+  expect_settles_and_holds(g, held, t);
   EXPECT_LE(angle(held, vec(g.last().desired_direction)), 1e-9);
-  EXPECT_LE(angle(g.mean_measured(t, t + 0.3), g.mean_measured(t + 2.7, t + 3.0)), 0.02) << "drift";
 }
 
 }  // namespace
@@ -226,8 +238,7 @@ void joy(Graph& g) {
     EXPECT_GT(moved.dot(wanted), 0.1) << "stick " << stick;  // 0.1 rad/s × 2 s = 0.2 rad commanded
     EXPECT_LT(std::abs(moved.dot(across)), 0.05) << "stick " << stick;
     EXPECT_EQ(g.last().source, "hold");
-    ASSERT_TRUE(g.wait_until(t1 + 3.0));
-    EXPECT_LE(angle(g.mean_measured(t1 - 0.3, t1), g.mean_measured(t1 + 2.7, t1 + 3.0)), 0.02) << "drift";
+    expect_settles_and_holds(g, vec(g.last().desired_direction), t1);
   }
   // Timeout: deadman and axis, then no message at all; the target holds 0.5 s later.
   g.send_joy_until(g.now() + 1.0, 1.0f, 0.0f, true);
