@@ -7,6 +7,7 @@
 #include <cmath>
 #include <random>
 
+#include "hydrojet_control/control/controller_options.h"
 #include "hydrojet_control/control/linear_quadratic.h"
 #include "hydrojet_control/control/modal_law.h"
 
@@ -147,9 +148,10 @@ TEST(ModalLaw, TheDampingGainOpposesTheEstimatedRateRelativeToThePath) {
   const Vec3 m = modal_shaping(r, Vec3(0.6, -0.1, 0), 20.0, 0.0, o);
   EXPECT_NEAR(m(0), -0.5 * 0.4 / 20.0, 1e-15);
   EXPECT_NEAR(m(1), 0.5 * 0.1 / 20.0, 1e-15);
-  EXPECT_TRUE(o.validate().empty());
-  o.damping_gain = -1;
-  EXPECT_NE(o.validate().find("modal.damping_gain"), std::string::npos);
+  hydrojet::control::ControllerOptions c;
+  EXPECT_TRUE(c.validate().empty());
+  c.modal.damping_gain = -1;
+  EXPECT_NE(c.validate().find("modal.damping_gain"), std::string::npos);
 }
 
 }  // namespace

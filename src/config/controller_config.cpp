@@ -11,6 +11,17 @@ namespace {
 /// Controller options are "a/b" paths; errors are ParamError naming them.
 using Tree = YamlTree<ParamError>;
 
+/// A key that names one of two choices, `first` or `second` (as their to_string names them): the one
+/// it names; anything else fails naming the key.
+template <typename Choice>
+Choice read_choice(Tree& p, const char* key, Choice current, Choice first, Choice second) {
+  const std::string name = p.text(key, control::to_string(current));
+  if (name == control::to_string(first)) return first;
+  if (name == control::to_string(second)) return second;
+  p.fail(key, std::string("must be '") + control::to_string(first) + "' or '" + control::to_string(second) +
+                  "', got '" + name + "'");
+}
+
 /// The node's own options: scene, rate, autostart, base_frame and the loop mode.
 void read_node_options(Tree& p, ControllerNodeOptions& o) {
   o.scene = p.text("scene", o.scene);
@@ -18,13 +29,7 @@ void read_node_options(Tree& p, ControllerNodeOptions& o) {
   if (!(o.rate >= 1.0 && o.rate <= 1000.0)) p.fail("rate", "must lie in [1, 1000] Hz");
   o.autostart = p.boolean("autostart", o.autostart);
   o.base_frame = p.text("base_frame", o.base_frame);
-  const std::string mode = p.text("mode", control::to_string(o.controller.mode));
-  if (mode == "closed")
-    o.controller.mode = control::LoopMode::kClosed;
-  else if (mode == "open")
-    o.controller.mode = control::LoopMode::kOpen;
-  else
-    p.fail("mode", "must be 'closed' or 'open', got '" + mode + "'");
+  o.controller.mode = read_choice(p, "mode", o.controller.mode, control::LoopMode::kClosed, control::LoopMode::kOpen);
 }
 
 /// Gains, limits, safety and path (ControllerOptions), validated; an error names the key.
@@ -78,20 +83,9 @@ void read_controller_options(Tree& p, control::ControllerOptions& c) {
   c.stale_periods = p.integer("safety/stale_periods", c.stale_periods);
   c.max_solver_failures = p.integer("safety/max_solver_failures", c.max_solver_failures);
   c.integrate_from_measured = p.boolean("integrate_from_measured", c.integrate_from_measured);
-  const std::string law = p.text("control_law", control::to_string(c.control_law));
-  if (law == "papers")
-    c.control_law = control::ControlLaw::kPapers;
-  else if (law == "modal")
-    c.control_law = control::ControlLaw::kModal;
-  else
-    p.fail("control_law", "must be 'papers' or 'modal', got '" + law + "'");
-  const std::string type = p.text("path/type", control::to_string(c.path_type));
-  if (type == "spiral")
-    c.path_type = control::PathType::kSpiral;
-  else if (type == "none")
-    c.path_type = control::PathType::kNone;
-  else
-    p.fail("path/type", "must be 'spiral' or 'none', got '" + type + "'");
+  c.control_law =
+      read_choice(p, "control_law", c.control_law, control::ControlLaw::kPapers, control::ControlLaw::kModal);
+  c.path_type = read_choice(p, "path/type", c.path_type, control::PathType::kSpiral, control::PathType::kNone);
   const std::string err = c.validate();
   if (!err.empty()) {
     const std::string field = err.substr(0, err.find(':'));

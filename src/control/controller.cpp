@@ -5,7 +5,6 @@
 #include <cmath>
 
 #include "hydrojet_control/control/modal_model.h"
-#include "hydrojet_control/rod/so3.h"
 
 namespace hydrojet {
 namespace control {
@@ -268,10 +267,13 @@ void Controller::estimate_modes(const ControllerInputs& in, const rod::RodSoluti
   if (!modal_.initialised())
     modal_.start(z, s, omega_, params_.modal);
   else  // over the time since its last step (a held cycle, a solve that failed, is skipped)
-    modal_.step(modal_input_, z, omega_, 0.5 * omega_ * params_.modal.damping_time, in.t - modal_time_, params_.modal);
+    modal_.step(modal_input_, z, omega_, modal_damping_ratio(), in.t - modal_time_, params_.modal);
   modal_input_ = s;
   modal_time_ = in.t;
 }
+
+// ζ of the first mode: Kelvin–Voigt damping of time τ gives 2ζω = τω².
+double Controller::modal_damping_ratio() const { return 0.5 * omega_ * params_.modal.damping_time; }
 
 // The modal law drives a path whose clock runs, in closed loop, once its estimator has started.
 bool Controller::modal_drives() const {
@@ -308,7 +310,7 @@ Vec3 Controller::shaping_step(const rod::RodSolution& sol, const ControllerOutpu
   // Weighted by the path's speed as the other fast-path elements (fast_path_rate): a slow path (the
   // paper's 600 s spiral) gets nearly the paper's law, without the estimated rate's noise.
   const Vec3 m = fast_path_weight(pd_.speed(), params_.fast_path_rate) *
-                 modal_shaping(r, modal_.rate(), omega_, 0.5 * omega_ * params_.modal.damping_time, params_.modal);
+                 modal_shaping(r, modal_.rate(), omega_, modal_damping_ratio(), params_.modal);
   const Vec3 step = shaping_primed_ ? Vec3(Vec3(sol.tip_rotation.col(2)).cross(m - previous_shaping_)) : Vec3::Zero();
   previous_shaping_ = m;
   shaping_primed_ = true;

@@ -30,12 +30,15 @@ const char* to_string(LoopMode m) { return m == LoopMode::kClosed ? "closed" : "
 const char* to_string(ControlLaw l) { return l == ControlLaw::kModal ? "modal" : "papers"; }
 const char* to_string(PathType t) { return t == PathType::kSpiral ? "spiral" : "none"; }
 
+/// A field, its value and its closed range.
+struct Range {
+  const char* field;
+  double value, lo, hi;
+};
+
 std::string ControllerOptions::validate() const {
   // The live gains and limits: the ranges of cfg/Controller.cfg.
-  const struct {
-    const char* field;
-    double value, lo, hi;
-  } ranges[] = {
+  const Range ranges[] = {
       {"kp", kp, 0.0, 50.0},
       {"kd", kd, 0.0, 5.0},
       {"feedforward", feedforward, 0.0, 2.0},
@@ -77,7 +80,20 @@ std::string ControllerOptions::validate() const {
     return bad("path.theta_end", path.theta_end, "must lie in [0, pi/2]");
   if (!std::isfinite(path.phi_start)) return bad("path.phi_start", path.phi_start, "must be finite");
   if (!std::isfinite(path.phi_end)) return bad("path.phi_end", path.phi_end, "must be finite");
-  if (std::string err = modal.validate(); !err.empty()) return err;
+  // The modal law's, at start only.
+  const Range modal_ranges[] = {
+      {"modal.kp", modal.kp, 0.0, 50.0},
+      {"modal.ki", modal.ki, 0.0, 100.0},
+      {"modal.gain_speed", modal.gain_speed, 0.0, 10.0},
+      {"modal.damping_gain", modal.damping_gain, 0.0, 10.0},
+      {"modal.tip_mass_scale", modal.tip_mass_scale, 0.1, 100.0},
+      {"modal.damping_time", modal.damping_time, 0.0, 1.0},
+      {"modal.tracker_sigma", modal.tracker_sigma, 1e-6, 1.0},
+      {"modal.velocity_noise", modal.velocity_noise, 1e-6, 1e3},
+      {"modal.disturbance_noise", modal.disturbance_noise, 1e-6, 1e3},
+  };
+  for (const auto& r : modal_ranges)
+    if (std::string err = check_range(r.field, r.value, r.lo, r.hi); !err.empty()) return err;
   return approach.validate();
 }
 

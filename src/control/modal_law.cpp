@@ -1,35 +1,10 @@
 #include "hydrojet_control/control/modal_law.h"
 
 #include <cmath>
-#include <sstream>
 #include <unsupported/Eigen/MatrixFunctions>
 
 namespace hydrojet {
 namespace control {
-
-std::string ModalLawOptions::validate() const {
-  const struct {
-    const char* field;
-    double value, lo, hi;
-  } ranges[] = {
-      {"modal.kp", kp, 0.0, 50.0},
-      {"modal.ki", ki, 0.0, 100.0},
-      {"modal.gain_speed", gain_speed, 0.0, 10.0},
-      {"modal.damping_gain", damping_gain, 0.0, 10.0},
-      {"modal.tip_mass_scale", tip_mass_scale, 0.1, 100.0},
-      {"modal.damping_time", damping_time, 0.0, 1.0},
-      {"modal.tracker_sigma", tracker_sigma, 1e-6, 1.0},
-      {"modal.velocity_noise", velocity_noise, 1e-6, 1e3},
-      {"modal.disturbance_noise", disturbance_noise, 1e-6, 1e3},
-  };
-  for (const auto& r : ranges)
-    if (!(r.value >= r.lo && r.value <= r.hi)) {
-      std::ostringstream os;
-      os << r.field << ": must lie in [" << r.lo << ", " << r.hi << "], got " << r.value;
-      return os.str();
-    }
-  return "";
-}
 
 void modal_transition(double omega, double zeta, double dt, Eigen::Matrix3d* A, Eigen::Vector3d* B) {
   Eigen::Matrix4d F = Eigen::Matrix4d::Zero();  // (y, v, d, s)

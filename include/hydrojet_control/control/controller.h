@@ -100,6 +100,7 @@ class Controller {
   void track_reference(const ControllerInputs& in, const rod::RodSolution& sol, double dt, ControllerOutput& out);
   void approach(double t, ControllerOutput& out);
   void estimate_modes(const ControllerInputs& in, const rod::RodSolution& sol, const InputVector& q_obs);
+  double modal_damping_ratio() const;
   bool modal_drives() const;
   ControllerOptions law_gains() const;
   Vec3 shaping_step(const rod::RodSolution& sol, const ControllerOutput& out);

@@ -21,7 +21,6 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <string>
 
 #include "hydrojet_control/control/task_space.h"
 
@@ -40,9 +39,7 @@ struct ModalLawOptions {
   double tracker_sigma = 0.0075;   ///< tracker noise per direction component [-]
   double velocity_noise = 0.5;     ///< process noise on v̇ [1/s^1.5] (unmodelled forces)
   double disturbance_noise = 0.1;  ///< random walk of d [1/√s] (the model error moves with the path)
-  /// Empty when valid, else "modal.<field>: <what is wrong>".
-  std::string validate() const;
-};
+};                                 // ranges: ControllerOptions::validate()
 
 /// The Kalman filter of the modal law (see above).
 class ModalEstimator {
