@@ -47,6 +47,32 @@ TEST(ModalModel, CantileverWithTipMassMatchesTheClosedForm) {
   }
 }
 
+/// The overload from a known C^b (the controller's cycle) gives the solver's modes when the body's
+/// mass is all at its tip, and refuses a body with mass of its own.
+TEST(ModalModel, FromTheCyclesComplianceMatchesTheSolvesModes) {
+  const rod::RodModel m = test::scene("hydrojet_30deg").rod;
+  ASSERT_FALSE(control::has_body_mass(m));
+  control::ModalOptions o;
+  o.tip_mass_scale = 3.0;
+  const rod::InputVector q = rod::InputVector::Constant(m.input_count(), 0.01);
+  const control::ModalModel a = control::lateral_modes(rod::RodSolver(m, accurate()), q, rod::TipWrench(), o);
+  rod::RodSolver s(m, accurate());
+  ASSERT_TRUE(s.solve(q, rod::TipWrench()).converged);
+  const rod::Compliance c = s.compliance();
+  ASSERT_TRUE(c.ok);
+  const control::ModalModel b = control::lateral_modes(m, c.body, o);
+  ASSERT_TRUE(a.ok && b.ok) << a.error << b.error;
+  EXPECT_NEAR(b.frequency[0] / a.frequency[0], 1.0, 1e-12);
+  EXPECT_NEAR(b.frequency[1] / a.frequency[1], 1.0, 1e-12);
+  EXPECT_LT((b.rotation - a.rotation).norm(), 1e-12 * a.rotation.norm());
+
+  rod::RodModel massive = m;
+  massive.segments[0].linear_density = 0.01;
+  const control::ModalModel refused = control::lateral_modes(massive, c.body, o);
+  EXPECT_FALSE(refused.ok);
+  EXPECT_NE(refused.error.find("mass of its own"), std::string::npos) << refused.error;
+}
+
 /// The dynamic rod released from a static push along mode 1: the period of its tip's motion along
 /// that mode's displacement, from upward zero crossings over about four periods.
 double released_frequency(const plant::DynamicRodModel& p, const control::ModalModel& mm, const Vec3& tip_dir_base,

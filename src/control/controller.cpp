@@ -143,7 +143,7 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   if (std::string why = check_stability(lin, out); !why.empty()) return abort(out, why);
 
   track_reference(in, sol, dt, out);
-  estimate_modes(in, sol, out.jet_force_observed);
+  estimate_modes(in, sol, lin, out.jet_force_observed);
   if (std::string why = monitor_.check_oscillation(out.error_geodesic); !why.empty()) return abort(out, why);
 
   if (std::string why = command_inputs(sol, lin, dt, out); !why.empty()) return abort(out, why);
@@ -252,14 +252,19 @@ void Controller::approach(double t, ControllerOutput& out) {
 // The modal law's estimator (closed loop): the first mode at this equilibrium (with the capsule's
 // expected fill), then one filter step with the model's direction at the last measured inputs and the
 // tracker's direction.
-void Controller::estimate_modes(const ControllerInputs& in, const rod::RodSolution& sol, const InputVector& q_obs) {
+void Controller::estimate_modes(const ControllerInputs& in, const rod::RodSolution& sol,
+                                const ActuatedModel::Linearisation& lin, const InputVector& q_obs) {
   if (params_.control_law != ControlLaw::kModal || params_.mode != LoopMode::kClosed) {
     modal_.reset();  // starts afresh when the loop closes again
     return;
   }
   ModalOptions mo;
   mo.tip_mass_scale = params_.modal.tip_mass_scale;
-  const ModalModel modes = lateral_modes(model_.solver(), q_obs, rod::TipWrench(), mo);
+  // A body whose mass is all at its tip needs only this cycle's C^b; one with mass of its own needs
+  // the probe solves.
+  const ModalModel modes = !lin.ok || has_body_mass(model_.rod())
+                               ? lateral_modes(model_.solver(), q_obs, rod::TipWrench(), mo)
+                               : lateral_modes(model_.rod(), lin.body_compliance, mo);
   if (modes.ok) omega_ = modes.frequency(0);
   if (!(omega_ > 0.0)) return;  // none yet: the paper's law drives
   const Vec3 s = sol.tip_rotation.col(2);

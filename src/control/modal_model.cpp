@@ -74,32 +74,18 @@ bool add_body_mass(rod::RodSolver& s, const rod::InputVector& q, const rod::TipW
   return true;
 }
 
-bool has_body_mass(const rod::RodModel& m) {
-  for (const rod::RodSegment& g : m.segments)
-    if (g.linear_density > 0.0) return true;
-  for (const rod::PointLoad& p : m.loads)
-    if (p.mass > 0.0) return true;
-  return false;
+/// The tip's mass and inertia in force coordinates f (x = C f), from C^b's lateral force columns.
+Eigen::Matrix2d tip_mass_matrix(const rod::RodModel& m, const rod::Mat6& body, const ModalOptions& o) {
+  const Eigen::Matrix<double, 3, 2> dtip = body.block<3, 2>(0, 0), dtheta = body.block<3, 2>(3, 0);
+  return o.tip_mass_scale *
+         (m.tip_mass * dtip.transpose() * dtip + dtheta.transpose() * o.tip_inertia.asDiagonal() * dtheta);
 }
 
-}  // namespace
-
-ModalModel lateral_modes(const rod::RodSolver& solver, const rod::InputVector& q, const rod::TipWrench& w,
-                         const ModalOptions& o) {
+/// The modes of K = C⁻¹ (C the lateral block of C^b's tip translation) with the mass Mf in force
+/// coordinates.
+ModalModel modes_from(const rod::Mat6& body, const Eigen::Matrix2d& Mf) {
   ModalModel out;
-  rod::RodSolver s = solver;
-  const rod::RodSolution sol = s.solve(q, w);
-  if (!sol.converged) return failed("the equilibrium did not converge");
-  // The tip's translation and rotation per lateral tip force (tip frame): C^b's columns f_x, f_y.
-  const rod::Compliance c = s.compliance();
-  if (!c.ok) return failed("the compliance could not be computed");
-  const Eigen::Matrix<double, 3, 2> dtip = c.body.block<3, 2>(0, 0), dtheta = c.body.block<3, 2>(3, 0);
-
-  // Mass in force coordinates f (x = C f): the tip, the capsule's inertia, then ρA and point masses.
-  Eigen::Matrix2d Mf = o.tip_mass_scale * (s.model().tip_mass * dtip.transpose() * dtip +
-                                           dtheta.transpose() * o.tip_inertia.asDiagonal() * dtheta);
-  if (has_body_mass(s.model()) && !add_body_mass(s, q, w, o, &Mf)) return failed("a probe solve did not converge");
-
+  const Eigen::Matrix<double, 3, 2> dtip = body.block<3, 2>(0, 0), dtheta = body.block<3, 2>(3, 0);
   const Eigen::Matrix2d C = 0.5 * (dtip.topRows<2>() + dtip.topRows<2>().transpose());
   const Eigen::Matrix2d Ci = C.inverse();
   if (!Ci.allFinite()) return failed("the lateral compliance is singular");
@@ -114,6 +100,34 @@ ModalModel lateral_modes(const rod::RodSolver& solver, const rod::InputVector& q
   out.modes = eig.eigenvectors();
   out.ok = true;
   return out;
+}
+
+}  // namespace
+
+bool has_body_mass(const rod::RodModel& m) {
+  for (const rod::RodSegment& g : m.segments)
+    if (g.linear_density > 0.0) return true;
+  for (const rod::PointLoad& p : m.loads)
+    if (p.mass > 0.0) return true;
+  return false;
+}
+
+ModalModel lateral_modes(const rod::RodSolver& solver, const rod::InputVector& q, const rod::TipWrench& w,
+                         const ModalOptions& o) {
+  rod::RodSolver s = solver;
+  if (!s.solve(q, w).converged) return failed("the equilibrium did not converge");
+  // The tip's translation and rotation per lateral tip force (tip frame): C^b's columns f_x, f_y.
+  const rod::Compliance c = s.compliance();
+  if (!c.ok) return failed("the compliance could not be computed");
+  Eigen::Matrix2d Mf = tip_mass_matrix(s.model(), c.body, o);
+  if (has_body_mass(s.model()) && !add_body_mass(s, q, w, o, &Mf)) return failed("a probe solve did not converge");
+  return modes_from(c.body, Mf);
+}
+
+ModalModel lateral_modes(const rod::RodModel& model, const rod::Mat6& body_compliance, const ModalOptions& o) {
+  if (has_body_mass(model)) return failed("the body has mass of its own: its modes need the solver's probe solves");
+  if (!body_compliance.allFinite()) return failed("the compliance is not finite");
+  return modes_from(body_compliance, tip_mass_matrix(model, body_compliance, o));
 }
 
 }  // namespace control

@@ -99,7 +99,8 @@ class Controller {
   void commanded();
   void track_reference(const ControllerInputs& in, const rod::RodSolution& sol, double dt, ControllerOutput& out);
   void approach(double t, ControllerOutput& out);
-  void estimate_modes(const ControllerInputs& in, const rod::RodSolution& sol, const InputVector& q_obs);
+  void estimate_modes(const ControllerInputs& in, const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin,
+                      const InputVector& q_obs);
   double modal_damping_ratio() const;
   bool modal_drives() const;
   ControllerOptions law_gains() const;

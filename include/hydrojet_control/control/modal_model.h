@@ -48,5 +48,14 @@ struct ModalOptions {
 ModalModel lateral_modes(const rod::RodSolver& solver, const rod::InputVector& q, const rod::TipWrench& w,
                          const ModalOptions& options = {});
 
+/// The modes from C^b already computed at the equilibrium (the controller's cycle has it), with no
+/// solve; for a body whose mass is all at its tip. A body with mass of its own (has_body_mass) needs
+/// the overload above: this one fails with a message saying so.
+ModalModel lateral_modes(const rod::RodModel& model, const rod::Mat6& body_compliance,
+                         const ModalOptions& options = {});
+
+/// Whether the body carries mass of its own (ρA along a segment, point masses), beyond the tip's.
+bool has_body_mass(const rod::RodModel& model);
+
 }  // namespace control
 }  // namespace hydrojet
