@@ -17,22 +17,6 @@ double quantile(std::vector<double> v, double q) {
   return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
 }
 
-/// The sensors at time t as the rig driver would deliver them: the tracker's tip orientation in
-/// the base frame (when valid) and the flows, stamped now.
-void read_sensors(plant::Plant& plant, double t, control::ControllerInputs& in) {
-  const plant::TrackerSample ts = plant.tracker_sample();
-  if (ts.valid) {
-    in.tip_valid = true;
-    in.tip_stamp = ts.stamp;
-    in.tip_rotation = (ts.base.orientation.toRotationMatrix().transpose() * ts.tip.orientation.toRotationMatrix());
-  }
-  in.flows = plant.flow_sample();
-  in.forces = plant.force_sample();
-  in.flow_valid = true;
-  in.flow_stamp = t;
-  in.t = t;
-}
-
 /// One cycle of the path (path time t [s]): what the controller saw and the plant's truth.
 RunSample record(const plant::Plant& plant, const control::ControllerOutput& out, double t) {
   RunSample s;
@@ -80,6 +64,20 @@ double water_flow(const control::RobotModel& model, const std::vector<RunSample>
 }
 
 }  // namespace
+
+void read_sensors(plant::Plant& plant, double t, control::ControllerInputs& in) {
+  const plant::TrackerSample ts = plant.tracker_sample();
+  if (ts.valid) {
+    in.tip_valid = true;
+    in.tip_stamp = ts.stamp;
+    in.tip_rotation = (ts.base.orientation.toRotationMatrix().transpose() * ts.tip.orientation.toRotationMatrix());
+  }
+  in.flows = plant.flow_sample();
+  in.forces = plant.force_sample();
+  in.flow_valid = true;
+  in.flow_stamp = t;
+  in.t = t;
+}
 
 const char* to_string(RunStart s) { return s == RunStart::kRest ? "rest" : "on-path"; }
 

@@ -63,6 +63,11 @@ struct RunResult {
   std::vector<RunSample> samples;
 };
 
+/// The sensors at time t as the rig's driver delivers them into `in`: the tracker's tip frame in the
+/// base frame (when its sample is valid; a dropout leaves the last pose and its stamp), the flows and
+/// forces, stamped t.
+void read_sensors(plant::Plant& plant, double t, control::ControllerInputs& in);
+
 /// Runs the plan's path on the plant, `settle` seconds at rest, then the controller: until the path
 /// ends, the controller aborts or an approach fails. The error statistics cover the path from its
 /// clock's start.

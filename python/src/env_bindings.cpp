@@ -1,0 +1,133 @@
+// The stepping core of hydrojet.gym's HydroJet-v0: the plant between two actions, the observation
+// and the path's error, in C++ so that an environment step costs the plant's time and little more.
+#include <nanobind/stl/shared_ptr.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/tuple.h>
+#include <nanobind/stl/vector.h>
+
+#include <algorithm>
+#include <memory>
+#include <tuple>
+#include <vector>
+
+#include "bindings.h"
+#include "hydrojet_control/control/task_space.h"
+#include "hydrojet_control/control/path.h"
+#include "hydrojet_control/plant/plant.h"
+#include "hydrojet_control/sim/closed_loop_run.h"
+
+namespace hydrojet {
+namespace python {
+namespace {
+
+/// One episode: `settle` seconds at rest with the valves shut (sampled each control period, as the
+/// experiment's loop does), then the path's clock. Actions are per actuator in [-1, 1]: a jet's
+/// valve duty (a + 1) / 2, a force actuator's drive a.
+class EnvCore {
+ public:
+  EnvCore(const plant::PlantModel& model, std::shared_ptr<control::Path> path, double control_period,
+          std::vector<double> preview, Eigen::VectorXd state_scale, double settle)
+      : model_(model),
+        path_(std::move(path)),
+        dt_(control_period),
+        preview_(std::move(preview)),
+        scale_(std::move(state_scale)),
+        settle_(settle) {
+    if (!path_) throw std::invalid_argument("path: must be a Path");
+  }
+
+  /// A new episode with the plant's noise seeded; false (see error()) when the plant fails.
+  bool reset(unsigned seed) {
+    plant_ = std::make_unique<plant::Plant>(model_, seed);
+    if (!plant_->error().empty()) return false;
+    in_ = control::ControllerInputs();
+    const int n = plant_->input_count();
+    const rod::InputVector shut = rod::InputVector::Zero(n);
+    const int settle_steps = static_cast<int>(std::lround(settle_ / dt_));
+    for (int k = 0; k <= settle_steps; ++k) {
+      t_ = k * dt_;
+      if (!plant_->advance_to(t_)) return false;
+      sim::read_sensors(*plant_, t_, in_);
+      if (k < settle_steps) plant_->command(shut, t_);
+    }
+    t0_ = t_;
+    direction_ = measured(rod::Vec3::UnitZ());
+    return true;
+  }
+
+  /// Applies `action` for one control period: (plant ok, error [rad] against the path).
+  std::tuple<bool, double> step(const Eigen::VectorXd& action) {
+    if (!plant_) throw std::runtime_error("step() before reset()");
+    const rod::InputVector a = to_inputs(action, plant_->input_count(), "action");
+    rod::InputVector command(a.size());
+    for (int i = 0; i < a.size(); ++i) {
+      const double ai = std::clamp(a[i], -1.0, 1.0);
+      command[i] = plant_->is_jet(i) ? 0.5 * (ai + 1.0) : ai;
+    }
+    plant_->command(command, t_);
+    t_ += dt_;
+    bool ok;
+    {
+      nb::gil_scoped_release release;
+      ok = plant_->advance_to(t_);
+    }
+    sim::read_sensors(*plant_, t_, in_);
+    direction_ = measured(direction_);
+    return {ok, control::geodesic_error(path_->direction_at(path_time()), direction_)};
+  }
+
+  /// The measured direction, the path's preview, the actuators' measured states over their scale.
+  Eigen::VectorXf observation() const {
+    const int n = plant_->input_count();
+    Eigen::VectorXf obs(3 * (1 + preview_.size()) + n);
+    obs.head<3>() = direction_.cast<float>();
+    for (size_t k = 0; k < preview_.size(); ++k)
+      obs.segment<3>(3 * (k + 1)) =
+          path_->direction_at(std::min(path_time() + preview_[k], path_->duration())).cast<float>();
+    for (int i = 0; i < n; ++i)
+      obs[3 * (1 + preview_.size()) + i] =
+          static_cast<float>((plant_->is_jet(i) ? in_.flows[i] : in_.forces[i]) / scale_[i]);
+    return obs.cwiseMax(-2.0f).cwiseMin(2.0f);
+  }
+
+  double t() const { return t_; }
+  double path_time() const { return t_ - t0_; }
+  const control::ControllerInputs& sensors() const { return in_; }
+  std::string error() const { return plant_ ? plant_->error() : std::string(); }
+
+ private:
+  rod::Vec3 measured(const rod::Vec3& last) const {
+    return in_.tip_valid ? rod::Vec3(in_.tip_rotation.col(2).normalized()) : last;
+  }
+
+  plant::PlantModel model_;
+  std::shared_ptr<control::Path> path_;
+  double dt_;
+  std::vector<double> preview_;
+  Eigen::VectorXd scale_;
+  double settle_;
+  std::unique_ptr<plant::Plant> plant_;
+  control::ControllerInputs in_;
+  double t_ = 0.0, t0_ = 0.0;
+  rod::Vec3 direction_ = rod::Vec3::UnitZ();
+};
+
+}  // namespace
+
+void bind_env(nb::module_& m) {
+  nb::class_<EnvCore>(m, "_EnvCore")
+      .def(nb::init<const plant::PlantModel&, std::shared_ptr<control::Path>, double, std::vector<double>,
+                    Eigen::VectorXd, double>(),
+           nb::arg("plant"), nb::arg("path"), nb::arg("control_period"), nb::arg("preview"), nb::arg("state_scale"),
+           nb::arg("settle"))
+      .def("reset", &EnvCore::reset, nb::arg("seed"))
+      .def("step", &EnvCore::step, nb::arg("action"))
+      .def("observation", &EnvCore::observation)
+      .def_prop_ro("t", &EnvCore::t)
+      .def_prop_ro("path_time", &EnvCore::path_time)
+      .def_prop_ro("sensors", &EnvCore::sensors, nb::rv_policy::copy)
+      .def_prop_ro("error", &EnvCore::error);
+}
+
+}  // namespace python
+}  // namespace hydrojet
