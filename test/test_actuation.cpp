@@ -464,6 +464,31 @@ TEST(FlowRegulator, LeadTimeCancelsAFirstOrderValveLagOnARamp) {
   EXPECT_NE(validate(bad).find("lead_time"), std::string::npos);
 }
 
+// The valve curve's inverse: for a valve whose steady flow is Q_max d^γ (the plant's valves without
+// dead zone or hysteresis), the feedforward alone (no PI) gives the duty that delivers q exactly; γ = 1
+// is the linear feedforward k_ff q.
+TEST(FlowRegulator, FeedforwardInvertsTheValveCurve) {
+  const double q_max = 1.6e-5;
+  for (const double gamma : {0.8, 1.0, 1.3}) {
+    FlowRegulatorOptions p;
+    p.feedforward = 1.0 / q_max;
+    p.valve_exponent = gamma;
+    for (const double q : {1e-8, 2e-7, 3e-6, 8e-6, 1.5e-5}) {
+      FlowRegulator reg(p);
+      const double d = reg.update(q, q, 0.01);
+      EXPECT_NEAR(q_max * std::pow(d, gamma) / q, 1.0, 1e-12) << gamma << " " << q;
+      if (gamma == 1.0) EXPECT_EQ(d, p.feedforward * q);
+    }
+    FlowRegulator reg(p);
+    EXPECT_EQ(reg.update(0.0, 0.0, 0.01), 0.0);  // no flow wanted: shut
+  }
+  FlowRegulatorOptions bad;
+  for (const double gamma : {0.0, 20.0, std::nan("")}) {
+    bad.valve_exponent = gamma;
+    EXPECT_NE(validate(bad).find("valve_exponent"), std::string::npos) << gamma;
+  }
+}
+
 TEST(FlowRegulator, AntiWindupBoundsOvershootAfterSaturation) {
   const double dt = 0.01;
   struct Run {

@@ -385,6 +385,7 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
       {"path/duration", f.path.duration, d.path.duration},
       {"flow_regulator/feedforward", ff.feedforward, fd.feedforward},
       {"flow_regulator/lead_time", ff.lead_time, fd.lead_time},
+      {"flow_regulator/valve_exponent", ff.valve_exponent, fd.valve_exponent},
       {"flow_regulator/kp", ff.kp, fd.kp},
       {"flow_regulator/ki", ff.ki, fd.ki},
       {"flow_regulator/output_min", ff.output_min, fd.output_min},

@@ -148,7 +148,7 @@ namespace {
 const std::string& code_corpus() {
   static const std::string corpus = [] {
     std::string all;
-    for (const char* dir : {"src", "include", "config", "launch", "cfg", "msg", "action", "scripts"})
+    for (const char* dir : {"src", "include", "config", "launch", "cfg", "msg", "action", "scripts", "python"})
       for (const auto& e : std::filesystem::recursive_directory_iterator(kRoot + "/" + dir))
         if (e.is_regular_file()) all += read_file(e.path().string()) + "\n";
     return all + read_file(kRoot + "/CMakeLists.txt");
@@ -177,7 +177,7 @@ TEST(Docs, ArchitectureNamesExist) {
   ASSERT_FALSE(text.empty()) << "docs/architecture.md missing";
   static const std::regex name_like(R"(^[~/-]*[A-Za-z_][A-Za-z0-9_:./-]*(\(\))?$)");
   static const std::set<std::string> roots = {"src",   "include", "docs", "config", "launch", "scripts", "test",
-                                              "bench", "cmake",   "cfg",  "msg",    "action", "util"};
+                                              "bench", "cmake",   "cfg",  "msg",    "action", "util",    "python"};
   int checked = 0;
   for (const std::string& line : lines_of(text))
     for (const std::string& span : code_spans(line)) {

@@ -13,6 +13,7 @@ std::string validate(const FlowRegulatorOptions& p) {
   for (const auto& g : gains)
     if (!std::isfinite(g.second) || g.second < 0.0) return std::string(g.first) + " must be finite and >= 0";
   if (p.lead_time > 1.0) return "lead_time must lie in [0, 1] s";
+  if (!(p.valve_exponent >= 0.1 && p.valve_exponent <= 10.0)) return "valve_exponent must lie in [0.1, 10]";
   if (!std::isfinite(p.output_min) || p.output_min < 0.0) return "output_min must be in [0, 1]";
   if (!std::isfinite(p.output_max) || p.output_max > 1.0) return "output_max must be in [0, 1]";
   if (!(p.output_min <= p.output_max)) return "output_min must be <= output_max";
@@ -49,7 +50,7 @@ double FlowRegulator::update(double q_des, double q_meas, double dt) {
   const double rate = primed_ ? (q_des - previous_desired_) / dt : 0.0;
   previous_desired_ = q_des;
   primed_ = true;
-  const double base = params_.feedforward * (q_des + params_.lead_time * rate) + params_.kp * e;
+  const double base = feedforward(q_des + params_.lead_time * rate) + params_.kp * e;
   // Conditional integration: if the output (with the integrator as it stands) is already beyond a
   // limit and e pushes further out, freeze I. So I overshoots its headroom by at most one step.
   const double before = base + integrator_;
@@ -60,6 +61,12 @@ double FlowRegulator::update(double q_des, double q_meas, double dt) {
   saturated_ = unclamped > params_.output_max || unclamped < params_.output_min;
   output_ = std::clamp(unclamped, params_.output_min, params_.output_max);
   return output_;
+}
+
+// The duty for flow q by the inverted valve curve: k_ff q is the fraction of the flow at full duty.
+double FlowRegulator::feedforward(double q) const {
+  const double u = params_.feedforward * q;
+  return u <= 0.0 || params_.valve_exponent == 1.0 ? u : std::pow(u, 1.0 / params_.valve_exponent);
 }
 
 FlowRegulatorBank::FlowRegulatorBank(const FlowRegulatorOptions& params)

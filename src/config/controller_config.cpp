@@ -96,21 +96,6 @@ void read_controller_options(Tree& p, control::ControllerOptions& c) {
   }
 }
 
-/// The per-jet PI flow regulator, validated; an error names the key.
-void read_flow_regulator(Tree& p, actuation::FlowRegulatorOptions& f) {
-  f.kp = p.number("flow_regulator/kp", f.kp);
-  f.ki = p.number("flow_regulator/ki", f.ki);
-  f.feedforward = p.number("flow_regulator/feedforward", f.feedforward);
-  f.lead_time = p.number("flow_regulator/lead_time", f.lead_time);
-  f.output_min = p.number("flow_regulator/output_min", f.output_min);
-  f.output_max = p.number("flow_regulator/output_max", f.output_max);
-  const std::string ferr = actuation::validate(f);
-  if (!ferr.empty()) {
-    const size_t sp = ferr.find(' ');
-    p.fail("flow_regulator/" + ferr.substr(0, sp), ferr.substr(std::min(ferr.size(), sp + 1)));
-  }
-}
-
 /// Joystick teleoperation (config/teleop.yaml), validated; an error names the key.
 void read_teleop(Tree& p, TeleopOptions& t) {
   const struct {
@@ -133,6 +118,21 @@ void read_teleop(Tree& p, TeleopOptions& t) {
 }
 
 }  // namespace
+
+void read_flow_regulator(YamlTree<ParamError>& p, actuation::FlowRegulatorOptions& f) {
+  f.kp = p.number("flow_regulator/kp", f.kp);
+  f.ki = p.number("flow_regulator/ki", f.ki);
+  f.feedforward = p.number("flow_regulator/feedforward", f.feedforward);
+  f.lead_time = p.number("flow_regulator/lead_time", f.lead_time);
+  f.valve_exponent = p.number("flow_regulator/valve_exponent", f.valve_exponent);
+  f.output_min = p.number("flow_regulator/output_min", f.output_min);
+  f.output_max = p.number("flow_regulator/output_max", f.output_max);
+  const std::string ferr = actuation::validate(f);
+  if (!ferr.empty()) {
+    const size_t sp = ferr.find(' ');
+    p.fail("flow_regulator/" + ferr.substr(0, sp), ferr.substr(std::min(ferr.size(), sp + 1)));
+  }
+}
 
 ControllerNodeOptions parse_controller_options(const YAML::Node& root) {
   if (root.IsDefined() && !root.IsNull() && !root.IsMap()) throw ParamError("(root)", "must be a mapping");

@@ -28,6 +28,7 @@
 #include "hydrojet_control/actuation/jet_map.h"
 #include "hydrojet_control/actuation/thrust.h"
 #include "hydrojet_control/calibration/app.h"
+#include "hydrojet_control/config/controller_config.h"
 #include "hydrojet_control/config/scene.h"
 #include "hydrojet_control/ros/params.h"
 #include "hydrojet_control/util/json_writer.h"
@@ -58,13 +59,12 @@ struct RecorderOptions {
 RecorderOptions read_options(const ros::NodeHandle& pnh) {
   const YAML::Node y = ros_bridge::private_params_as_yaml(pnh);
   RecorderOptions o;
-  // Flow regulator defaults: config/controller.yaml's flow_regulator (duty per m^3/s).
-  o.flow.feedforward = 62500.0, o.flow.kp = 18750.0, o.flow.ki = 312500.0;
+  o.flow = config::rig_flow_regulator();  // config/controller.yaml's flow_regulator (duty per m^3/s)
   config::YamlTree<config::ParamError> t(y, '/', "~");
   t.keys("", {"scene", "bag", "out", "result_file", "report_file", "fit", "calibrate_args", "samples", "seed", "rate",
               "hold_time", "start_hold", "max_jet_force_fraction", "max_net_force", "min_net_force", "calibrate",
               "exit_when_done", "flow_regulator"});
-  t.keys("flow_regulator", {"feedforward", "lead_time", "kp", "ki", "output_min", "output_max"});
+  t.keys("flow_regulator", {"feedforward", "lead_time", "valve_exponent", "kp", "ki", "output_min", "output_max"});
   o.scene = t.text("scene", o.scene);
   o.bag = t.text("bag", o.bag);
   o.out = t.text("out", o.out);
@@ -82,17 +82,7 @@ RecorderOptions read_options(const ros::NodeHandle& pnh) {
   o.min_net_force = t.number("min_net_force", o.min_net_force);
   o.calibrate = t.boolean("calibrate", o.calibrate);
   o.exit_when_done = t.boolean("exit_when_done", o.exit_when_done);
-  o.flow.feedforward = t.number("flow_regulator/feedforward", o.flow.feedforward);
-  o.flow.lead_time = t.number("flow_regulator/lead_time", o.flow.lead_time);
-  o.flow.kp = t.number("flow_regulator/kp", o.flow.kp);
-  o.flow.ki = t.number("flow_regulator/ki", o.flow.ki);
-  o.flow.output_min = t.number("flow_regulator/output_min", o.flow.output_min);
-  o.flow.output_max = t.number("flow_regulator/output_max", o.flow.output_max);
-  const std::string e = actuation::validate(o.flow);
-  if (!e.empty()) {
-    const size_t sp = e.find(' ');
-    t.fail("flow_regulator/" + e.substr(0, sp), e.substr(std::min(e.size(), sp + 1)));
-  }
+  config::read_flow_regulator(t, o.flow);
   if (o.scene.empty()) t.fail("scene", "missing (path of the nominal scene YAML)");
   if (o.bag.empty()) t.fail("bag", "missing (path of the bag to record)");
   if (o.calibrate && o.out.empty()) t.fail("out", "missing (path of the calibrated scene YAML)");

@@ -28,9 +28,12 @@ struct FlowRegulatorOptions {
   double ki = 0.0;           ///< integral gain [1/m^3] (duty per flow error per second)
   double feedforward = 0.0;  ///< k_ff [1/(m^3/s)]: duty per unit desired flow; 0 = none
   double lead_time = 0.0;    ///< T_lead [s]: the feedforward leads the desired flow by this lag; 0 = none
-  double output_min = 0.0;   ///< lower duty limit [1], ≥ 0
-  double output_max = 1.0;   ///< upper duty limit [1], ≤ 1
-  bool anti_windup = true;   ///< false: plain PI (integrator unbounded), for comparison only
+  /// The valve's curve, flow ∝ duty^valve_exponent, inverted by the feedforward (1: linear). A
+  /// valve whose flow rises faster than its duty at small openings (< 1) lags less near zero flow.
+  double valve_exponent = 1.0;
+  double output_min = 0.0;  ///< lower duty limit [1], ≥ 0
+  double output_max = 1.0;  ///< upper duty limit [1], ≤ 1
+  bool anti_windup = true;  ///< false: plain PI (integrator unbounded), for comparison only
 };
 
 /// Empty if usable, else a message naming the bad field (non-finite or negative gains, limits not
@@ -60,6 +63,8 @@ class FlowRegulator {
   const FlowRegulatorOptions& parameters() const { return params_; }
 
  private:
+  double feedforward(double q) const;
+
   FlowRegulatorOptions params_;
   double integrator_ = 0.0;
   double output_ = 0.0;

@@ -29,6 +29,8 @@ inline actuation::FlowRegulatorOptions rig_flow_regulator() {
   f.feedforward = 62500.0;  // [1/(m^3/s)] ≈ 1 / flow at full duty
   f.kp = 18750.0;           // [1/(m^3/s)]
   f.ki = 312500.0;          // [1/m^3]
+  f.lead_time = 0.01;       // [s]
+  f.valve_exponent = 0.8;   // flow ∝ duty^0.8
   return f;
 }
 
@@ -55,6 +57,10 @@ struct ControllerNodeOptions {
   actuation::FlowRegulatorOptions flow_regulator = rig_flow_regulator();
   TeleopOptions teleop;  ///< teleop/* keys (config/teleop.yaml)
 };
+
+/// The flow_regulator/* keys of a parameter tree into f, validated; an error names the key (the
+/// controller's options and the calibration recorder's read them alike).
+void read_flow_regulator(YamlTree<ParamError>& tree, actuation::FlowRegulatorOptions& f);
 
 /// Parses a mapping with keys scene, rate, mode, autostart, base_frame, gains/*, limits/*,
 /// allocation_weight, integrate_from_measured, safety/*, path/*, flow_regulator/*, teleop/*. Unknown keys and
