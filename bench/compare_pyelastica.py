@@ -15,7 +15,7 @@ whose last term (the capsule's rotary inertia, -0.14 % on f) the point-mass form
   PyElastica 1.0.0 (a peer, not a dependency; runs in its own venv via --peer elastica): CosseratRod
     of radius 3 mm (E, G chosen so E*I and G*J match exactly), OneEndFixedBC, tip mass on the last
     node and tip inertia on the last element, PositionVerlet at dt = 0.5 dl sqrt(rho / max(E, G))
-    (the maintainers' rule, GazzolaLab/PyElastica#246), rounded down to divide 1 ms; a lateral tip
+    (the rule PyElastica's maintainers give for its explicit step), rounded down to divide 1 ms; a lateral tip
     force for half a period sets the same amplitude as hydrojet's, then it is released.
     Its discrete rod is not the closed form's: OneEndFixedBC holds the first element straight, so the
     rod acts as clamped at dl/2 (f higher by about 1.5 dl / (2 L)), and the section shears

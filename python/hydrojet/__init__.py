@@ -18,7 +18,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from . import _core
-from ._core import ControllerOutput, Path, PlantModel, Scene, Sensors, load_path, parse_scene
+from ._core import ControllerOutput, Path, PlantModel, Scene, Sensors, parse_scene
 
 __all__ = [
     "Scene", "Solution", "Solver", "Controller", "Plant", "PlantModel", "Path", "Sensors", "ControllerOutput",
@@ -40,6 +40,21 @@ def data_path(name: str = "") -> str:
                 raise ValueError(f"data_path: no shipped file {name!r} (in {os.path.normpath(root)})")
             return path
     raise ValueError("data_path: the package's config folder is missing")
+
+
+def load_path(file: str | os.PathLike) -> Path:
+    """A path file (t, theta, phi rows; CSV or YAML), as follow_path and experiment --path read it.
+
+    Raises ValueError naming the row and column.
+    """
+    return _core.load_path(os.fspath(file))
+
+
+def _seed(seed) -> int:
+    """A plant's seed: an integer in [0, 2^32)."""
+    if isinstance(seed, bool) or int(seed) != seed or not 0 <= int(seed) < 2**32:
+        raise ValueError(f"seed: must be an integer in [0, 2^32), got {seed!r}")
+    return int(seed)
 
 
 def load_plant(scene: Scene, path: str | os.PathLike | None = None) -> PlantModel:
@@ -132,6 +147,7 @@ class Controller(_core._Controller):
     options: a controller YAML file (config/controller.yaml's keys; default the shipped one);
     mode: 'closed' or 'open' (default: the file's); duration: the spiral's [s] (default: the file's).
     Drive it with follow(path, t, start) and start(t), then update(sensors) once per control_period.
+    Not thread-safe: one thread per Controller (as per Plant and Solver).
     """
 
     def __init__(self, scene: Scene, options: str | os.PathLike | None = None, mode: str | None = None,
@@ -151,7 +167,7 @@ class Plant(_core._Plant):
     def __init__(self, scene: Scene, plant: str | os.PathLike | PlantModel | None = None, seed: int = 1):
         if not isinstance(plant, PlantModel):
             plant = _core.load_plant(scene, os.fspath(plant) if plant is not None else data_path("plant.yaml"))
-        super().__init__(plant, int(seed))
+        super().__init__(plant, _seed(seed))
 
 
 def run_experiment(scene: str | os.PathLike, plant: str | os.PathLike | None = None,
@@ -164,4 +180,4 @@ def run_experiment(scene: str | os.PathLike, plant: str | os.PathLike | None = N
     return _core._run_experiment(
         os.fspath(scene), os.fspath(plant) if plant is not None else data_path("plant.yaml"),
         os.fspath(controller) if controller is not None else data_path("controller.yaml"),
-        int(seed), mode, float(duration), os.fspath(path) if path is not None else None, start)
+        _seed(seed), mode, float(duration), os.fspath(path) if path is not None else None, start)

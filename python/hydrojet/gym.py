@@ -15,11 +15,11 @@ directions `preview_dt` apart (3 each), and per actuator its measured state: a j
 flow at max_force, a force actuator's force over its largest. Action: per actuator in [-1, 1], the
 command box scaled: a jet's valve duty (a + 1) / 2, a force actuator's drive a. Reward: minus the
 geodesic angle [rad] between the measured direction and the path's. Terminated when that angle
-exceeds 0.5 rad (the controller's abort) or the plant fails; truncated at the path's end.
+exceeds the controller's abort (safety/max_oscillation, 0.5 rad) or the plant fails; truncated at the
+path's end. Not thread-safe: one thread per environment.
 """
 from __future__ import annotations
 
-import math
 import os
 from typing import Optional
 
@@ -29,8 +29,6 @@ import numpy as np
 import hydrojet
 
 ENV_ID = "hydrojet/HydroJet-v0"
-ABORT_ANGLE = 0.5  # [rad], the controller's oscillation abort (safety/max_error)
-SETTLE = 1.0  # [s] at rest, valves shut, before the path's clock starts (as experiment runs)
 
 
 class HydroJetEnv(gymnasium.Env):
@@ -38,7 +36,8 @@ class HydroJetEnv(gymnasium.Env):
 
     scene, plant: YAML files (default: the shipped 0 degree HydroJet and config/plant.yaml); path: a
     path file (t, theta, phi rows) or None for the controller file's spiral over `duration` seconds;
-    seed: the plant's noise for the first reset; control_period [s].
+    seed: seeds the first reset (the plant's noise, then np_random for the resets after it);
+    control_period [s]; controller: the options file of the spiral, the abort angle and the baseline.
     """
 
     metadata = {"render_modes": []}
@@ -47,8 +46,8 @@ class HydroJetEnv(gymnasium.Env):
                  seed: Optional[int] = None, control_period: float = 0.01, duration: float = 20.0,
                  controller: Optional[str] = None, preview_steps: int = 5, preview_dt: float = 0.05):
         super().__init__()
-        if not (control_period > 0.0 and math.isfinite(control_period)):
-            raise ValueError(f"control_period: must be a positive number of seconds, got {control_period!r}")
+        if not (1e-4 <= control_period <= 1.0):
+            raise ValueError(f"control_period: must lie in [1e-4, 1] s, got {control_period!r}")
         if int(preview_steps) != preview_steps or preview_steps < 0:
             raise ValueError(f"preview_steps: must be a non-negative integer, got {preview_steps!r}")
         if not (preview_dt > 0.0):
@@ -58,11 +57,12 @@ class HydroJetEnv(gymnasium.Env):
         self.controller_file = (os.fspath(controller) if controller is not None
                                 else hydrojet.data_path("controller.yaml"))
         self.scene = hydrojet.load_scene(self.scene_file)
-        self.path = (hydrojet.load_path(os.fspath(path)) if path is not None
-                     else hydrojet.Controller(self.scene, self.controller_file, duration=duration).spiral())
+        self.path = (hydrojet.load_path(path) if path is not None
+                     else hydrojet._core._spiral(self.controller_file, float(duration)))
+        self.abort_angle = hydrojet._core._abort_angle(self.controller_file)  # [rad]
         self.control_period = float(control_period)
         self.preview = [(k + 1) * preview_dt for k in range(int(preview_steps))]
-        self._seed = seed
+        self._seed = None if seed is None else hydrojet._seed(seed)
         n = self.scene.actuator_count
         self._jet = np.array(self.scene.actuator_is_jet, dtype=bool)
         lo, hi = self.scene.input_lower, self.scene.input_upper
@@ -73,29 +73,29 @@ class HydroJetEnv(gymnasium.Env):
         self.observation_space = gymnasium.spaces.Box(-2.0, 2.0, shape=(size,), dtype=np.float32)
         self.action_space = gymnasium.spaces.Box(-1.0, 1.0, shape=(n,), dtype=np.float32)
         self._core = hydrojet._core._EnvCore(hydrojet.load_plant(self.scene, self.plant_file), self.path,
-                                             self.control_period, self.preview, self._state_scale, SETTLE)
-
-    # The command box: a jet's duty in [0, 1], a force actuator's drive in [-1, 1].
-    def command_from_action(self, action) -> np.ndarray:
-        a = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
-        return np.where(self._jet, 0.5 * (a + 1.0), a)
+                                             self.control_period, self.preview, self._state_scale,
+                                             hydrojet._core._DEFAULT_SETTLE)
 
     def action_from_command(self, command) -> np.ndarray:
+        """A command (a jet's duty in [0, 1], a force actuator's drive in [-1, 1]) as an action."""
         c = np.asarray(command, dtype=float)
         return np.clip(np.where(self._jet, 2.0 * c - 1.0, c), -1.0, 1.0).astype(np.float32)
 
     def reset(self, *, seed: Optional[int] = None, options=None):
-        super().reset(seed=seed)
-        if seed is None:
-            seed = self._seed if self._seed is not None else int(self.np_random.integers(0, 2**31 - 1))
-            self._seed = None  # later resets without a seed draw theirs from np_random
-        if not self._core.reset(int(seed)):
+        if seed is None:  # the constructor's seed serves the first reset only
+            seed = self._seed
+        self._seed = None
+        if seed is not None:
+            seed = hydrojet._seed(seed)
+        super().reset(seed=seed)  # seeds np_random when a seed is given
+        plant_seed = seed if seed is not None else int(self.np_random.integers(0, 2**32 - 1))
+        if not self._core.reset(plant_seed):
             raise RuntimeError(f"plant: {self._core.error}")
         return self._core.observation(), self._info(0.0)
 
     def step(self, action):
         ok, error = self._core.step(np.asarray(action, dtype=float))
-        terminated = (not ok) or error > ABORT_ANGLE
+        terminated = (not ok) or error > self.abort_angle
         truncated = (not terminated) and self._core.path_time >= self.path.duration - 1e-9
         info = self._info(error)
         if not ok:

@@ -15,6 +15,7 @@ import argparse
 import concurrent.futures
 import json
 import os
+import socket
 import sys
 import tempfile
 import time
@@ -71,10 +72,14 @@ def make_grid(args) -> List[Dict]:
     if not plants:
         raise ValueError("--plants: empty")
     seeds = _numbers(args.seeds, "--seeds", int)
-    if any(s < 0 for s in seeds):
-        raise ValueError("--seeds: must not be negative")
+    if any(not 0 <= s < 2**32 for s in seeds):
+        raise ValueError("--seeds: each must be an integer in [0, 2^32)")
     scenes = [s for s in args.scenes.split(",") if s] if args.scenes else [hydrojet.data_path(s) for s in SHIPPED_SCENES]
+    if not scenes:
+        raise ValueError("--scenes: empty")
     modes = [m for m in args.modes.split(",") if m]
+    if not modes:
+        raise ValueError("--modes: empty")
     for m in modes:
         if m not in ("closed", "open"):
             raise ValueError(f"--modes: each must be 'closed' or 'open', got {m!r}")
@@ -117,15 +122,31 @@ def run_local(grid: List[Dict], workers: int):
         yield from pool.map(run_task, grid)
 
 
+def _reachable(address: str, timeout: float = 5.0) -> None:
+    """A HOST:PORT address answers within `timeout` seconds (Ray itself retries an unreachable head for
+    minutes); auto, local and ray:// addresses are left to Ray."""
+    host, sep, port = address.rpartition(":")
+    if address in ("auto", "local") or "://" in address or not sep or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except OSError as e:
+        raise ValueError(f"--ray-address {address}: no Ray head answers there ({e})") from None
+
+
 def run_ray(grid: List[Dict], address: str, workers: int):
     try:
         import ray
     except ImportError:
         raise ValueError("--ray-address: Ray is not installed (pip install 'hydrojet[ray]')") from None
-    if address == "local":
-        ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
-    else:
-        ray.init(address=address, log_to_driver=False)
+    _reachable(address)
+    try:
+        if address == "local":
+            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+        else:
+            ray.init(address=address, log_to_driver=False)
+    except Exception as e:  # Ray raises ConnectionError, RuntimeError, ... : say which address failed
+        raise ValueError(f"--ray-address {address}: Ray did not start or connect ({e})") from None
     try:
         task = ray.remote(num_cpus=1)(run_task)
         refs = [task.remote(t) for t in grid]

@@ -29,6 +29,21 @@ inline rod::InputVector to_inputs(const Eigen::VectorXd& v, int n, const std::st
   return rod::InputVector(v);
 }
 
+/// A numpy vector as the core's input vector, as it is (sensor readings may be anything the rig can
+/// send), but no longer than the core's bound kMaxInputs; else ValueError naming `what`.
+inline rod::InputVector to_bounded(const Eigen::VectorXd& v, const std::string& what) {
+  if (v.size() > rod::kMaxInputs)
+    throw std::invalid_argument(what + ": at most " + std::to_string(rod::kMaxInputs) + " entries, got " +
+                                std::to_string(v.size()));
+  return rod::InputVector(v);
+}
+
+/// A finite time [s], else ValueError naming `what`.
+inline double finite_time(double t, const std::string& what) {
+  if (!std::isfinite(t)) throw std::invalid_argument(what + ": must be a finite time in seconds");
+  return t;
+}
+
 /// A finite 3-vector, else ValueError naming `what`.
 inline rod::Vec3 finite3(const rod::Vec3& v, const std::string& what) {
   if (!v.allFinite()) throw std::invalid_argument(what + ": must be finite");

@@ -34,6 +34,12 @@ class EnvCore {
         scale_(std::move(state_scale)),
         settle_(settle) {
     if (!path_) throw std::invalid_argument("path: must be a Path");
+    if (!(dt_ >= 1e-4 && dt_ <= 1.0)) throw std::invalid_argument("control_period: must lie in [1e-4, 1] s");
+    if (!(settle_ >= 0.0 && settle_ <= 60.0)) throw std::invalid_argument("settle: must lie in [0, 60] s");
+    if (scale_.size() != model_.rod.rod.input_count() || !(scale_.array() > 0.0).all())
+      throw std::invalid_argument("state_scale: one positive entry per actuator");
+    for (const double p : preview_)
+      if (!(p >= 0.0 && p <= 60.0)) throw std::invalid_argument("preview: each must lie in [0, 60] s");
   }
 
   /// A new episode with the plant's noise seeded; false (see error()) when the plant fails.
@@ -45,39 +51,40 @@ class EnvCore {
     const rod::InputVector shut = rod::InputVector::Zero(n);
     const int settle_steps = static_cast<int>(std::lround(settle_ / dt_));
     for (int k = 0; k <= settle_steps; ++k) {
-      t_ = k * dt_;
-      if (!plant_->advance_to(t_)) return false;
-      sim::read_sensors(*plant_, t_, in_);
-      if (k < settle_steps) plant_->command(shut, t_);
+      step_ = k;
+      if (!plant_->advance_to(t())) return false;
+      sim::read_sensors(*plant_, t(), in_);
+      if (k < settle_steps) plant_->command(shut, t());
     }
-    t0_ = t_;
+    step0_ = step_;
     direction_ = measured(rod::Vec3::UnitZ());
     return true;
   }
 
   /// Applies `action` for one control period: (plant ok, error [rad] against the path).
   std::tuple<bool, double> step(const Eigen::VectorXd& action) {
-    if (!plant_) throw std::runtime_error("step() before reset()");
+    if (!plant_) throw std::invalid_argument("step() before reset()");
     const rod::InputVector a = to_inputs(action, plant_->input_count(), "action");
     rod::InputVector command(a.size());
     for (int i = 0; i < a.size(); ++i) {
       const double ai = std::clamp(a[i], -1.0, 1.0);
       command[i] = plant_->is_jet(i) ? 0.5 * (ai + 1.0) : ai;
     }
-    plant_->command(command, t_);
-    t_ += dt_;
+    plant_->command(command, t());
+    ++step_;
     bool ok;
     {
       nb::gil_scoped_release release;
-      ok = plant_->advance_to(t_);
+      ok = plant_->advance_to(t());
     }
-    sim::read_sensors(*plant_, t_, in_);
+    sim::read_sensors(*plant_, t(), in_);
     direction_ = measured(direction_);
     return {ok, control::geodesic_error(path_->direction_at(path_time()), direction_)};
   }
 
   /// The measured direction, the path's preview, the actuators' measured states over their scale.
   Eigen::VectorXf observation() const {
+    if (!plant_) throw std::invalid_argument("observation() before reset()");
     const int n = plant_->input_count();
     Eigen::VectorXf obs(3 * (1 + preview_.size()) + n);
     obs.head<3>() = direction_.cast<float>();
@@ -90,8 +97,8 @@ class EnvCore {
     return obs.cwiseMax(-2.0f).cwiseMin(2.0f);
   }
 
-  double t() const { return t_; }
-  double path_time() const { return t_ - t0_; }
+  double t() const { return step_ * dt_; }  // k·dt, as the experiment's clock (no drift)
+  double path_time() const { return (step_ - step0_) * dt_; }
   const control::ControllerInputs& sensors() const { return in_; }
   std::string error() const { return plant_ ? plant_->error() : std::string(); }
 
@@ -108,7 +115,7 @@ class EnvCore {
   double settle_;
   std::unique_ptr<plant::Plant> plant_;
   control::ControllerInputs in_;
-  double t_ = 0.0, t0_ = 0.0;
+  long step_ = 0, step0_ = 0;  ///< control periods since the plant started; the path's clock started at step0_
   rod::Vec3 direction_ = rod::Vec3::UnitZ();
 };
 
@@ -118,8 +125,8 @@ void bind_env(nb::module_& m) {
   nb::class_<EnvCore>(m, "_EnvCore")
       .def(nb::init<const plant::PlantModel&, std::shared_ptr<control::Path>, double, std::vector<double>,
                     Eigen::VectorXd, double>(),
-           nb::arg("plant"), nb::arg("path"), nb::arg("control_period"), nb::arg("preview"), nb::arg("state_scale"),
-           nb::arg("settle"))
+           nb::arg("plant"), nb::arg("path").none(), nb::arg("control_period"), nb::arg("preview"),
+           nb::arg("state_scale"), nb::arg("settle"))
       .def("reset", &EnvCore::reset, nb::arg("seed"))
       .def("step", &EnvCore::step, nb::arg("action"))
       .def("observation", &EnvCore::observation)
@@ -127,6 +134,7 @@ void bind_env(nb::module_& m) {
       .def_prop_ro("path_time", &EnvCore::path_time)
       .def_prop_ro("sensors", &EnvCore::sensors, nb::rv_policy::copy)
       .def_prop_ro("error", &EnvCore::error);
+  m.attr("_DEFAULT_SETTLE") = sim::RunPlan().settle;  // [s] at rest before a path, as the experiment's
 }
 
 }  // namespace python

@@ -11,6 +11,7 @@
 #include "hydrojet_control/config/controller_config.h"
 #include "hydrojet_control/config/plant_config.h"
 #include "hydrojet_control/config/scene.h"
+#include "hydrojet_control/control/path.h"
 #include "hydrojet_control/sim/closed_loop_run.h"
 
 namespace hydrojet {
@@ -21,6 +22,16 @@ control::LoopMode parse_mode(const std::string& mode) {
   if (mode == "closed") return control::LoopMode::kClosed;
   if (mode == "open") return control::LoopMode::kOpen;
   throw std::invalid_argument("mode: must be 'closed' or 'open', got '" + mode + "'");
+}
+
+/// A spiral duration [s] set into `spiral`: within a path's limit (an hour), as fast as the caller
+/// likes (the experiment's --duration; operators' paths have a speed limit, experiments do not).
+void set_duration(control::SpiralPath& spiral, double duration, const std::string& what) {
+  const double max = control::PathLimits().max_duration;
+  if (!(std::isfinite(duration) && duration > 0.0 && duration <= max))
+    throw std::invalid_argument(what + ": " + std::to_string(duration) + " s must lie in (0, " + std::to_string(max) +
+                                "] s");
+  spiral.duration = duration;
 }
 
 sim::RunStart parse_start(const std::string& start) {
@@ -36,10 +47,7 @@ class PyController {
   PyController(const config::Scene& scene, const std::string& options, std::optional<std::string> mode,
                std::optional<double> duration)
       : options_(config::load_controller_options(options)) {
-    if (duration) {
-      if (!(*duration > 0.0)) throw std::invalid_argument("duration: must be positive");
-      options_.controller.path.duration = *duration;
-    }
+    if (duration) set_duration(options_.controller.path, *duration, "duration");
     if (mode) options_.controller.mode = parse_mode(*mode);
     model_ = config::make_controller_model(scene, options_.flow_regulator);
     nb::gil_scoped_release release;  // the reachable sets' sweep takes a fraction of a second
@@ -93,7 +101,9 @@ RunSetup load_run(const std::string& scene_file, const std::string& plant_file, 
                   const std::string& start) {
   RunSetup r;
   r.copt = config::load_controller_options(controller_file);
-  if (duration > 0.0) r.copt.controller.path.duration = duration;
+  if (duration < 0.0 || !std::isfinite(duration))
+    throw std::invalid_argument("duration: must be a finite number of seconds >= 0 (0: the controller file's)");
+  if (duration > 0.0) set_duration(r.copt.controller.path, duration, "duration");
   r.copt.controller.mode = parse_mode(mode);
   r.plan.start = parse_start(start);
   r.plan.control_period = 1.0 / r.copt.rate;
@@ -116,14 +126,13 @@ nb::dict run_experiment(const std::string& scene_file, const std::string& plant_
     r = sim::run_path(setup.model, setup.copt.controller, setup.plant, seed, setup.plan);
   }
   const config::Scene& sc = setup.scene;
-  const Eigen::Vector3d g = sc.rod.gravity;
   nb::dict d;
   d["mode"] = mode;
-  d["tilt_deg"] = static_cast<int>(std::lround(std::atan2(g.y(), g.z()) * 180.0 / M_PI));
+  d["tilt_deg"] = sim::base_tilt_deg(sc.rod.gravity);
   d["seed"] = seed;
   d["rms_rad"] = r.rms;
   d["rms_true_rad"] = r.rms_true;
-  d["water_ml_per_min"] = r.water_flow * 6e7;
+  d["water_ml_per_min"] = sim::ml_per_min(r.water_flow);
   d["start"] = std::string(sim::to_string(r.start));
   d["approach_time_s"] = r.approach_time;
   d["completed"] = r.completed;
@@ -152,11 +161,11 @@ void bind_io(nb::module_& m) {
       .def_rw("flow_stamp", &ControllerInputs::flow_stamp, "[s]")
       .def_prop_rw(
           "flows", [](const ControllerInputs& in) { return to_dynamic(in.flows); },
-          [](ControllerInputs& in, const Eigen::VectorXd& v) { in.flows = rod::InputVector(v); },
+          [](ControllerInputs& in, const Eigen::VectorXd& v) { in.flows = to_bounded(v, "flows"); },
           "[m^3/s] per actuator")
       .def_prop_rw(
           "forces", [](const ControllerInputs& in) { return to_dynamic(in.forces); },
-          [](ControllerInputs& in, const Eigen::VectorXd& v) { in.forces = rod::InputVector(v); },
+          [](ControllerInputs& in, const Eigen::VectorXd& v) { in.forces = to_bounded(v, "forces"); },
           "[N] per actuator (read for force actuators)");
 
   using control::ControllerOutput;
@@ -190,23 +199,23 @@ void bind_loop(nb::module_& m) {
       .def(nb::init<const config::Scene&, const std::string&, std::optional<std::string>, std::optional<double>>(),
            nb::arg("scene"), nb::arg("options"), nb::arg("mode") = nb::none(), nb::arg("duration") = nb::none())
       .def_prop_ro("control_period", &PyController::control_period, "[s] (1 / rate)")
-      .def_prop_ro("input_count", [](PyController& c) { return c.get().input_count(); })
+      .def_prop_ro("actuator_count", [](PyController& c) { return c.get().input_count(); })
       .def_prop_ro("state", [](PyController& c) { return std::string(control::to_string(c.get().state())); })
       .def_prop_rw("mode", &PyController::mode, &PyController::set_mode)
       .def("spiral", &PyController::spiral, "The configured spiral (eq. 28) as a Path")
       .def(
-          "start", [](PyController& c, double t) { c.get().start(t); }, nb::arg("t"))
+          "start", [](PyController& c, double t) { c.get().start(finite_time(t, "t")); }, nb::arg("t"))
       .def("stop", [](PyController& c) { c.get().stop(); })
       .def(
           "follow",
           [](PyController& c, std::shared_ptr<control::Path> path, double t, const std::string& start) {
-            if (!path) throw std::invalid_argument("path: must be a Path");
-            c.get().follow(path, t,
+            if (!path) throw std::invalid_argument("path: must be a Path (hydrojet.load_path, Controller.spiral)");
+            c.get().follow(path, finite_time(t, "t"),
                            parse_start(start) == sim::RunStart::kOnPath ? control::Reference::PathStart::kApproach
                                                                         : control::Reference::PathStart::kJump,
                            control::Reference::PathClip::kDesigned);
           },
-          nb::arg("path"), nb::arg("t"), nb::arg("start") = "rest")
+          nb::arg("path").none(), nb::arg("t"), nb::arg("start") = "rest")
       .def(
           "update", [](PyController& c, const control::ControllerInputs& in) { return c.get().update(in); },
           nb::arg("sensors"), "One cycle of Algorithm 1");
@@ -216,7 +225,7 @@ void bind_loop(nb::module_& m) {
         "The plant model of a scene under a plant YAML file (ValueError naming the key)");
   nb::class_<PyPlant>(m, "_Plant")
       .def(nb::init<const plant::PlantModel&, unsigned>(), nb::arg("model"), nb::arg("seed"))
-      .def_prop_ro("input_count", [](PyPlant& p) { return p.get().input_count(); })
+      .def_prop_ro("actuator_count", [](PyPlant& p) { return p.get().input_count(); })
       .def_prop_ro("time", [](PyPlant& p) { return p.get().time(); })
       .def_prop_ro("error", [](PyPlant& p) { return p.get().error(); })
       .def(
@@ -225,14 +234,18 @@ void bind_loop(nb::module_& m) {
             nb::gil_scoped_release release;
             return p.get().advance_to(t);
           },
-          nb::arg("t"), "Integrates to time t [s]; False (see error) when the rod solver failed")
+          nb::arg("t"),
+          "Integrates to time t [s]; False (see error) when the rod solver failed or t is not finite or lies\n"
+          "more than an hour ahead")
       .def(
           "command",
           [](PyPlant& p, const Eigen::VectorXd& v, double t) {
-            p.get().command(to_inputs(v, p.get().input_count(), "command"), t);
+            p.get().command(to_inputs(v, p.get().input_count(), "command"), finite_time(t, "t"));
           },
           nb::arg("command"), nb::arg("t"), "Valve duty [0, 1] (jets) or drive [-1, 1] per actuator at time t")
-      .def("sample", &PyPlant::sample, nb::arg("t"), "The sensors at time t, as the rig's driver delivers them")
+      .def(
+          "sample", [](PyPlant& p, double t) { return p.sample(finite_time(t, "t")); }, nb::arg("t"),
+          "The sensors at time t, as the rig's driver delivers them")
       .def_prop_ro(
           "tip_rotation", [](PyPlant& p) { return Eigen::Matrix3d(p.get().tip_rotation()); },
           "true tip frame, base frame")
@@ -244,6 +257,18 @@ void bind_loop(nb::module_& m) {
       .def_prop_ro(
           "flows", [](PyPlant& p) { return to_dynamic(p.get().flows()); }, "true flows [m^3/s]");
 
+  m.def(
+      "_spiral",
+      [](const std::string& options, std::optional<double> duration) {
+        config::ControllerNodeOptions o = config::load_controller_options(options);
+        if (duration) set_duration(o.controller.path, *duration, "duration");
+        return std::shared_ptr<control::Path>(control::make_spiral(o.controller.path));
+      },
+      nb::arg("options"), nb::arg("duration") = nb::none(), "The spiral (eq. 28) of a controller options file");
+  m.def(
+      "_abort_angle",
+      [](const std::string& options) { return config::load_controller_options(options).controller.max_oscillation; },
+      nb::arg("options"), "safety/max_oscillation of a controller options file [rad]");
   m.def(
       "_check_run",
       [](const std::string& scene, const std::string& plant, const std::string& controller,

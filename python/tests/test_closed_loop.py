@@ -11,9 +11,9 @@ import hydrojet
 from conftest import config, tool
 
 
-def experiment(scene, duration, start, path=None):
+def experiment(scene, duration, start, out, path=None):
     args = [tool("experiment"), "--scene", scene, "--plant", config("plant.yaml"), "--controller",
-            config("controller.yaml"), "--seeds", "1", "--threads", "1", "--start", start, "--out", "/tmp/hj_pytest"]
+            config("controller.yaml"), "--seeds", "1", "--threads", "1", "--start", start, "--out", str(out)]
     args += ["--path", path] if path else ["--duration", str(duration)]
     out = subprocess.run(args, capture_output=True, text=True, check=True)
     runs = json.loads(out.stdout.strip().splitlines()[-1])["runs"]
@@ -57,10 +57,10 @@ def hand_loop(scene_file, duration, start, path_file=None, seed=1, settle=1.0):
     ("scenes/hydrojet_30deg.yaml", "on-path", None),
     ("scenes/hydrojet_0deg.yaml", "on-path", "paths/lissajous.csv"),
 ])
-def test_hand_written_loop_reproduces_experiment(scene, start, path):
+def test_hand_written_loop_reproduces_experiment(scene, start, path, tmp_path):
     duration = 10.0
     rms, state = hand_loop(config(scene), duration, start, config(path) if path else None)
-    ref = experiment(config(scene), duration, start, config(path) if path else None)
+    ref = experiment(config(scene), duration, start, tmp_path, config(path) if path else None)
     assert state == "finished" and ref["completed"]
     assert rms == pytest.approx(ref["rms_rad"], rel=1e-12, abs=0)
     # And run_experiment (the sweep's unit of work) is the experiment's run, field for field.

@@ -52,16 +52,29 @@ def test_model_based_policy_reproduces_the_experiment():
     assert rms < 0.2 * idle
 
 
-def test_termination_at_the_abort_angle_and_truncation_at_the_end():
+def test_termination_at_the_abort_angle():
     env = gymnasium.make("hydrojet/HydroJet-v0", seed=2, duration=3.0)
     env.reset(seed=2)
     full = np.array([1.0, -1.0, -1.0], np.float32)  # one jet at full duty: the tip swings off the path
     for _ in range(300):
         _, reward, terminated, truncated, info = env.step(full)
-        assert terminated == (info["error"] > hydrojet.gym.ABORT_ANGLE)
+        assert terminated == (info["error"] > env.unwrapped.abort_angle == 0.5)
         if terminated or truncated:
             break
     assert terminated, "a full jet for 3 s should leave the path by more than 0.5 rad"
+
+
+def test_reset_seeds():
+    """reset(seed=s) repeats an episode; the constructor's seed serves the first reset, and the resets
+    after it draw from np_random, so a run of episodes repeats too."""
+    def first_observations(env, resets):
+        return [env.reset(seed=s)[0] for s in resets]
+    a = gymnasium.make("hydrojet/HydroJet-v0", seed=7, duration=2.0)
+    b = gymnasium.make("hydrojet/HydroJet-v0", seed=7, duration=2.0)
+    np.testing.assert_array_equal(first_observations(a, [None, None, 5, None]),
+                                  first_observations(b, [None, None, 5, None]))
+    c = gymnasium.make("hydrojet/HydroJet-v0", duration=2.0)
+    assert not np.array_equal(a.reset(seed=7)[0], c.reset(seed=8)[0])  # the tracker's noise differs
 
 
 def test_bad_arguments_raise_value_error():
@@ -73,3 +86,7 @@ def test_bad_arguments_raise_value_error():
     env.reset(seed=1)
     with pytest.raises(ValueError, match="action"):
         env.step(np.zeros(2))
+    with pytest.raises(ValueError, match="seed"):
+        env.reset(seed=-1)
+    with pytest.raises(ValueError, match="duration"):
+        hydrojet.gym.HydroJetEnv(duration=float("inf"))

@@ -41,7 +41,10 @@ def test_bad_grid_is_refused_naming_the_flag():
     for args, flag in ((["--plants", "/nonexistent.yaml"], "--plants"),
                        (["--plants", config("plant.yaml"), "--seeds", "one"], "--seeds"),
                        (["--plants", config("plant.yaml"), "--durations", "-5"], "--durations"),
-                       (["--plants", config("plant.yaml"), "--start", "later"], "--start")):
+                       (["--plants", config("plant.yaml"), "--start", "later"], "--start"),
+                       (["--plants", config("plant.yaml"), "--modes", ","], "--modes"),
+                       (["--plants", config("plant.yaml"), "--durations", "2", "--ray-address", "127.0.0.1:1"],
+                        "--ray-address")):
         out = subprocess.run([sys.executable, "-m", "hydrojet.sweep", *args], capture_output=True, text=True)
         assert out.returncode == 2 and flag in out.stderr, out.stderr
         assert out.stdout == ""

@@ -120,6 +120,11 @@ void Plant::step_actuators(const rod::InputVector& duty, double dt) {
 }
 
 bool Plant::advance_to(double t) {
+  if (!std::isfinite(t) || t - t_ > kMaxAdvance) {
+    error_ = "advance_to: time " + std::to_string(t) + " s is not finite or lies more than " +
+             std::to_string(kMaxAdvance) + " s ahead of " + std::to_string(t_) + " s";
+    return false;
+  }
   if (!(t > t_ + 1e-12)) return true;
   // Equal internal steps no longer than internal_dt that land exactly on t (no sliver steps: the
   // implicit rod step conditions badly as dt -> 0).

@@ -64,7 +64,6 @@ RecorderOptions read_options(const ros::NodeHandle& pnh) {
   t.keys("", {"scene", "bag", "out", "result_file", "report_file", "fit", "calibrate_args", "samples", "seed", "rate",
               "hold_time", "start_hold", "max_jet_force_fraction", "max_net_force", "min_net_force", "calibrate",
               "exit_when_done", "flow_regulator"});
-  t.keys("flow_regulator", {"feedforward", "lead_time", "valve_exponent", "kp", "ki", "output_min", "output_max"});
   o.scene = t.text("scene", o.scene);
   o.bag = t.text("bag", o.bag);
   o.out = t.text("out", o.out);
@@ -83,6 +82,7 @@ RecorderOptions read_options(const ros::NodeHandle& pnh) {
   o.calibrate = t.boolean("calibrate", o.calibrate);
   o.exit_when_done = t.boolean("exit_when_done", o.exit_when_done);
   config::read_flow_regulator(t, o.flow);
+  t.reject_unknown("flow_regulator");
   if (o.scene.empty()) t.fail("scene", "missing (path of the nominal scene YAML)");
   if (o.bag.empty()) t.fail("bag", "missing (path of the bag to record)");
   if (o.calibrate && o.out.empty()) t.fail("out", "missing (path of the calibrated scene YAML)");

@@ -173,7 +173,7 @@ bool load_setup(const Args& a, Setup* s) {
       s->model[k] = config::make_controller_model(sc, s->copt.flow_regulator);
       s->plant[k] = config::load_plant(sc, a.plant_file);
       const Eigen::Vector3d g = sc.rod.gravity;
-      if (s->count == 1) s->tilt_deg[k] = static_cast<int>(std::lround(std::atan2(g.y(), g.z()) * 180.0 / M_PI));
+      if (s->count == 1) s->tilt_deg[k] = sim::base_tilt_deg(g);
     }
   } catch (const std::exception& e) {
     std::cerr << "experiment: " << e.what() << "\n";
@@ -246,7 +246,7 @@ std::string write_results(const std::vector<Job>& jobs, const std::string& out, 
     wall_s += r.wall_seconds;
     util::JsonObject o;
     o.add("mode", control::to_string(job.mode)).add("tilt_deg", job.tilt_deg).add("seed", static_cast<int>(job.seed));
-    o.add("rms_rad", r.rms).add("rms_true_rad", r.rms_true).add("water_ml_per_min", r.water_flow * 6e7);
+    o.add("rms_rad", r.rms).add("rms_true_rad", r.rms_true).add("water_ml_per_min", sim::ml_per_min(r.water_flow));
     o.add("start", sim::to_string(r.start)).add("approach_time_s", r.approach_time);
     o.add("completed", r.completed);
     if (r.aborted_at >= 0)

@@ -72,8 +72,10 @@ class Plant {
   /// a non-finite entry closes the valves.
   void command(const rod::InputVector& duty, double t);
   /// Integrates up to time t [s] (internal steps of internal_dt). False with error() if the rod
-  /// solver failed; the plant then holds its last state.
+  /// solver failed, or t is not finite or lies more than kMaxAdvance ahead; the plant then holds
+  /// its last state.
   bool advance_to(double t);
+  static constexpr double kMaxAdvance = 3600.0;  ///< [s] the longest one call integrates
 
   /// What the tracker reports now (tip and base sensors in the tracker frame).
   TrackerSample tracker_sample();

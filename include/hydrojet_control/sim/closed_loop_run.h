@@ -3,6 +3,7 @@
 // ROS-free (the control and plant libraries).
 #pragma once
 
+#include <cmath>
 #include <functional>
 #include <memory>
 #include <string>
@@ -62,6 +63,14 @@ struct RunResult {
   double simulated_seconds = 0.0;
   std::vector<RunSample> samples;
 };
+
+/// The base tilt of a scene [deg, rounded] from its gravity in the base frame (0° hangs the rod
+/// along +z): the experiment's tilt_deg.
+inline int base_tilt_deg(const Eigen::Vector3d& gravity) {
+  return static_cast<int>(std::lround(std::atan2(gravity.y(), gravity.z()) * 180.0 / M_PI));
+}
+/// A flow in mL/min from m^3/s (the experiment's water_ml_per_min).
+inline double ml_per_min(double m3_per_s) { return m3_per_s * 6e7; }
 
 /// The sensors at time t as the rig's driver delivers them into `in`: the tracker's tip frame in the
 /// base frame (when its sample is valid; a dropout leaves the last pose and its stamp), the flows and
