@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <cstdio>
 #include <string>
 
@@ -167,6 +168,19 @@ TEST(Plant, SettlesToTheQuasiStaticModel) {
   // Shear/extension compliance of the dynamic rod (GA = EA = 1e5 N) and its grid: ~1e-6.
   EXPECT_LT((pl.tip_position() - s.tip_position).norm(), 2e-6);
   EXPECT_LT(so3::log(pl.tip_rotation().transpose() * s.tip_rotation).norm(), 2e-5);
+}
+
+// A time that is not finite, or lies more than an hour ahead, is refused with a reason and leaves the
+// plant where it was (an unbounded integration, or a cast of inf to a step count, otherwise).
+TEST(Plant, RefusesATimeNotFiniteOrTooFarAhead) {
+  const plant::PlantModel p = exact_plant(test::scene("hydrojet_0deg"));
+  plant::Plant pl(p, 1);
+  ASSERT_TRUE(pl.advance_to(0.01)) << pl.error();
+  for (const double t : {std::numeric_limits<double>::infinity(), std::nan(""), 0.01 + 3600.5}) {
+    EXPECT_FALSE(pl.advance_to(t)) << t;
+    EXPECT_NE(pl.error().find("advance_to: time"), std::string::npos) << pl.error();
+    EXPECT_EQ(pl.time(), 0.01);
+  }
 }
 
 // A general robot: with constant drives the second robot's plant settles where the
