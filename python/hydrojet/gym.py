@@ -57,9 +57,8 @@ class HydroJetEnv(gymnasium.Env):
         self.controller_file = (os.fspath(controller) if controller is not None
                                 else hydrojet.data_path("controller.yaml"))
         self.scene = hydrojet.load_scene(self.scene_file)
-        self.path = (hydrojet.load_path(path) if path is not None
-                     else hydrojet._core._spiral(self.controller_file, float(duration)))
-        self.abort_angle = hydrojet._core._abort_angle(self.controller_file)  # [rad]
+        spiral, self.abort_angle = hydrojet._core._spiral_and_abort_angle(self.controller_file, float(duration))
+        self.path = hydrojet.load_path(path) if path is not None else spiral
         self.control_period = float(control_period)
         self.preview = [(k + 1) * preview_dt for k in range(int(preview_steps))]
         self._seed = None if seed is None else hydrojet._seed(seed)

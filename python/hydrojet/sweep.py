@@ -95,13 +95,12 @@ def make_grid(args) -> List[Dict]:
         durations = _numbers(args.durations or "20", "--durations")
         if any(not (d > 0) for d in durations):
             raise ValueError("--durations: each must be positive")
-    for plant in plants:  # every file loads here (ValueError naming the file's key) before any run starts
-        for scene in scenes:
-            _read(plant, "--plants"), _read(scene, "--scenes")
-            hydrojet._core._check_run(scene, plant, controller, args.path)
     texts = {"controller": _read(controller, "--controller"), "path": _read(args.path, "--path")}
     plant_texts = {p: _read(p, "--plants") for p in plants}
     scene_texts = {s: _read(s, "--scenes") for s in scenes}
+    for plant in plants:  # every file loads here (ValueError naming the file's key) before any run starts
+        for scene in scenes:
+            hydrojet._core._check_run(scene, plant, controller, args.path)
     grid = []
     for plant in plants:
         for d in durations:

@@ -3,9 +3,11 @@
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
+#include <nanobind/stl/tuple.h>
 
 #include <memory>
 #include <optional>
+#include <tuple>
 
 #include "bindings.h"
 #include "hydrojet_control/config/controller_config.h"
@@ -35,9 +37,10 @@ void set_duration(control::SpiralPath& spiral, double duration, const std::strin
 }
 
 sim::RunStart parse_start(const std::string& start) {
-  if (start == "rest") return sim::RunStart::kRest;
-  if (start == "on-path") return sim::RunStart::kOnPath;
-  throw std::invalid_argument("start: must be 'rest' or 'on-path', got '" + start + "'");
+  sim::RunStart s;
+  if (!sim::parse_run_start(start, &s))
+    throw std::invalid_argument("start: must be 'rest' or 'on-path', got '" + start + "'");
+  return s;
 }
 
 /// The controller of a scene with the options of a controller YAML file (config/controller.yaml's
@@ -258,17 +261,15 @@ void bind_loop(nb::module_& m) {
           "flows", [](PyPlant& p) { return to_dynamic(p.get().flows()); }, "true flows [m^3/s]");
 
   m.def(
-      "_spiral",
-      [](const std::string& options, std::optional<double> duration) {
+      "_spiral_and_abort_angle",
+      [](const std::string& options, double duration) {
         config::ControllerNodeOptions o = config::load_controller_options(options);
-        if (duration) set_duration(o.controller.path, *duration, "duration");
-        return std::shared_ptr<control::Path>(control::make_spiral(o.controller.path));
+        set_duration(o.controller.path, duration, "duration");
+        return std::make_tuple(std::shared_ptr<control::Path>(control::make_spiral(o.controller.path)),
+                               o.controller.max_oscillation);
       },
-      nb::arg("options"), nb::arg("duration") = nb::none(), "The spiral (eq. 28) of a controller options file");
-  m.def(
-      "_abort_angle",
-      [](const std::string& options) { return config::load_controller_options(options).controller.max_oscillation; },
-      nb::arg("options"), "safety/max_oscillation of a controller options file [rad]");
+      nb::arg("options"), nb::arg("duration"),
+      "A controller options file's spiral (eq. 28) over `duration` [s] and its safety/max_oscillation [rad]");
   m.def(
       "_check_run",
       [](const std::string& scene, const std::string& plant, const std::string& controller,

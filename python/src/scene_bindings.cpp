@@ -21,13 +21,7 @@ namespace {
 /// Inputs within each actuator's [min_force, max_force], as rod_fk --actuators checks them.
 rod::InputVector checked_inputs(const config::Scene& scene, const Eigen::VectorXd& v) {
   const rod::InputVector q = to_inputs(v, scene.rod.input_count(), "inputs");
-  for (int i = 0; i < q.size(); ++i) {
-    const rod::Actuator& a = scene.rod.actuators[i];
-    if (q[i] < a.min_force || q[i] > a.max_force)
-      throw std::invalid_argument("inputs[" + std::to_string(i) + "] (" + a.name + ") = " + std::to_string(q[i]) +
-                                  " N lies outside [min_force, max_force] = [" + std::to_string(a.min_force) + ", " +
-                                  std::to_string(a.max_force) + "] N");
-  }
+  if (const std::string e = scene.rod.check_inputs(q); !e.empty()) throw std::invalid_argument("inputs: " + e);
   return q;
 }
 

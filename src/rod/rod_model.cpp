@@ -15,6 +15,20 @@ bool finite(const Vec3& v) { return v.allFinite(); }
 
 }  // namespace
 
+std::string RodModel::check_inputs(const Eigen::Ref<const Eigen::VectorXd>& q) const {
+  if (q.size() != input_count())
+    return "the robot has " + std::to_string(input_count()) + " actuator(s), got " + std::to_string(q.size()) +
+           " input(s)";
+  for (int i = 0; i < q.size(); ++i) {
+    const Actuator& a = actuators[i];
+    if (!(q[i] >= a.min_force && q[i] <= a.max_force))
+      return "input " + std::to_string(i + 1) + " (" + a.name + ") = " + std::to_string(q[i]) +
+             " N lies outside [min_force, max_force] = [" + std::to_string(a.min_force) + ", " +
+             std::to_string(a.max_force) + "] N";
+  }
+  return "";
+}
+
 std::string RodModel::validate() const {
   if (segments.empty()) return "segments: at least one segment is needed";
   for (size_t i = 0; i < segments.size(); ++i) {

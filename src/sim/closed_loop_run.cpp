@@ -81,6 +81,15 @@ void read_sensors(plant::Plant& plant, double t, control::ControllerInputs& in) 
 
 const char* to_string(RunStart s) { return s == RunStart::kRest ? "rest" : "on-path"; }
 
+bool parse_run_start(const std::string& name, RunStart* start) {
+  for (const RunStart s : {RunStart::kRest, RunStart::kOnPath})
+    if (name == to_string(s)) {
+      *start = s;
+      return true;
+    }
+  return false;
+}
+
 RunResult run_path(const control::RobotModel& model, const control::ControllerOptions& params,
                    const plant::PlantModel& plant_params, unsigned seed, const RunPlan& plan) {
   const auto wall0 = std::chrono::steady_clock::now();

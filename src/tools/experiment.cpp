@@ -127,11 +127,10 @@ bool parse_args(int argc, char** argv, Args* a) {
       a->path_file = next();
     else if (arg == "--start") {
       const std::string v = next();
-      if (v != "rest" && v != "on-path") {
+      if (!sim::parse_run_start(v, &a->start)) {
         std::cerr << "experiment: --start: must be rest or on-path, got '" << v << "'\n";
         return false;
       }
-      a->start = v == "rest" ? sim::RunStart::kRest : sim::RunStart::kOnPath;
     } else {
       std::cerr << "experiment: " << arg << ": unknown argument\n";
       usage();

@@ -144,11 +144,8 @@ void check_inputs(const hydrojet::config::Scene& scene, const std::vector<double
   if (q.size() != acts.size())
     throw BadInput{"--actuators: the scene has " + std::to_string(acts.size()) + " actuator(s), got " +
                    std::to_string(q.size()) + " input(s)"};
-  for (size_t i = 0; i < q.size(); ++i)
-    if (q[i] < acts[i].min_force || q[i] > acts[i].max_force)
-      throw BadInput{"--actuators: input " + std::to_string(i + 1) + " (" + acts[i].name +
-                     ") = " + std::to_string(q[i]) + " N lies outside [min_force, max_force] = [" +
-                     std::to_string(acts[i].min_force) + ", " + std::to_string(acts[i].max_force) + "] N"};
+  const std::string e = scene.rod.check_inputs(Eigen::Map<const Eigen::VectorXd>(q.data(), q.size()));
+  if (!e.empty()) throw BadInput{"--actuators: " + e};
 }
 
 /// The scene with the command line's integrator overrides; --jets are the inputs of its three jets.

@@ -143,6 +143,9 @@ struct RodModel {
   bool tip_actuated_uniform() const;
   /// Empty when valid, else a message naming the offending field ("segments[1].length: ...").
   std::string validate() const;
+  /// Empty when q has one input per actuator, each within its [min_force, max_force]; else a message
+  /// naming the first that is not ("input 2 (jet2) = 0.3 N lies outside ...", counted from 1).
+  std::string check_inputs(const Eigen::Ref<const Eigen::VectorXd>& q) const;
 };
 
 /// Follower wrench at the tip, expressed in the tip frame (w_a of eq. 16).

@@ -25,6 +25,8 @@ enum class RunStart {
 };
 /// "rest", "on-path" (the experiment's --start values).
 const char* to_string(RunStart s);
+/// The RunStart that `name` names (to_string's names); false for any other.
+bool parse_run_start(const std::string& name, RunStart* start);
 
 /// What one run follows and how it begins.
 struct RunPlan {
