@@ -1,6 +1,6 @@
 // Closed-loop runs of the controller on the simulated plant (sim/closed_loop_run.h): determinism for a
 // seed, on the second robot the closed loop against the open loop, the start on the path, and the
-// modal law against the paper's.
+// modal law against the paper's, and its rounding force on a path through the centre.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -8,6 +8,7 @@
 
 #include "hydrojet_control/config/controller_config.h"
 #include "hydrojet_control/config/plant_config.h"
+#include "hydrojet_control/control/path.h"
 #include "hydrojet_control/sim/closed_loop_run.h"
 #include "test_helpers.h"
 
@@ -125,4 +126,25 @@ TEST(ClosedLoopRun, TheModalLawTracksAFastSpiralBetterThanThePapers) {
                 modal.rms_true, papers.rms, papers.rms_true);
     EXPECT_LT(modal.rms_true, 0.85 * papers.rms_true) << seed;
   }
+}
+
+// The modal law's rounding force on a path through the centre (the shipped lissajous, 0.55 rad/s at
+// most, from on the path): near the centre every jet's force is small, so without it the allocation
+// switches jets on from zero flow, where the valves come late. With modal/rounding_force the jets
+// keep a common flow there: the true error is at most 0.9× that without it (measured: 0.78×).
+TEST(ClosedLoopRun, TheRoundingForceHelpsAPathThroughTheCentre) {
+  const ShippedSetup setup = shipped("hydrojet_0deg");
+  control::ControllerOptions c = setup.controller;
+  sim::RunPlan on;
+  on.start = sim::RunStart::kOnPath;
+  on.path = control::load_path_file(std::string(HYDROJET_SOURCE_DIR) + "/config/paths/lissajous.csv");
+  ASSERT_GT(c.modal.rounding_force, 0.0);
+  const sim::RunResult with = sim::run_path(setup.model, c, setup.plant, 1, on);
+  c.modal.rounding_force = 0.0;
+  const sim::RunResult without = sim::run_path(setup.model, c, setup.plant, 1, on);
+  ASSERT_TRUE(with.completed) << with.reason;
+  ASSERT_TRUE(without.completed) << without.reason;
+  std::printf("lissajous, seed 1: rounding force %.4f rad (true %.4f), without %.4f (true %.4f)\n", with.rms,
+              with.rms_true, without.rms, without.rms_true);
+  EXPECT_LT(with.rms_true, 0.9 * without.rms_true);
 }

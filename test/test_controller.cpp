@@ -370,6 +370,8 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
       {"modal/ki", f.modal.ki, d.modal.ki},
       {"modal/gain_speed", f.modal.gain_speed, d.modal.gain_speed},
       {"modal/damping_gain", f.modal.damping_gain, d.modal.damping_gain},
+      {"modal/actuator_lag", f.modal.actuator_lag, d.modal.actuator_lag},
+      {"modal/rounding_force", f.modal.rounding_force, d.modal.rounding_force},
       {"modal/tip_mass_scale", f.modal.tip_mass_scale, d.modal.tip_mass_scale},
       {"modal/damping_time", f.modal.damping_time, d.modal.damping_time},
       {"modal/tracker_sigma", f.modal.tracker_sigma, d.modal.tracker_sigma},

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <complex>
 #include <random>
 
 #include "hydrojet_control/control/controller_options.h"
@@ -109,35 +110,53 @@ TEST(ModalLaw, TheRateEstimateIsConsistentOnASimulatedMode) {
   EXPECT_NEAR(rate, 1.0, 0.15);
 }
 
-TEST(ModalLaw, TheShapingInvertsTheModeOnASinusoid) {
-  // y follows s through the mode: with s = r + (2ζ/ω) ṙ + r̈/ω² (the shaping without feedback), the
-  // steady state follows r itself; with s = r it lags by the mode's phase.
+TEST(ModalLaw, TheShapingInvertsTheModeAndTheActuatorLagOnASinusoid) {
+  // s drives a first-order lag τ_a (the flow loop), whose output drives the mode. With
+  // s = r + m_ff (the shaping without feedback) the steady state follows r but for the τ_a r⃛/ω² term
+  // the shaping leaves out; with s = r it lags by the cascade's phase. Both against the closed form
+  // on H(jW) = 1 / ((1 + jWτ_a)(1 − (W/ω)² + 2jζW/ω)).
   const double w = 20.0, zeta = 0.3, dt = 0.001, W = 4.0;
-  ModalLawOptions o;
-  o.damping_gain = 0.0;
-  Eigen::Matrix3d A;
-  Eigen::Vector3d B;
-  modal_transition(w, zeta, dt, &A, &B);
-  Eigen::Vector3d shaped = Eigen::Vector3d::Zero(), plain = Eigen::Vector3d::Zero();
-  double err_shaped = 0.0, err_plain = 0.0;
-  for (int k = 0; k < 6000; ++k) {
-    const double t = k * dt;
-    ReferenceMotion r;
-    r.rate = Vec3(W * std::cos(W * (t + dt / 2)), 0, 0);  // s is held over [t, t + dt]
-    r.accel = Vec3(-W * W * std::sin(W * (t + dt / 2)), 0, 0);
-    const double ref = std::sin(W * (t + dt / 2));
-    const double s = ref + modal_shaping(r, Vec3::Zero(), w, zeta, o)(0);
-    shaped = A * shaped + B * s;
-    plain = A * plain + B * ref;
-    if (t > 3.0) {
-      const double truth = std::sin(W * (t + dt));
-      err_shaped = std::max(err_shaped, std::abs(shaped(0) - truth));
-      err_plain = std::max(err_plain, std::abs(plain(0) - truth));
+  for (const double tau : {0.0, 0.03, 0.06}) {
+    ModalLawOptions o;
+    o.damping_gain = 0.0;
+    o.actuator_lag = tau;
+    Eigen::Matrix3d A;
+    Eigen::Vector3d B;
+    modal_transition(w, zeta, dt, &A, &B);
+    const double lag = tau > 0.0 ? std::exp(-dt / tau) : 0.0;  // exact over a step with s held
+    Eigen::Vector3d shaped = Eigen::Vector3d::Zero(), plain = Eigen::Vector3d::Zero();
+    double u_shaped = 0.0, u_plain = 0.0, err_shaped = 0.0, err_plain = 0.0;
+    for (int k = 0; k < 6000; ++k) {
+      const double t = k * dt, mid = t + dt / 2;  // s is held over [t, t + dt]
+      ReferenceMotion r;
+      r.rate = Vec3(W * std::cos(W * mid), 0, 0);
+      r.accel = Vec3(-W * W * std::sin(W * mid), 0, 0);
+      const double ref = std::sin(W * mid);
+      const double s = ref + modal_shaping(r, Vec3::Zero(), w, zeta, o)(0);
+      // The mode sees the lag's output held over the step (its mean over the step, to first order).
+      const double u_shaped_next = lag * u_shaped + (1 - lag) * s, u_plain_next = lag * u_plain + (1 - lag) * ref;
+      shaped = A * shaped + B * (tau > 0.0 ? 0.5 * (u_shaped + u_shaped_next) : s);
+      plain = A * plain + B * (tau > 0.0 ? 0.5 * (u_plain + u_plain_next) : ref);
+      u_shaped = u_shaped_next;
+      u_plain = u_plain_next;
+      if (t > 3.0) {
+        const double truth = std::sin(W * (t + dt));
+        err_shaped = std::max(err_shaped, std::abs(shaped(0) - truth));
+        err_plain = std::max(err_plain, std::abs(plain(0) - truth));
+      }
+    }
+    const std::complex<double> jW(0.0, W);
+    const std::complex<double> H = 1.0 / ((1.0 + jW * tau) * (1.0 + 2.0 * zeta * jW / w + jW * jW / (w * w)));
+    const double plain_truth = std::abs(1.0 - H);                            // 0.1307 at τ_a = 0
+    const double shaped_truth = std::abs(H * tau * jW * jW * jW) / (w * w);  // the r⃛ term left out
+    EXPECT_NEAR(err_plain, plain_truth, 1e-4) << "tau " << tau;
+    EXPECT_NEAR(err_shaped, shaped_truth, 1e-4) << "tau " << tau;
+    if (tau == 0.0) {
+      EXPECT_NEAR(plain_truth, 0.1307, 1e-4);
+    } else {
+      EXPECT_LT(err_shaped, 0.1 * err_plain) << "tau " << tau;
     }
   }
-  // Without the shaping the steady error is |1 − 1/(1 − (W/ω)² + 2jζW/ω)| = 0.1307 of the amplitude.
-  EXPECT_NEAR(err_plain, 0.1307, 0.002);
-  EXPECT_LT(err_shaped, 2e-3);
 }
 
 TEST(ModalLaw, TheDampingGainOpposesTheEstimatedRateRelativeToThePath) {

@@ -73,6 +73,8 @@ void read_controller_options(Tree& p, control::ControllerOptions& c) {
       {"modal/ki", "modal.ki", &c.modal.ki},
       {"modal/gain_speed", "modal.gain_speed", &c.modal.gain_speed},
       {"modal/damping_gain", "modal.damping_gain", &c.modal.damping_gain},
+      {"modal/actuator_lag", "modal.actuator_lag", &c.modal.actuator_lag},
+      {"modal/rounding_force", "modal.rounding_force", &c.modal.rounding_force},
       {"modal/tip_mass_scale", "modal.tip_mass_scale", &c.modal.tip_mass_scale},
       {"modal/damping_time", "modal.damping_time", &c.modal.damping_time},
       {"modal/tracker_sigma", "modal.tracker_sigma", &c.modal.tracker_sigma},

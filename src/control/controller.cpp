@@ -286,12 +286,16 @@ bool Controller::modal_drives() const {
          reference_.on_path();
 }
 
-// The PD's gains: while the modal law drives, from gains/* toward modal/* with the weight of the
-// reference's speed (modal/gain_speed).
+// The modal law's gain schedule: the weight of the reference's speed (modal/gain_speed) while it
+// drives, else 0.
+double Controller::modal_weight() const {
+  return modal_drives() ? fast_path_weight(pd_.speed(), params_.modal.gain_speed) : 0.0;
+}
+
+// The PD's gains: from gains/* toward modal/* with the modal law's weight.
 ControllerOptions Controller::law_gains() const {
   ControllerOptions gains = params_;
-  if (modal_drives()) {
-    const double w = fast_path_weight(pd_.speed(), params_.modal.gain_speed);
+  if (const double w = modal_weight(); w > 0.0) {
     gains.kp = params_.kp + w * (params_.modal.kp - params_.kp);
     gains.ki = params_.ki + w * (params_.modal.ki - params_.ki);
   }
@@ -350,12 +354,12 @@ std::string Controller::command_inputs(const rod::RodSolution& sol, const Actuat
 // allocation_smoothing: the step's inputs with their corners rounded along the jets' common
 // mode n: q + a n. At w = 1 the target of a is c − y₀ (round_allocation: q's least common mode plus
 // the log-sum-exp amount at the scale σ ‖f‖, f the step's tip wrench with moments as forces at the
-// arm L); at speed weight w it is w (c − y₀), so a still reference gets q itself. a moves at most at
-// max_common_force_rate (also when the option is off or the mode vanishes: it decays along the
-// last mode) and stays within the bounds (−y₀ ≤ a: no jet below its lower bound; at most each
-// jet's room to its q_max on a path, to reachable_force_fraction of it otherwise, or 0), which
-// come before the rate. The next step's base stays the QP's own
-// q (previous_command_), so the rounding does not accumulate.
+// arm L, ‖f‖ at least modal/rounding_force by the modal law's weight); at speed weight w it is
+// w (c − y₀), so a still reference gets q itself. a moves at most at max_common_force_rate (also
+// when the option is off or the mode vanishes: it decays along the last mode) and stays within the
+// bounds (−y₀ ≤ a: no jet below its lower bound; at most each jet's room to its q_max on a path, to
+// reachable_force_fraction of it otherwise, or 0), which come before the rate. The next step's base
+// stays the QP's own q (previous_command_), so the rounding does not accumulate.
 InputVector Controller::round_corners(const InputVector& q, const ActuatedModel::Linearisation& lin, double dt) {
   bool fresh = false;  // a mode found this cycle (else only the excess along the last one)
   double scale = 0.0;
@@ -368,7 +372,9 @@ InputVector Controller::round_corners(const InputVector& q, const ActuatedModel:
       fresh = true;
       rod::Vec6 wrench = lin.wrenches * q;  // the mode adds none
       wrench.tail<3>() /= model_.rod().length();
-      scale = params_.allocation_smoothing * wrench.norm();  // [N]
+      // Under the modal law, at least its rounding_force: near the path's centre every jet would
+      // switch on from zero flow, where the valves come late.
+      scale = params_.allocation_smoothing * std::max(wrench.norm(), modal_weight() * params_.modal.rounding_force);
     }
   }
   if (common_mode_.size() != q.size()) return q;  // never rounded

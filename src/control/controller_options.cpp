@@ -86,6 +86,8 @@ std::string ControllerOptions::validate() const {
       {"modal.ki", modal.ki, 0.0, 100.0},
       {"modal.gain_speed", modal.gain_speed, 0.0, 10.0},
       {"modal.damping_gain", modal.damping_gain, 0.0, 10.0},
+      {"modal.actuator_lag", modal.actuator_lag, 0.0, 1.0},
+      {"modal.rounding_force", modal.rounding_force, 0.0, 10.0},
       {"modal.tip_mass_scale", modal.tip_mass_scale, 0.1, 100.0},
       {"modal.damping_time", modal.damping_time, 0.0, 1.0},
       {"modal.tracker_sigma", modal.tracker_sigma, 1e-6, 1.0},

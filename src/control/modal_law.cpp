@@ -45,7 +45,8 @@ void ModalEstimator::step(const Vec3& s, const Vec3& z, double omega, double zet
 
 Vec3 modal_shaping(const ReferenceMotion& r, const Vec3& estimated_rate, double omega, double zeta,
                    const ModalLawOptions& o) {
-  return (2.0 * zeta / omega) * r.rate + r.accel / (omega * omega) -
+  const double tau = o.actuator_lag;
+  return (tau + 2.0 * zeta / omega) * r.rate + (1.0 / (omega * omega) + 2.0 * zeta * tau / omega) * r.accel -
          o.damping_gain * (estimated_rate - r.rate_now) / omega;
 }
 

@@ -103,6 +103,7 @@ class Controller {
                       const InputVector& q_obs);
   double modal_damping_ratio() const;
   bool modal_drives() const;
+  double modal_weight() const;
   ControllerOptions law_gains() const;
   Vec3 shaping_step(const rod::RodSolution& sol, const ControllerOutput& out);
   std::string command_inputs(const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin, double dt,

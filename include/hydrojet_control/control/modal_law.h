@@ -11,10 +11,11 @@
 //
 // Law. The paper's PD on the tracker (eq. 17, with its own gains: DirectionPd) plus the change,
 // step to step, of a direction the forces should add quasi-statically, w·m with
-//   m = (2ζ/ω) ṙ + r̈/ω² − k_v (v̂ − ṙ)/ω
+//   m = (τ_a + 2ζ/ω) ṙ + (1/ω² + 2ζτ_a/ω) r̈ − k_v (v̂ − ṙ)/ω
 // and w the fast-path weight of the path's speed (fast_path_rate: a slow path gets the paper's law),
-// r the path ahead (its preview): the first two terms invert the mode for the path's own motion
-// (the feedforward of a second-order plant), the last damps the mode on the estimated rate. Damped,
+// r the path ahead (its preview): the first two terms invert the mode and the flow loop's residual
+// lag τ_a for the path's own motion (the feedforward of (1 + τ_a s)(1 + 2ζs/ω + s²/ω²), without its
+// τ_a r⃛/ω² term), the last damps the mode on the estimated rate. Damped,
 // the mode lets the PD's gains rise with the path's speed (to K_p 5, K_i 12: they ring the undamped
 // rod; a slow path keeps the paper's gains, which let less of the tracker's noise through). ROS-free
 // (Eigen).
@@ -33,7 +34,12 @@ struct ModalLawOptions {
   /// v_s [rad/s]: the PD's gains move from the paper's law's (gains/*) to kp, ki with the weight
   /// v²/(v² + v_s²) of the reference's speed v (fast_path_weight); 0: kp, ki at every speed.
   double gain_speed = 0.25;
-  double damping_gain = 0.3;       ///< k_v: feedback on ṙ − v̂, per ω [-]
+  double damping_gain = 0.3;  ///< k_v: feedback on ṙ − v̂, per ω [-]
+  /// τ_a [s]: the flow loop's lag left after the regulators' lead; the shaping inverts it with the mode.
+  double actuator_lag = 0.03;
+  /// [N] the allocation's rounding acts as if the tip force were at least this, with the gain
+  /// schedule's weight: the jets keep a common flow through the centre of a fast path (Controller).
+  double rounding_force = 0.15;
   double tip_mass_scale = 3.0;     ///< the capsule's expected mass over the scene's (water fills it) [-]
   double damping_time = 0.02;      ///< τ_kv the law assumes: ζ = ω τ / 2 [s]
   double tracker_sigma = 0.0075;   ///< tracker noise per direction component [-]
@@ -77,7 +83,8 @@ struct ReferenceMotion {
   Vec3 rate_now = Vec3::Zero();  ///< ṙ now [1/s]
 };
 
-/// m = (2ζ/ω) ṙ + r̈/ω² − k_v (v̂ − ṙ_now)/ω: the direction the forces add to the PD's (see above).
+/// m = (τ_a + 2ζ/ω) ṙ + (1/ω² + 2ζτ_a/ω) r̈ − k_v (v̂ − ṙ_now)/ω: the direction the forces add to
+/// the PD's (see above; τ_a = o.actuator_lag).
 Vec3 modal_shaping(const ReferenceMotion& r, const Vec3& estimated_rate, double omega, double zeta,
                    const ModalLawOptions& o);
 
