@@ -36,8 +36,10 @@ import subprocess
 import sys
 import threading
 import time
+import xmlrpc.client
 
 import actionlib
+import rosgraph
 import rospy
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, Vector3, Vector3Stamped
@@ -396,18 +398,24 @@ class Soak:
         # Restart once the fault is over (a stop: after its pause) and the tip has come to rest, as an
         # operator would (a restart into a still-ringing rod trips the oscillation check at once).
         self.wait_sim(injected + p["duration"] + 0.2)
+        if kind == "plant_restart":  # as an operator would: once the controller hears the new plant
+            self.wait_until(self.controller_hears_plant, 30.0)
         resting = self.wait_until(lambda: self.mon.settled(), 30.0)
         row["settled"] = round(self.mon.t, 3) if resting else None
         if det and row["zero_ok"]:  # and they stayed zero until the restart
             row["zero_ok"] = not any(not zero for stamp, zero in self.mon.zero_changes if det[0] <= stamp <= self.mon.t)
-        started = self.mon.t
+        # The restart comes after the abort it restarts from, whatever the clock says (/clock arrives
+        # on a topic of its own and can lag the status that reported the abort): an abort again is a
+        # transition recorded after the call.
+        started = max(self.mon.t, det[0] if det else self.mon.t)
+        seen = len(self.mon.transitions)
         self.call("/controller/start")
         # Judged on controller/status itself, stamped RECOVER_S after the restart: the clock arrives on
         # a topic of its own and can run ahead of the status this script has read (a restart was once
         # judged "not recovered" on a status 4 s of simulated time old).
         ok = self.wait_until(lambda: self.mon.status is not None
                              and self.mon.status.header.stamp.to_sec() >= started + RECOVER_S, 60.0)
-        again = self.mon.first_transition(started, ("aborted",))
+        again = next((tr for tr in self.mon.transitions[seen:] if tr[1] == "aborted"), None)
         row["recovered"] = bool(ok and again is None and self.mon.state() in ("running", "finished"))
         if again:
             row["after_restart"] = again[2]
@@ -416,6 +424,19 @@ class Soak:
         if not row["ok"]:
             self.failures.append(row)
         self.say(row)
+
+    def controller_hears_plant(self):
+        """The controller node is connected to the running plant's sensor topics: after a plant
+        restart ROS connects the subscribers anew, and in lockstep the clock can run on meanwhile
+        (a start before that aborts again on the old plant's last pose)."""
+        try:
+            master = rosgraph.Master("/soak")
+            plant = master.lookupNode("/plant")
+            _, _, bus = xmlrpc.client.ServerProxy(master.lookupNode("/controller")).getBusInfo("/soak")
+        except Exception:  # a node not (yet) registered, or busy: ask again
+            return False
+        heard = {c[4] for c in bus if len(c) > 5 and c[2] == "i" and c[1] == plant and c[5]}
+        return {"/tracker/tip_pose", "/tracker/base_pose", "/jets/state"} <= heard
 
     def unplanned(self, when):
         tr = self.mon.transitions[-1] if self.mon.transitions else (self.mon.t, "?", "")
