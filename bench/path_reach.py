@@ -55,7 +55,7 @@ def duty_at_bound(scene, model, jet, upper, period=0.01):
 def held_directions(scene, plant_file, steps, settle, period=0.01):
     """Tip directions held with one jet off and every jet force within max_force, along a serpentine
     over the other two jets' duties up to their bounds (each point starts from the last one's
-    equilibrium)."""
+    equilibrium); the points not held; and the rest direction (every jet off)."""
     with open(plant_file) as f:
         text = yaml.safe_load(f) or {}
     dynamics = text.setdefault("plant", {}).setdefault("dynamics", {})
@@ -70,6 +70,7 @@ def held_directions(scene, plant_file, steps, settle, period=0.01):
     if scene.actuator_count != 3 or not all(scene.actuator_is_jet):
         raise SystemExit("path_reach: the check is for three jets (the HydroJet's)")
     top = [duty_at_bound(scene, model, i, upper) for i in range(3)]
+    rest = np.array(hydrojet.Plant(scene, model, seed=1).tip_rotation)[:, 2].copy()  # starts at rest, jets off
     held, skipped = [], 0
     for off in range(3):
         on = [i for i in range(3) if i != off]
@@ -96,7 +97,7 @@ def held_directions(scene, plant_file, steps, settle, period=0.01):
                     held.append(z)
                 else:
                     skipped += 1
-    return np.array(held), skipped
+    return np.array(held), skipped, rest
 
 
 def main():
@@ -112,13 +113,12 @@ def main():
         raise SystemExit("path_reach: give --duration or --path")
     scene = hydrojet.load_scene(a.scene)
     path = hydrojet.load_path(a.path) if a.path else hydrojet.Controller(scene, duration=a.duration).spiral()
-    held, skipped = held_directions(scene, a.plant, a.grid, a.settle)
+    held, skipped, centre = held_directions(scene, a.plant, a.grid, a.settle)
     if len(held) == 0:
         raise SystemExit("path_reach: no direction held within the bounds")
     # The held region, star-shaped about the rest direction (the jets off) as the controller's
     # ReachableSet: its largest angle from there per azimuth bin. A path direction beyond it by e
     # is e from anything held (to within the bins' width).
-    centre = held[0]
     e1 = np.cross(centre, [1.0, 0.0, 0.0] if abs(centre[0]) < 0.9 else [0.0, 1.0, 0.0])
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(centre, e1)
