@@ -273,7 +273,7 @@ void control_cycle(benchmark::State& state, bool papers_law) {
   c.path.duration = 20.0;
   if (papers_law) {
     c.control_law = hc::ControlLaw::kPapers;
-    c.ki = c.allocation_smoothing = 0.0;
+    c.pd.ki = c.allocation.smoothing = 0.0;
   }
   const hydrojet::config::Scene sc = scene();
   hc::Controller ctl(hydrojet::config::make_controller_model(sc, o.flow_regulator), c);

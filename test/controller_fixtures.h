@@ -69,8 +69,8 @@ struct StaticPlant {
 /// The gains these tests were tuned with (K_p 4/s, K_d 0.2; config/controller.yaml has 3/s, 0).
 inline control::ControllerOptions tuned_gains() {
   control::ControllerOptions p;
-  p.kp = 4.0;
-  p.kd = 0.2;
+  p.pd.kp = 4.0;
+  p.pd.kd = 0.2;
   return p;
 }
 

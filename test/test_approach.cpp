@@ -83,10 +83,10 @@ TEST(Approach, MovingRestartsTheWindowAndOptionsAreChecked) {
   ApproachOptions o;
   EXPECT_EQ(o.validate(), "");
   o.tolerance = std::nan("");
-  EXPECT_EQ(o.validate().rfind("approach_tolerance:", 0), 0u);
+  EXPECT_EQ(o.validate().rfind("tolerance:", 0), 0u);
   o = ApproachOptions();
   o.timeout = 0.0;
-  EXPECT_EQ(o.validate().rfind("approach_timeout:", 0), 0u);
+  EXPECT_EQ(o.validate().rfind("timeout:", 0), 0u);
 }
 
 }  // namespace

@@ -87,7 +87,7 @@ TEST(ClosedLoopRun, OnPathStartsTheClockOnceSettled) {
   ASSERT_TRUE(rest.completed) << rest.reason;
   EXPECT_EQ(a.start, sim::RunStart::kOnPath);
   EXPECT_GE(a.approach_time, c.approach.settle_time);
-  EXPECT_LT(a.approach_time, M_PI / c.max_angular_rate + c.approach.timeout);
+  EXPECT_LT(a.approach_time, M_PI / c.limits.max_angular_rate + c.approach.timeout);
   EXPECT_EQ(rest.approach_time, 0.0);
   ASSERT_FALSE(a.samples.empty());
   EXPECT_EQ(a.samples.front().t, 0.0);

@@ -15,6 +15,7 @@
 
 #include "hydrojet_control/config/controller_config.h"
 #include "hydrojet_control/control/controller.h"
+#include "hydrojet_control/control/papers_law.h"
 #include "controller_fixtures.h"
 #include "test_helpers.h"
 
@@ -112,7 +113,7 @@ struct OperatorRig {
       : c(config::make_controller_model(sc, flow_gains()),
           [] {
             control::ControllerOptions p = tuned_gains();
-            p.path_type = control::PathType::kNone;
+            p.path.type = control::PathType::kNone;
             return p;
           }()),
         plant(sc, test::bare(sc)) {}
@@ -137,8 +138,9 @@ TEST(ControllerSources, HoldsAtStartThenReachesATargetAtTheRateLimit) {
   rig.c.aim(target, control::Source::kDirection);
   out = rig.run_for(1.0);
   EXPECT_EQ(out.source, control::Source::kDirection);
-  EXPECT_NEAR(control::geodesic_error(start, out.desired_direction), rig.c.params().max_angular_rate * 1.0, 0.02);
-  out = rig.run_for(control::geodesic_error(start, target) / rig.c.params().max_angular_rate + 2.0);
+  EXPECT_NEAR(control::geodesic_error(start, out.desired_direction), rig.c.options().limits.max_angular_rate * 1.0,
+              0.02);
+  out = rig.run_for(control::geodesic_error(start, target) / rig.c.options().limits.max_angular_rate + 2.0);
   ASSERT_EQ(out.state, ControllerState::kRunning) << out.reason;
   EXPECT_LT(control::geodesic_error(out.measured_direction, target), 1e-3);
   EXPECT_FALSE(out.clipped);
@@ -174,7 +176,7 @@ TEST(ControllerSources, TargetOutsideTheReachableSetIsClippedNotAborted) {
   EXPECT_NEAR(out.clip_angle, moved, 1e-12);
   EXPECT_LT(control::geodesic_error(out.desired_direction, clipped), 1e-12);
   EXPECT_LT(control::geodesic_error(out.measured_direction, clipped), 2e-3);
-  EXPECT_GE(out.stability_margin, rig.c.params().min_stability_margin);
+  EXPECT_GE(out.stability_margin, rig.c.options().safety.min_stability_margin);
 }
 
 // The paper's §7 spiral (the configured default) runs as written: every point lies in the full-force
@@ -185,7 +187,7 @@ TEST(ControllerSources, TheConfiguredSpiralRunsUnclippedAnOperatorTargetThereIsC
     const config::Scene sc = test::scene(name);
     control::ControllerOptions options = tuned_gains();
     options.path = control::ControllerOptions().path;  // == config/controller.yaml (DefaultsMatchYaml)
-    options.path_type = control::PathType::kSpiral;
+    options.path.type = control::PathType::kSpiral;
     options.path.duration = 60.0;
     Controller c(config::make_controller_model(sc, flow_gains()), options);
     Vec3 outside = Vec3::Zero();  // a spiral point outside the reserve set
@@ -244,7 +246,7 @@ TEST(ControllerSources, APathIsApproachedAndItsClockStartsOnceTheTipHasSettled) 
   w[0].t = 0.0, w[0].direction = control::direction(0.4, 0.5);
   w[1].t = 2.0, w[1].direction = control::direction(0.6, 0.5);
   const double away = control::geodesic_error(rig.c.reference().direction(), w[0].direction);
-  const double rate = rig.c.params().max_angular_rate, window = rig.c.params().approach.settle_time;
+  const double rate = rig.c.options().limits.max_angular_rate, window = rig.c.options().approach.settle_time;
   rig.c.follow(control::make_waypoints(w), rig.t);
   ControllerOutput out;
   int approach_cycles = 0;
@@ -260,7 +262,7 @@ TEST(ControllerSources, APathIsApproachedAndItsClockStartsOnceTheTipHasSettled) 
   EXPECT_GE(out.approach_time, away / rate + window - 2 * kDt);
   EXPECT_LE(out.approach_time, away / rate + window + 1.5);
   EXPECT_NEAR(out.approach_time, approach_cycles * kDt, 1.5 * kDt);
-  EXPECT_LT(out.error_geodesic, rig.c.params().approach.tolerance);
+  EXPECT_LT(out.error_geodesic, rig.c.options().approach.tolerance);
   EXPECT_LT(control::geodesic_error(out.desired_direction, w[0].direction), 1e-9);
   out = rig.run_for(1.0);
   EXPECT_NEAR(out.path_time, 1.0, 1e-9);  // the cycles after the clock started: T + kDt .. T + 1
@@ -269,10 +271,10 @@ TEST(ControllerSources, APathIsApproachedAndItsClockStartsOnceTheTipHasSettled) 
   EXPECT_EQ(out.state, ControllerState::kFinished);
 
   // A tolerance no real tip meets: after the way there and the timeout, a failure; the reference holds.
-  control::ControllerOptions strict = rig.c.params();
+  control::ControllerOptions strict = rig.c.options();
   strict.approach.tolerance = 1e-9;
   strict.approach.timeout = 0.5;
-  rig.c.set_params(strict);
+  rig.c.set_options(strict);
   w[0].direction = control::direction(0.2, -1.0), w[1].direction = control::direction(0.3, -1.0);
   const double away2 = control::geodesic_error(rig.c.reference().direction(), w[0].direction);
   rig.c.follow(control::make_waypoints(w), rig.t);
@@ -315,14 +317,97 @@ TEST(ControllerSources, AnOperatorsPathIsClippedToTheOperatorSet) {
 TEST(ControllerOptions, ValidationNamesTheField) {
   control::ControllerOptions p;
   EXPECT_EQ(p.validate(), "");
-  p.kp = -1;
-  EXPECT_EQ(p.validate().rfind("kp:", 0), 0u) << p.validate();
+  p.pd.kp = -1;
+  EXPECT_EQ(p.validate().rfind("pd/kp:", 0), 0u) << p.validate();
   p = control::ControllerOptions();
-  p.sample_period = std::nan("");
-  EXPECT_EQ(p.validate().rfind("sample_period:", 0), 0u);
+  p.safety.sample_period = std::nan("");
+  EXPECT_EQ(p.validate().rfind("safety/sample_period:", 0), 0u);
   p = control::ControllerOptions();
   p.path.duration = 0;
-  EXPECT_EQ(p.validate().rfind("path.duration:", 0), 0u);
+  EXPECT_EQ(p.validate().rfind("path/duration:", 0), 0u);
+  p = control::ControllerOptions();
+  p.allocation.max_common_force_rate = 0;
+  EXPECT_EQ(p.validate().rfind("allocation/max_common_force_rate:", 0), 0u) << p.validate();
+  p = control::ControllerOptions();
+  p.approach.timeout = -1;
+  EXPECT_EQ(p.validate().rfind("approach/timeout:", 0), 0u) << p.validate();
+  p = control::ControllerOptions();
+  p.modal.tracker_sigma = 0;
+  EXPECT_EQ(p.validate().rfind("modal/tracker_sigma:", 0), 0u) << p.validate();
+}
+
+// A key that moved to its owner's group is still read from its old place, with a warning naming the
+// new key; given at both places it is refused; an invalid value at the old place names the old key.
+TEST(ControllerOptions, MovedKeysAreReadFromTheirOldPlaceWithAWarning) {
+  const config::ControllerNodeOptions o = config::parse_controller_options(
+      YAML::Load("{gains: {kp: 2.5, damping: 0.05}, fast_path_rate: 0.2, allocation_smoothing: 0.1, "
+                 "allocation_weight: 1.0e-5, limits: {max_common_force_rate: 0.07}, integrate_from_measured: false}"));
+  EXPECT_EQ(o.controller.pd.kp, 2.5);
+  EXPECT_EQ(o.controller.allocation.damping, 0.05);
+  EXPECT_EQ(o.controller.pd.fast_path_rate, 0.2);
+  EXPECT_EQ(o.controller.allocation.smoothing, 0.1);
+  EXPECT_EQ(o.controller.allocation.weight, 1.0e-5);
+  EXPECT_EQ(o.controller.allocation.max_common_force_rate, 0.07);
+  ASSERT_EQ(o.warnings.size(), 7u);
+  for (const char* moved :
+       {"gains/kp: deprecated, read as pd/kp", "gains/damping: deprecated, read as allocation/damping",
+        "fast_path_rate: deprecated, read as pd/fast_path_rate",
+        "allocation_smoothing: deprecated, read as allocation/smoothing",
+        "allocation_weight: deprecated, read as allocation/weight",
+        "limits/max_common_force_rate: deprecated, read as allocation/max_common_force_rate",
+        "integrate_from_measured: removed"})
+    EXPECT_EQ(std::count_if(o.warnings.begin(), o.warnings.end(),
+                            [&](const std::string& w) { return w.rfind(moved, 0) == 0; }),
+              1)
+        << moved;
+  EXPECT_TRUE(config::parse_controller_options(YAML::Load("{pd: {kp: 2.5}}")).warnings.empty());
+  const struct {
+    const char* yaml;
+    const char* key;
+    const char* detail;
+  } refused[] = {{"{gains: {kp: 2.5}, pd: {kp: 3}}", "gains/kp", "moved to pd/kp"},
+                 {"{gains: {kp: -1}}", "gains/kp", "must lie in [0, 50]"},
+                 {"{allocation_smoothing: 11}", "allocation_smoothing", "must lie in [0, 10]"},
+                 {"{integrate_from_measured: true}", "integrate_from_measured", "removed"},
+                 {"{gains: {kq: 1}}", "gains/kq", "unknown key"}};
+  for (const auto& c : refused) {
+    try {
+      config::parse_controller_options(YAML::Load(c.yaml));
+      ADD_FAILURE() << c.yaml << " accepted";
+    } catch (const config::ParamError& e) {
+      EXPECT_EQ(e.key(), c.key) << e.what();
+      EXPECT_NE(e.detail().find(c.detail), std::string::npos) << e.what();
+    }
+  }
+}
+
+// The controller validates what it is given, and acts with the law the options name or the one given.
+TEST(ControllerOptions, TheControllerValidatesItsOptionsAndHoldsOneLaw) {
+  const config::Scene sc = test::scene("hydrojet_0deg");
+  const control::RobotModel model = config::make_controller_model(sc, flow_gains());
+  control::ControllerOptions bad;
+  bad.limits.reachable_force_fraction = 0.0;
+  try {
+    Controller c(model, bad);
+    ADD_FAILURE() << "invalid options accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("limits/reachable_force_fraction:", 0), 0u) << e.what();
+  }
+  control::ControllerOptions p;
+  Controller c(model, p);
+  EXPECT_EQ(c.law().kind(), control::ControlLaw::kModal);
+  p.control_law = control::ControlLaw::kPapers;
+  p.pd.kp = 2.0;
+  c.set_options(p);
+  EXPECT_EQ(c.law().kind(), control::ControlLaw::kPapers);
+  EXPECT_EQ(c.law().pd().kp, 2.0);
+  control::ControllerOptions wrong = p;
+  wrong.safety.max_oscillation = -1.0;
+  EXPECT_THROW(c.set_options(wrong), std::invalid_argument);
+  EXPECT_EQ(c.options().safety.max_oscillation, p.safety.max_oscillation);  // nothing changed
+  Controller given(model, control::ControllerOptions(), std::make_unique<control::PapersLaw>(p.pd));
+  EXPECT_EQ(given.law().kind(), control::ControlLaw::kPapers);
+  EXPECT_EQ(given.law().pd().kp, control::PdOptions().kp);  // the options' gains
 }
 
 // config/controller.yaml is the source of every default: it names every key, and the
@@ -343,29 +428,28 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
     double file, def;
   } numbers[] = {
       {"rate", file.rate, def.rate},
-      {"gains/kp", f.kp, d.kp},
-      {"gains/kd", f.kd, d.kd},
-      {"gains/ki", f.ki, d.ki},
-      {"gains/max_integral", f.max_integral, d.max_integral},
-      {"fast_path_rate", f.fast_path_rate, d.fast_path_rate},
-      {"gains/feedforward", f.feedforward, d.feedforward},
-      {"gains/damping", f.damping, d.damping},
-      {"limits/max_force", f.max_force, d.max_force},
-      {"limits/max_force_rate", f.max_force_rate, d.max_force_rate},
-      {"limits/max_common_force_rate", f.max_common_force_rate, d.max_common_force_rate},
-      {"limits/max_angular_rate", f.max_angular_rate, d.max_angular_rate},
-      {"limits/reachable_force_fraction", f.reachable_force_fraction, d.reachable_force_fraction},
-      {"allocation_weight", f.allocation_weight, d.allocation_weight},
-      {"allocation_smoothing", f.allocation_smoothing, d.allocation_smoothing},
-      {"integrate_from_measured", double(f.integrate_from_measured), double(d.integrate_from_measured)},
-      {"safety/max_oscillation", f.max_oscillation, d.max_oscillation},
-      {"safety/sample_period", f.sample_period, d.sample_period},
-      {"safety/stale_periods", double(f.stale_periods), double(d.stale_periods)},
-      {"safety/max_solver_failures", double(f.max_solver_failures), double(d.max_solver_failures)},
-      {"safety/min_stability_margin", f.min_stability_margin, d.min_stability_margin},
-      {"safety/unreachable_tolerance", f.unreachable_tolerance, d.unreachable_tolerance},
-      {"safety/flow_fault_tolerance", f.flow_fault_tolerance, d.flow_fault_tolerance},
-      {"safety/flow_fault_time", f.flow_fault_time, d.flow_fault_time},
+      {"pd/kp", f.pd.kp, d.pd.kp},
+      {"pd/kd", f.pd.kd, d.pd.kd},
+      {"pd/ki", f.pd.ki, d.pd.ki},
+      {"pd/max_integral", f.pd.max_integral, d.pd.max_integral},
+      {"pd/feedforward", f.pd.feedforward, d.pd.feedforward},
+      {"pd/fast_path_rate", f.pd.fast_path_rate, d.pd.fast_path_rate},
+      {"limits/max_force", f.limits.max_force, d.limits.max_force},
+      {"limits/max_force_rate", f.limits.max_force_rate, d.limits.max_force_rate},
+      {"limits/max_angular_rate", f.limits.max_angular_rate, d.limits.max_angular_rate},
+      {"limits/reachable_force_fraction", f.limits.reachable_force_fraction, d.limits.reachable_force_fraction},
+      {"allocation/damping", f.allocation.damping, d.allocation.damping},
+      {"allocation/weight", f.allocation.weight, d.allocation.weight},
+      {"allocation/smoothing", f.allocation.smoothing, d.allocation.smoothing},
+      {"allocation/max_common_force_rate", f.allocation.max_common_force_rate, d.allocation.max_common_force_rate},
+      {"safety/max_oscillation", f.safety.max_oscillation, d.safety.max_oscillation},
+      {"safety/sample_period", f.safety.sample_period, d.safety.sample_period},
+      {"safety/stale_periods", double(f.safety.stale_periods), double(d.safety.stale_periods)},
+      {"safety/max_solver_failures", double(f.safety.max_solver_failures), double(d.safety.max_solver_failures)},
+      {"safety/min_stability_margin", f.safety.min_stability_margin, d.safety.min_stability_margin},
+      {"safety/unreachable_tolerance", f.safety.unreachable_tolerance, d.safety.unreachable_tolerance},
+      {"safety/flow_fault_tolerance", f.safety.flow_fault_tolerance, d.safety.flow_fault_tolerance},
+      {"safety/flow_fault_time", f.safety.flow_fault_time, d.safety.flow_fault_time},
       {"modal/kp", f.modal.kp, d.modal.kp},
       {"modal/ki", f.modal.ki, d.modal.ki},
       {"modal/gain_speed", f.modal.gain_speed, d.modal.gain_speed},
@@ -401,7 +485,7 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
     EXPECT_TRUE(in_file(key)) << key;
   EXPECT_EQ(f.mode, d.mode);
   EXPECT_EQ(f.control_law, d.control_law);
-  EXPECT_EQ(f.path_type, d.path_type);
+  EXPECT_EQ(f.path.type, d.path.type);
   EXPECT_EQ(file.autostart, def.autostart);
   EXPECT_EQ(file.base_frame, def.base_frame);
   EXPECT_EQ(ff.anti_windup, fd.anti_windup);  // not a key: the regulator's own default
@@ -469,8 +553,12 @@ TEST(ControllerOptions, RangesOfControllerCfgAreEnforced) {
     const char* key;
     double lo, hi;
   } ranges[] = {
-      {"gains/kp", 0.0, 50.0},       {"gains/kd", 0.0, 5.0},          {"gains/feedforward", 0.0, 2.0},
-      {"gains/damping", 1e-4, 10.0}, {"limits/max_force", 0.01, 1.0}, {"limits/max_force_rate", 0.01, 20.0},
+      {"pd/kp", 0.0, 50.0},
+      {"pd/kd", 0.0, 5.0},
+      {"pd/feedforward", 0.0, 2.0},
+      {"allocation/damping", 1e-4, 10.0},
+      {"limits/max_force", 0.01, 1.0},
+      {"limits/max_force_rate", 0.01, 20.0},
   };
   auto parse = [](const std::string& key, double v) {
     const size_t slash = key.find('/');
@@ -507,9 +595,9 @@ TEST(Controller, TheSpeedWeightedIntegralRemovesTheRampErrorOfAGainMismatch) {
   for (int law = 0; law < 3; ++law) {
     control::ControllerOptions p;  // K_p 3/s
     p.control_law = control::ControlLaw::kPapers;
-    p.ki = law == 0 ? 0.0 : 6.0;
-    p.fast_path_rate = law == 2 ? 0.0 : 0.1;
-    p.path_type = control::PathType::kNone;
+    p.pd.ki = law == 0 ? 0.0 : 6.0;
+    p.pd.fast_path_rate = law == 2 ? 0.0 : 0.1;
+    p.path.type = control::PathType::kNone;
     Controller c(config::make_controller_model(sc, flow_gains()), p);
     StaticPlant plant(sc, truth);
     c.follow(std::make_shared<ArcPath>(0.3, 3.0), 0.0);  // joined from the rest direction at ≤ 0.25 rad/s
@@ -538,11 +626,11 @@ TEST(Controller, OnAStillTargetTheFastPathElementsAreThePapersLaw) {
   rod::RodModel truth = test::bare(sc);
   truth.segments[0].stiffness *= 0.8;
   control::ControllerOptions bare = static_target(0.6, 1.0);
-  bare.ki = 0.0;
-  bare.allocation_smoothing = 0.0;
+  bare.pd.ki = 0.0;
+  bare.allocation.smoothing = 0.0;
   const control::ControllerOptions fast = static_target(0.6, 1.0);  // the defaults: K_i 6, rounding
-  ASSERT_GT(fast.ki, 0.0);
-  ASSERT_GT(fast.allocation_smoothing, 0.0);
+  ASSERT_GT(fast.pd.ki, 0.0);
+  ASSERT_GT(fast.allocation.smoothing, 0.0);
   Controller paper(config::make_controller_model(sc, flow_gains()), bare);
   Controller scheduled(config::make_controller_model(sc, flow_gains()), fast);
   StaticPlant a(sc, truth), b(sc, truth);
@@ -575,10 +663,10 @@ TEST(Controller, TheRoundedAllocationSmoothsTheJetsAndLeavesTheTip) {
   double second[2], rms[2];
   for (int round : {0, 1}) {
     control::ControllerOptions p;
-    p.path_type = control::PathType::kNone;
+    p.path.type = control::PathType::kNone;
     p.control_law = control::ControlLaw::kPapers;  // the allocation alone
-    p.ki = 0.0;
-    p.allocation_smoothing = round ? 0.3 : 0.0;
+    p.pd.ki = 0.0;
+    p.allocation.smoothing = round ? 0.3 : 0.0;
     Controller c(config::make_controller_model(sc, flow_gains()), p);
     StaticPlant plant(sc, test::bare(sc));
     c.start(0.0);

@@ -1,6 +1,6 @@
 // The modal law's pieces (control/modal_law.h) against independent truths: the transition against
-// the damped oscillator's closed-form response, the estimator against the general Kalman filter of
-// linear_quadratic.h run component by component, its rate estimate's errors against its own
+// the damped oscillator's closed-form response, the estimator against a general Kalman filter (the
+// textbook equations below, in full matrices) run component by component, its rate estimate's errors against its own
 // covariance on a simulated rod mode, and the shaping's inversion of the mode on a sinusoid.
 #include <gtest/gtest.h>
 
@@ -9,18 +9,47 @@
 #include <random>
 
 #include "hydrojet_control/control/controller_options.h"
-#include "hydrojet_control/control/linear_quadratic.h"
 #include "hydrojet_control/control/modal_law.h"
 
 namespace {
 
-using hydrojet::control::KalmanFilter;
 using hydrojet::control::modal_shaping;
 using hydrojet::control::modal_transition;
 using hydrojet::control::ModalEstimator;
 using hydrojet::control::ModalLawOptions;
 using hydrojet::control::ReferenceMotion;
 using Vec3 = Eigen::Vector3d;
+
+/// The textbook Kalman filter in full matrices (predict; update in Joseph form with S solved by LDLT):
+/// a second method for the estimator, which shares one covariance between the components.
+class KalmanFilter {
+ public:
+  void reset(const Eigen::VectorXd& x0, const Eigen::MatrixXd& P0) {
+    x_ = x0;
+    P_ = P0;
+  }
+  void predict(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const Eigen::VectorXd& u, const Eigen::MatrixXd& Q) {
+    x_ = A * x_ + B * u;
+    P_ = A * P_ * A.transpose() + Q;
+    P_ = 0.5 * (P_ + P_.transpose());
+  }
+  /// False (and no change) when z is not finite.
+  bool update(const Eigen::MatrixXd& H, const Eigen::MatrixXd& R, const Eigen::VectorXd& z) {
+    if (!z.allFinite()) return false;
+    const Eigen::MatrixXd S = H * P_ * H.transpose() + R;
+    const Eigen::MatrixXd K = S.ldlt().solve(H * P_).transpose();  // P Hᵀ S⁻¹ (S, P symmetric)
+    const Eigen::MatrixXd IKH = Eigen::MatrixXd::Identity(P_.rows(), P_.cols()) - K * H;
+    x_ += K * (z - H * x_);
+    P_ = IKH * P_ * IKH.transpose() + K * R * K.transpose();
+    return true;
+  }
+  const Eigen::VectorXd& state() const { return x_; }
+  const Eigen::MatrixXd& covariance() const { return P_; }
+
+ private:
+  Eigen::VectorXd x_;
+  Eigen::MatrixXd P_;
+};
 
 TEST(ModalLaw, TheTransitionIsTheDampedOscillatorsClosedForm) {
   const double w = 19.0, zeta = 0.2, dt = 0.013;
@@ -170,7 +199,7 @@ TEST(ModalLaw, TheDampingGainOpposesTheEstimatedRateRelativeToThePath) {
   hydrojet::control::ControllerOptions c;
   EXPECT_TRUE(c.validate().empty());
   c.modal.damping_gain = -1;
-  EXPECT_NE(c.validate().find("modal.damping_gain"), std::string::npos);
+  EXPECT_NE(c.validate().find("modal/damping_gain"), std::string::npos);
 }
 
 }  // namespace

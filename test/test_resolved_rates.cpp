@@ -22,8 +22,8 @@ using test::flow_gains;
 namespace {
 
 /// DirectionPd's terms alone: K_p, K_i, the feedforward's weight; no derivative.
-control::ControllerOptions pd_terms(double kp, double ki, double feedforward) {
-  control::ControllerOptions g;
+control::PdOptions pd_terms(double kp, double ki, double feedforward) {
+  control::PdOptions g;
   g.kp = kp;
   g.kd = 0.0;
   g.ki = ki;
@@ -35,14 +35,14 @@ control::ControllerOptions pd_terms(double kp, double ki, double feedforward) {
 
 // The feedforward is x_des's own motion per step (none on the priming step); K_i integrates.
 TEST(DirectionPd, TheFeedforwardIsTheReferencesMotionAndTheIntegralAccumulates) {
-  const control::ControllerOptions g = pd_terms(0.0, control::ControllerOptions().ki, 1.0);
+  const control::PdOptions g = pd_terms(0.0, control::PdOptions().ki, 1.0);
   control::DirectionPd pd;
   Vec3 x = pd.correction(dir(0.0), dir(0.0), 0.01, g);  // primes: no motion known yet
   EXPECT_EQ(x.norm(), 0.0);
   x = pd.correction(dir(0.01), dir(0.01), 0.01, g);  // 0.01 rad about +y
   EXPECT_NEAR((x - Vec3(0.0, 0.01, 0.0)).norm(), 0.0, 1e-12);
   // K_i: the integral of a constant error e over n steps of dt adds K_i dt (n dt) e, bounded.
-  control::ControllerOptions gi = pd_terms(0.0, 2.0, 0.0);
+  control::PdOptions gi = pd_terms(0.0, 2.0, 0.0);
   gi.max_integral = 1.0;
   gi.fast_path_rate = 0.0;  // unscheduled: the still reference below gets the integral too
   control::DirectionPd pi;
@@ -61,7 +61,7 @@ TEST(DirectionPd, TheIntegralIsWeightedByTheReferenceSpeedAndLeaksWhenItStops) {
   EXPECT_DOUBLE_EQ(control::fast_path_weight(0.1, 0.1), 0.5);
   EXPECT_DOUBLE_EQ(control::fast_path_weight(0.3, 0.1), 0.9);
   EXPECT_EQ(control::fast_path_weight(0.0, 0.0), 1.0);
-  control::ControllerOptions g = pd_terms(0.0, 2.0, 0.0);
+  control::PdOptions g = pd_terms(0.0, 2.0, 0.0);
   g.max_integral = 1.0;
   g.fast_path_rate = 0.1;
   const double dt = 0.01, e = 0.02;
@@ -90,7 +90,7 @@ TEST(DirectionPd, TheIntegralIsWeightedByTheReferenceSpeedAndLeaksWhenItStops) {
 // motion over both cycles, not over the last one (which would double it), and the
 // feedforward carries the motion of both.
 TEST(DirectionPd, AHeldCycleCountsInTheReferenceSpeed) {
-  const control::ControllerOptions g = pd_terms(0.0, 0.0, 1.0);
+  const control::PdOptions g = pd_terms(0.0, 0.0, 1.0);
   const double dt = 0.01, v = 0.2;
   control::DirectionPd pd;
   pd.skip(dt);  // before the first correction: nothing to carry

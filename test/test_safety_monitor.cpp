@@ -145,8 +145,8 @@ TEST(SafetyMonitor, LowStabilityMarginAborts) {
   const config::Scene sc = test::scene("hydrojet_0deg");
   Controller c(config::make_controller_model(sc, flow_gains()), p);
   StaticPlant plant(sc, test::bare(sc));
-  p.min_stability_margin = 100.0;  // N/m, far above the HydroJet's ~3 N/m
-  c.set_params(p);
+  p.safety.min_stability_margin = 100.0;  // N/m, far above the HydroJet's ~3 N/m
+  c.set_options(p);
   c.start(0.0);
   expect_aborted(c.update(plant.inputs(0.0)), "sigma_c");
 }
@@ -173,7 +173,7 @@ TEST(SafetyMonitor, StuckOpenJetIsDetectedFromFlowFeedback) {
     if (out.state == ControllerState::kAborted) break;
   }
   expect_aborted(out, "jet 2 does not follow");
-  const double params_time = control::ControllerOptions().flow_fault_time;
+  const double params_time = control::SafetyOptions().flow_fault_time;
   // The excess over the tolerance (3e-6) is at most 3e-6 here, so it cannot trip sooner than
   // flow_fault_time; it trips soon after the loop has pushed jet 2's command away from the stuck flow.
   EXPECT_GE(k * kDt, params_time - 1e-9);

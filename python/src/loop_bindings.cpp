@@ -61,7 +61,7 @@ class PyController {
   std::shared_ptr<control::Path> spiral() const {
     return std::shared_ptr<control::Path>(control::make_spiral(options_.controller.path));
   }
-  std::string mode() const { return control::to_string(controller_->params().mode); }
+  std::string mode() const { return control::to_string(controller_->options().mode); }
   void set_mode(const std::string& m) { controller_->set_mode(parse_mode(m)); }
 
  private:
@@ -266,7 +266,7 @@ void bind_loop(nb::module_& m) {
         config::ControllerNodeOptions o = config::load_controller_options(options);
         set_duration(o.controller.path, duration, "duration");
         return std::make_tuple(std::shared_ptr<control::Path>(control::make_spiral(o.controller.path)),
-                               o.controller.max_oscillation);
+                               o.controller.safety.max_oscillation);
       },
       nb::arg("options"), nb::arg("duration"),
       "A controller options file's spiral (eq. 28) over `duration` [s] and its safety/max_oscillation [rad]");

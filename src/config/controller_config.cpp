@@ -1,8 +1,11 @@
 #include "hydrojet_control/config/controller_config.h"
 #include "hydrojet_control/util/files.h"
 
-#include <cmath>
 #include <algorithm>
+#include <cmath>
+#include <map>
+#include <utility>
+#include <vector>
 
 namespace hydrojet {
 namespace config {
@@ -32,69 +35,106 @@ void read_node_options(Tree& p, ControllerNodeOptions& o) {
   o.controller.mode = read_choice(p, "mode", o.controller.mode, control::LoopMode::kClosed, control::LoopMode::kOpen);
 }
 
-/// Gains, limits, safety and path (ControllerOptions), validated; an error names the key.
-void read_controller_options(Tree& p, control::ControllerOptions& c) {
-  // Each numeric parameter: its key, the core's field name (as ControllerOptions::validate() names
-  // it) and where it lives.
+/// Keys that moved to the group of their owner: still read from the old place, with a warning naming
+/// the new key.
+constexpr std::pair<const char*, const char*> kMovedKeys[] = {
+    {"gains/kp", "pd/kp"},
+    {"gains/kd", "pd/kd"},
+    {"gains/ki", "pd/ki"},
+    {"gains/max_integral", "pd/max_integral"},
+    {"gains/feedforward", "pd/feedforward"},
+    {"fast_path_rate", "pd/fast_path_rate"},
+    {"gains/damping", "allocation/damping"},
+    {"allocation_weight", "allocation/weight"},
+    {"allocation_smoothing", "allocation/smoothing"},
+    {"limits/max_common_force_rate", "allocation/max_common_force_rate"},
+};
+
+/// The key that holds `key`'s value: its old place (kMovedKeys) when only that is given, with a
+/// warning; both given fail naming the old one.
+std::string source_of(Tree& p, const std::string& key, std::vector<std::string>& warnings) {
+  for (const auto& [old_key, new_key] : kMovedKeys) {
+    if (key != new_key || !p.has(old_key)) continue;
+    if (p.has(new_key)) p.fail(old_key, "moved to " + p.key(new_key) + "; give it there only");
+    warnings.push_back(std::string(p.key(old_key)) + ": deprecated, read as " + p.key(new_key) + "; write " +
+                       p.key(new_key) + " instead");
+    return old_key;
+  }
+  return key;
+}
+
+/// Keys whose option was removed: accepted at the value the controller now always uses, with a warning.
+void read_removed(Tree& p, std::vector<std::string>& warnings) {
+  const char* key = "integrate_from_measured";
+  if (!p.has(key)) return;
+  if (p.boolean(key, false)) p.fail(key, "removed: the step's base is always the previous command");
+  warnings.push_back(p.key(key) + ": removed (the step's base is always the previous command); ignored");
+}
+
+/// Every option of ControllerOptions at its key, the group's path (pd/kp is pd.kp), validated; an
+/// error names the key it was read from.
+void read_controller_options(Tree& p, control::ControllerOptions& c, std::vector<std::string>& warnings) {
   const struct {
     const char* key;
-    const char* field;
     double* value;
   } numbers[] = {
-      {"gains/kp", "kp", &c.kp},
-      {"gains/kd", "kd", &c.kd},
-      {"gains/ki", "ki", &c.ki},
-      {"gains/max_integral", "max_integral", &c.max_integral},
-      {"gains/feedforward", "feedforward", &c.feedforward},
-      {"gains/damping", "damping", &c.damping},
-      {"limits/max_force", "max_force", &c.max_force},
-      {"limits/max_force_rate", "max_force_rate", &c.max_force_rate},
-      {"limits/max_common_force_rate", "max_common_force_rate", &c.max_common_force_rate},
-      {"fast_path_rate", "fast_path_rate", &c.fast_path_rate},
-      {"limits/max_angular_rate", "max_angular_rate", &c.max_angular_rate},
-      {"limits/reachable_force_fraction", "reachable_force_fraction", &c.reachable_force_fraction},
-      {"allocation_weight", "allocation_weight", &c.allocation_weight},
-      {"allocation_smoothing", "allocation_smoothing", &c.allocation_smoothing},
-      {"safety/max_oscillation", "max_oscillation", &c.max_oscillation},
-      {"safety/sample_period", "sample_period", &c.sample_period},
-      {"safety/min_stability_margin", "min_stability_margin", &c.min_stability_margin},
-      {"safety/unreachable_tolerance", "unreachable_tolerance", &c.unreachable_tolerance},
-      {"safety/flow_fault_tolerance", "flow_fault_tolerance", &c.flow_fault_tolerance},
-      {"safety/flow_fault_time", "flow_fault_time", &c.flow_fault_time},
-      {"approach/tolerance", "approach_tolerance", &c.approach.tolerance},
-      {"approach/settle_time", "approach_settle_time", &c.approach.settle_time},
-      {"approach/timeout", "approach_timeout", &c.approach.timeout},
-      {"path/theta_start", "path.theta_start", &c.path.theta_start},
-      {"path/theta_end", "path.theta_end", &c.path.theta_end},
-      {"path/phi_start", "path.phi_start", &c.path.phi_start},
-      {"path/phi_end", "path.phi_end", &c.path.phi_end},
-      {"path/duration", "path.duration", &c.path.duration},
-      {"modal/kp", "modal.kp", &c.modal.kp},
-      {"modal/ki", "modal.ki", &c.modal.ki},
-      {"modal/gain_speed", "modal.gain_speed", &c.modal.gain_speed},
-      {"modal/damping_gain", "modal.damping_gain", &c.modal.damping_gain},
-      {"modal/actuator_lag", "modal.actuator_lag", &c.modal.actuator_lag},
-      {"modal/rounding_force", "modal.rounding_force", &c.modal.rounding_force},
-      {"modal/tip_mass_scale", "modal.tip_mass_scale", &c.modal.tip_mass_scale},
-      {"modal/damping_time", "modal.damping_time", &c.modal.damping_time},
-      {"modal/tracker_sigma", "modal.tracker_sigma", &c.modal.tracker_sigma},
-      {"modal/velocity_noise", "modal.velocity_noise", &c.modal.velocity_noise},
-      {"modal/disturbance_noise", "modal.disturbance_noise", &c.modal.disturbance_noise},
+      {"pd/kp", &c.pd.kp},
+      {"pd/kd", &c.pd.kd},
+      {"pd/ki", &c.pd.ki},
+      {"pd/max_integral", &c.pd.max_integral},
+      {"pd/feedforward", &c.pd.feedforward},
+      {"pd/fast_path_rate", &c.pd.fast_path_rate},
+      {"limits/max_force", &c.limits.max_force},
+      {"limits/max_force_rate", &c.limits.max_force_rate},
+      {"limits/max_angular_rate", &c.limits.max_angular_rate},
+      {"limits/reachable_force_fraction", &c.limits.reachable_force_fraction},
+      {"allocation/damping", &c.allocation.damping},
+      {"allocation/weight", &c.allocation.weight},
+      {"allocation/smoothing", &c.allocation.smoothing},
+      {"allocation/max_common_force_rate", &c.allocation.max_common_force_rate},
+      {"safety/max_oscillation", &c.safety.max_oscillation},
+      {"safety/sample_period", &c.safety.sample_period},
+      {"safety/min_stability_margin", &c.safety.min_stability_margin},
+      {"safety/unreachable_tolerance", &c.safety.unreachable_tolerance},
+      {"safety/flow_fault_tolerance", &c.safety.flow_fault_tolerance},
+      {"safety/flow_fault_time", &c.safety.flow_fault_time},
+      {"approach/tolerance", &c.approach.tolerance},
+      {"approach/settle_time", &c.approach.settle_time},
+      {"approach/timeout", &c.approach.timeout},
+      {"path/theta_start", &c.path.theta_start},
+      {"path/theta_end", &c.path.theta_end},
+      {"path/phi_start", &c.path.phi_start},
+      {"path/phi_end", &c.path.phi_end},
+      {"path/duration", &c.path.duration},
+      {"modal/kp", &c.modal.kp},
+      {"modal/ki", &c.modal.ki},
+      {"modal/gain_speed", &c.modal.gain_speed},
+      {"modal/damping_gain", &c.modal.damping_gain},
+      {"modal/actuator_lag", &c.modal.actuator_lag},
+      {"modal/rounding_force", &c.modal.rounding_force},
+      {"modal/tip_mass_scale", &c.modal.tip_mass_scale},
+      {"modal/damping_time", &c.modal.damping_time},
+      {"modal/tracker_sigma", &c.modal.tracker_sigma},
+      {"modal/velocity_noise", &c.modal.velocity_noise},
+      {"modal/disturbance_noise", &c.modal.disturbance_noise},
   };
-  for (const auto& n : numbers) *n.value = p.number(n.key, *n.value);
-  c.stale_periods = p.integer("safety/stale_periods", c.stale_periods);
-  c.max_solver_failures = p.integer("safety/max_solver_failures", c.max_solver_failures);
-  c.integrate_from_measured = p.boolean("integrate_from_measured", c.integrate_from_measured);
+  std::map<std::string, std::string> read_from;  // key -> where its value was read (a moved key's old place)
+  for (const auto& n : numbers) {
+    const std::string from = source_of(p, n.key, warnings);
+    if (from != n.key) read_from[n.key] = from;
+    *n.value = p.number(from, *n.value);
+  }
+  c.safety.stale_periods = p.integer("safety/stale_periods", c.safety.stale_periods);
+  c.safety.max_solver_failures = p.integer("safety/max_solver_failures", c.safety.max_solver_failures);
+  read_removed(p, warnings);
   c.control_law =
       read_choice(p, "control_law", c.control_law, control::ControlLaw::kPapers, control::ControlLaw::kModal);
-  c.path_type = read_choice(p, "path/type", c.path_type, control::PathType::kSpiral, control::PathType::kNone);
+  c.path.type = read_choice(p, "path/type", c.path.type, control::PathType::kSpiral, control::PathType::kNone);
   const std::string err = c.validate();
   if (!err.empty()) {
-    const std::string field = err.substr(0, err.find(':'));
-    std::string k = field == "stale_periods" || field == "max_solver_failures" ? "safety/" + field : field;
-    for (const auto& n : numbers)
-      if (field == n.field) k = n.key;
-    p.fail(k, err.substr(std::min(err.size(), field.size() + 2)));
+    const std::string key = err.substr(0, err.find(':'));
+    const auto moved = read_from.find(key);
+    p.fail(moved == read_from.end() ? key : moved->second, err.substr(std::min(err.size(), key.size() + 2)));
   }
 }
 
@@ -141,7 +181,7 @@ ControllerNodeOptions parse_controller_options(const YAML::Node& root) {
   Tree p(root);
   ControllerNodeOptions o;
   read_node_options(p, o);
-  read_controller_options(p, o.controller);
+  read_controller_options(p, o.controller, o.warnings);
   read_flow_regulator(p, o.flow_regulator);
   read_teleop(p, o.teleop);
   p.reject_unknown();

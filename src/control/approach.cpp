@@ -2,7 +2,9 @@
 
 #include <cmath>
 #include <cstdio>
-#include <sstream>
+#include <stdexcept>
+
+#include "hydrojet_control/util/format.h"
 
 namespace hydrojet {
 namespace control {
@@ -16,16 +18,19 @@ std::string ApproachOptions::validate() const {
     const char* field;
     double value, hi;
     const char* unit;
-  } ranges[] = {{"approach_tolerance", tolerance, 0.5, "rad"},
-                {"approach_settle_time", settle_time, 10.0, "s"},
-                {"approach_timeout", timeout, 600.0, "s"}};
-  for (const auto& r : ranges) {
-    if (r.value > 0.0 && r.value <= r.hi) continue;
-    std::ostringstream os;
-    os << r.field << ": must lie in (0, " << r.hi << "] " << r.unit << ", got " << r.value;
-    return os.str();
-  }
+  } ranges[] = {
+      {"tolerance", tolerance, 0.5, "rad"}, {"settle_time", settle_time, 10.0, "s"}, {"timeout", timeout, 600.0, "s"}};
+  for (const auto& r : ranges)
+    if (!(r.value > 0.0 && r.value <= r.hi))
+      return util::bad(r.field, r.value, "must lie in (0, " + util::num(r.hi) + "] " + r.unit);
   return "";
+}
+
+ApproachMonitor::ApproachMonitor(const ApproachOptions& options) { set_options(options); }
+
+void ApproachMonitor::set_options(const ApproachOptions& options) {
+  if (std::string err = options.validate(); !err.empty()) throw std::invalid_argument(err);
+  options_ = options;
 }
 
 void ApproachMonitor::reset() {

@@ -1,10 +1,35 @@
 #include "hydrojet_control/control/modal_law.h"
 
 #include <cmath>
+#include <stdexcept>
 #include <unsupported/Eigen/MatrixFunctions>
+
+#include "hydrojet_control/util/format.h"
 
 namespace hydrojet {
 namespace control {
+
+std::string ModalLawOptions::validate() const {
+  const struct {
+    const char* field;
+    double value, lo, hi;
+  } ranges[] = {
+      {"kp", kp, 0.0, 50.0},
+      {"ki", ki, 0.0, 100.0},
+      {"gain_speed", gain_speed, 0.0, 10.0},
+      {"damping_gain", damping_gain, 0.0, 10.0},
+      {"actuator_lag", actuator_lag, 0.0, 1.0},
+      {"rounding_force", rounding_force, 0.0, 10.0},
+      {"tip_mass_scale", tip_mass_scale, 0.1, 100.0},
+      {"damping_time", damping_time, 0.0, 1.0},
+      {"tracker_sigma", tracker_sigma, 1e-6, 1.0},
+      {"velocity_noise", velocity_noise, 1e-6, 1e3},
+      {"disturbance_noise", disturbance_noise, 1e-6, 1e3},
+  };
+  for (const auto& r : ranges)
+    if (std::string err = util::check_range(r.field, r.value, r.lo, r.hi); !err.empty()) return err;
+  return "";
+}
 
 void modal_transition(double omega, double zeta, double dt, Eigen::Matrix3d* A, Eigen::Vector3d* B) {
   Eigen::Matrix4d F = Eigen::Matrix4d::Zero();  // (y, v, d, s)
@@ -48,6 +73,101 @@ Vec3 modal_shaping(const ReferenceMotion& r, const Vec3& estimated_rate, double 
   const double tau = o.actuator_lag;
   return (tau + 2.0 * zeta / omega) * r.rate + (1.0 / (omega * omega) + 2.0 * zeta * tau / omega) * r.accel -
          o.damping_gain * (estimated_rate - r.rate_now) / omega;
+}
+
+ModalLaw::ModalLaw(const PdOptions& pd, const ModalLawOptions& options, double sample_period)
+    : options_(options), sample_period_(sample_period) {
+  if (std::string err = options.validate(); !err.empty()) throw std::invalid_argument("modal/" + err);
+  if (!(std::isfinite(sample_period) && sample_period > 0.0))
+    throw std::invalid_argument(util::bad("sample_period", sample_period, "must be finite and > 0"));
+  set_pd(pd);
+  modes_.tip_mass_scale = options.tip_mass_scale;
+}
+
+void ModalLaw::set_pd(const PdOptions& pd) {
+  if (std::string err = pd.validate(); !err.empty()) throw std::invalid_argument("pd/" + err);
+  pd_options_ = pd;
+}
+
+void ModalLaw::reset() {
+  pd_.reset();
+  estimator_.reset();
+  drives_ = false;
+  shaping_primed_ = false;
+  omega_ = 0.0;
+}
+
+double ModalLaw::fast_path_weight() const { return control::fast_path_weight(pd_.speed(), pd_options_.fast_path_rate); }
+
+// The PD's gains move from pd/* toward modal/* with this weight of the reference's speed
+// (modal/gain_speed) while the law drives; 0 otherwise.
+double ModalLaw::gain_weight() const {
+  return drives_ ? control::fast_path_weight(pd_.speed(), options_.gain_speed) : 0.0;
+}
+
+// ζ of the first mode: Kelvin–Voigt damping of time τ gives 2ζω = τω².
+double ModalLaw::damping_ratio() const { return 0.5 * omega_ * options_.damping_time; }
+
+Vec3 ModalLaw::correction(const LawCycle& c) {
+  estimate(c);
+  PdOptions gains = pd_options_;
+  if (const double w = gain_weight(); w > 0.0) {
+    gains.kp = pd_options_.kp + w * (options_.kp - pd_options_.kp);
+    gains.ki = pd_options_.ki + w * (options_.ki - pd_options_.ki);
+  }
+  const Vec3 shaping = shaping_step(c);  // weighted by the speed over the last step, before this one's
+  return pd_.correction(c.observed, c.desired, c.dt, gains) + shaping;
+}
+
+// The estimator (closed loop): the first mode at this equilibrium (with the capsule's expected
+// fill), then one filter step with the model's direction at the last measured inputs and the
+// tracker's direction. Open loop: none (it starts afresh when the loop closes again).
+void ModalLaw::estimate(const LawCycle& c) {
+  drives_ = false;
+  if (!c.closed_loop) {
+    estimator_.reset();
+    return;
+  }
+  const ActuatedModel& model = *c.model;
+  const ActuatedModel::Linearisation& lin = *c.linearisation;
+  // A body whose mass is all at its tip needs only this cycle's C^b; one with mass of its own needs
+  // the probe solves.
+  const ModalModel modes = !lin.ok || has_body_mass(model.rod())
+                               ? lateral_modes(model.solver(), *c.observed_inputs, rod::TipWrench(), modes_)
+                               : lateral_modes(model.rod(), lin.body_compliance, modes_);
+  if (modes.ok) omega_ = modes.frequency(0);
+  if (!(omega_ > 0.0)) return;  // none yet: the paper's law drives
+  const Vec3 s = c.solution->tip_rotation.col(2);
+  if (!estimator_.initialised())
+    estimator_.start(c.measured, s, omega_, options_);
+  else  // over the time since its last step (a held cycle, a solve that failed, is skipped)
+    estimator_.step(input_, c.measured, omega_, damping_ratio(), c.t - time_, options_);
+  input_ = s;
+  time_ = c.t;
+  drives_ = c.reference->on_path();
+}
+
+// The shaping (modal_shaping) as the change since the last step: x_cntr moves the forces by
+// increments, so an added direction m(t) enters as the rotation d × (m(t) − m(t − dt)); weighted
+// by the path's speed (fast_path_rate: a slow path gets nearly the paper's law).
+Vec3 ModalLaw::shaping_step(const LawCycle& c) {
+  if (!drives_) {
+    shaping_primed_ = false;
+    return Vec3::Zero();
+  }
+  const double h = sample_period_;
+  const Reference& ref = *c.reference;
+  const Vec3 a = ref.preview(c.t, h), b = ref.preview(c.t, 2 * h), d = ref.preview(c.t, 3 * h);
+  ReferenceMotion r;
+  r.rate = (d - a) / (2 * h);
+  r.accel = (d - 2 * b + a) / (h * h);
+  r.rate_now = (a - c.desired) / h;
+  const Vec3 m = fast_path_weight() * modal_shaping(r, estimator_.rate(), omega_, damping_ratio(), options_);
+  const Vec3 step =
+      shaping_primed_ ? Vec3(Vec3(c.solution->tip_rotation.col(2)).cross(m - previous_shaping_)) : Vec3::Zero();
+  previous_shaping_ = m;
+  shaping_primed_ = true;
+  return step;
 }
 
 }  // namespace control

@@ -9,6 +9,7 @@
 #include "hydrojet_control/actuation/bounded_allocation.h"
 
 #include "hydrojet_control/rod/so3.h"
+#include "hydrojet_control/util/format.h"
 
 namespace hydrojet {
 namespace control {
@@ -19,7 +20,31 @@ double fast_path_weight(double rate, double min_rate) {
   return std::isfinite(v2) ? v2 / (v2 + min_rate * min_rate) : 1.0;
 }
 
-Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, double dt, const ControllerOptions& gains) {
+std::string PdOptions::validate() const {
+  const struct {
+    const char* field;
+    double value, lo, hi;
+  } ranges[] = {{"kp", kp, 0.0, 50.0},
+                {"kd", kd, 0.0, 5.0},
+                {"ki", ki, 0.0, 100.0},
+                {"max_integral", max_integral, 0.0, 10.0},
+                {"feedforward", feedforward, 0.0, 2.0},
+                {"fast_path_rate", fast_path_rate, 0.0, 10.0}};
+  for (const auto& r : ranges)
+    if (std::string err = util::check_range(r.field, r.value, r.lo, r.hi); !err.empty()) return err;
+  return "";
+}
+
+std::string AllocationOptions::validate() const {
+  if (std::string err = util::check_range("damping", damping, 1e-4, 10.0); !err.empty()) return err;
+  if (!(std::isfinite(weight) && weight >= 0.0)) return util::bad("weight", weight, "must be finite and >= 0");
+  if (std::string err = util::check_range("smoothing", smoothing, 0.0, 10.0); !err.empty()) return err;
+  if (!(max_common_force_rate > 0.0 && max_common_force_rate <= 20.0))
+    return util::bad("max_common_force_rate", max_common_force_rate, "must lie in (0, 20] N/s");
+  return "";
+}
+
+Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, double dt, const PdOptions& gains) {
   const Vec3 err = rotation_between(observed, desired);  // x_err of eq. (17)
   if (!primed_) {
     prev_error_ = err;
@@ -28,7 +53,7 @@ Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, double d
     primed_ = true;
   }
   // The integral of the error (on a ramp, a fast path, it leaves nearly no steady error),
-  // bounded, weighted by the reference's speed and leaking as it slows (ControllerOptions::ki,
+  // bounded, weighted by the reference's speed and leaking as it slows (PdOptions::ki,
   // fast_path_rate).
   const Vec3 own_motion = rotation_between(prev_desired_, desired);  // x_des's own motion since the last step
   const double span = dt + skipped_;                                 // ... which took this long [s]
@@ -155,6 +180,41 @@ InputStep input_step(const Mat3& tip_rotation, const ActuatedModel::Linearisatio
     out.q = base;
   }
   return out;
+}
+
+CornerRounding::CornerRounding(const ActuatedModel& model, const InputVector& jets)
+    : jets_(jets), lower_(model.lower()), upper_(model.upper()), length_(model.rod().length()) {}
+
+void CornerRounding::reset() {
+  common_force_ = 0.0;
+  common_mode_.resize(0);
+}
+
+InputVector CornerRounding::apply(const InputVector& q, const ActuatedModel::Linearisation& lin, const Cycle& cycle,
+                                  const AllocationOptions& options) {
+  bool fresh = false;  // a mode found this cycle (else only the excess along the last one)
+  double scale = 0.0;
+  if (options.smoothing > 0.0) {
+    const InputVector mode = jet_common_mode(lin.actuation, jets_);
+    if (!mode.isZero()) {
+      common_mode_ = mode;
+      fresh = true;
+      rod::Vec6 wrench = lin.wrenches * q;  // the mode adds none
+      wrench.tail<3>() /= length_;
+      scale = options.smoothing * std::max(wrench.norm(), cycle.min_force);
+    }
+  }
+  if (common_mode_.size() != q.size()) return q;  // never rounded
+  const AllocationRounding r = round_allocation(q, lower_, common_mode_, scale);
+  const double target = fresh ? (r.amount - r.excess) * cycle.speed_weight : 0.0;
+  double room = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < q.size(); ++i)
+    if (common_mode_[i] > 0.0) room = std::min(room, (cycle.top * upper_[i] - q[i]) / common_mode_[i]);
+  const double step = options.max_common_force_rate * cycle.dt;
+  common_force_ = std::clamp(target, common_force_ - step, common_force_ + step);
+  common_force_ = std::clamp(common_force_, -r.excess, std::max(room, 0.0));
+  if (common_force_ == 0.0) return q;
+  return q + common_force_ * common_mode_;
 }
 
 }  // namespace control

@@ -1,6 +1,9 @@
 #include "hydrojet_control/control/safety_monitor.h"
 
 #include <cmath>
+#include <stdexcept>
+
+#include "hydrojet_control/util/format.h"
 
 namespace hydrojet {
 namespace control {
@@ -10,10 +13,32 @@ std::string jet_name(int i) { return "jet " + std::to_string(i + 1); }
 
 }  // namespace
 
-SafetyMonitor::SafetyMonitor(const ControllerOptions& options, int input_count)
-    : options_(options),
-      flow_fault_integral_(InputVector::Zero(input_count)),
-      last_flow_command_(InputVector::Zero(input_count)) {}
+std::string SafetyOptions::validate() const {
+  const auto positive = [](const char* field, double v) {
+    return std::isfinite(v) && v > 0.0 ? std::string() : util::bad(field, v, "must be finite and > 0");
+  };
+  for (const auto& [field, v] : {std::pair<const char*, double>{"max_oscillation", max_oscillation},
+                                 {"sample_period", sample_period},
+                                 {"unreachable_tolerance", unreachable_tolerance},
+                                 {"flow_fault_tolerance", flow_fault_tolerance},
+                                 {"flow_fault_time", flow_fault_time}})
+    if (std::string err = positive(field, v); !err.empty()) return err;
+  if (stale_periods < 1) return util::bad("stale_periods", stale_periods, "must be >= 1");
+  if (max_solver_failures < 1) return util::bad("max_solver_failures", max_solver_failures, "must be >= 1");
+  if (!(std::isfinite(min_stability_margin) && min_stability_margin >= 0.0))
+    return util::bad("min_stability_margin", min_stability_margin, "must be finite and >= 0");
+  return "";
+}
+
+SafetyMonitor::SafetyMonitor(const SafetyOptions& options, int input_count)
+    : flow_fault_integral_(InputVector::Zero(input_count)), last_flow_command_(InputVector::Zero(input_count)) {
+  set_options(options);
+}
+
+void SafetyMonitor::set_options(const SafetyOptions& options) {
+  if (std::string err = options.validate(); !err.empty()) throw std::invalid_argument(err);
+  options_ = options;
+}
 
 void SafetyMonitor::reset() {
   solver_failures_ = 0;

@@ -161,16 +161,17 @@ class FollowPathServer {
       return finish(false, "controller aborted: " + controller_.abort_reason());
     message_ = "follow_path: building the " + goal->type + " path";
     // The goal's copy for the path (its lists may be long) is made there too.
-    background_.post([this, id = building_, goal, configured = controller_.params().path] {
-      Built b;
-      b.goal = id;
-      try {
-        b.path = control::make_goal_path(to_path_goal(*goal), configured);
-      } catch (const std::exception& e) {
-        b.error = e.what();
-      }
-      built_.put(std::move(b));
-    });
+    background_.post(
+        [this, id = building_, goal, configured = static_cast<const control::SpiralPath&>(controller_.options().path)] {
+          Built b;
+          b.goal = id;
+          try {
+            b.path = control::make_goal_path(to_path_goal(*goal), configured);
+          } catch (const std::exception& e) {
+            b.error = e.what();
+          }
+          built_.put(std::move(b));
+        });
   }
 
   void adopt(const Built& b, const ros::Time& now) {
@@ -235,6 +236,7 @@ class ControllerNode {
  public:
   ControllerNode(ros::NodeHandle& nh, ros::NodeHandle& pnh) : nh_(nh), pnh_(pnh), tf_listener_(tf_) {
     opts_ = ros_bridge::read_controller_options(pnh, reconfigure_keys());
+    for (const std::string& w : opts_.warnings) ROS_WARN("controller: %s", w.c_str());
     const config::Scene scene = config::load_scene(opts_.scene);
     const control::RobotModel model = config::make_controller_model(scene, opts_.flow_regulator);
     controller_.reset(new control::Controller(model, opts_.controller));
@@ -270,7 +272,7 @@ class ControllerNode {
     timer_ = nh.createTimer(ros::Duration(1.0 / opts_.rate), &ControllerNode::tick, this);
     ROS_INFO("controller: scene %s, %s loop, %.0f Hz%s, at start: %s", opts_.scene.c_str(),
              control::to_string(opts_.controller.mode), opts_.rate, opts_.autostart ? ", autostart" : "",
-             control::to_string(opts_.controller.path_type));
+             control::to_string(opts_.controller.path.type));
   }
 
   /// On the way out after SIGINT or SIGTERM: an all-zero jets/command, one entry per actuator, so that
@@ -361,7 +363,7 @@ class ControllerNode {
 
   // A rate faster than max_angular_rate turns at that rate (Reference::turn); the status says so.
   void note_capped(const Eigen::Vector2d& rates) {
-    const double cap = controller_->params().max_angular_rate;
+    const double cap = controller_->options().limits.max_angular_rate;
     if (rates.cwiseAbs().maxCoeff() > cap || rates.norm() > cap)
       message_ += " (rate capped at " + std::to_string(cap) + " rad/s)";
   }
@@ -403,7 +405,7 @@ class ControllerNode {
     m.header.frame_id = opts_.base_frame;
     m.center = to_msg(set.center());
     for (const Eigen::Vector3d& d : set.boundary()) m.boundary.push_back(to_msg(d));
-    m.min_stability_margin = opts_.controller.min_stability_margin;
+    m.min_stability_margin = opts_.controller.safety.min_stability_margin;
     m.compute_time = set.compute_time();
     reachable_pub_.publish(m);
     ROS_INFO("controller: reachable set: %zu boundary directions, computed in %.3f s", set.boundary().size(),
@@ -438,16 +440,18 @@ class ControllerNode {
   void start_reconfigure() {
     hydrojet_control::ControllerConfig initial = hydrojet_control::ControllerConfig::__getDefault__();
     const control::ControllerOptions& c = opts_.controller;
-    initial.kp = c.kp, initial.kd = c.kd, initial.feedforward = c.feedforward, initial.damping = c.damping;
-    initial.max_force = c.max_force, initial.max_force_rate = c.max_force_rate;
+    initial.kp = c.pd.kp, initial.kd = c.pd.kd, initial.feedforward = c.pd.feedforward;
+    initial.damping = c.allocation.damping;
+    initial.max_force = c.limits.max_force, initial.max_force_rate = c.limits.max_force_rate;
     if (const std::string err = Reconfigure::out_of_bounds(initial); !err.empty())
       throw std::invalid_argument("gains and limits: " + err + " (cfg/Controller.cfg, docs/ros_api.md)");
     reconfigure_.reset(new Reconfigure(pnh_, initial, [this](const hydrojet_control::ControllerConfig& cfg) {
-      control::ControllerOptions p = controller_->params();
-      p.kp = cfg.kp, p.kd = cfg.kd, p.feedforward = cfg.feedforward, p.damping = cfg.damping;
-      p.max_force = cfg.max_force, p.max_force_rate = cfg.max_force_rate;
+      control::ControllerOptions p = controller_->options();
+      p.pd.kp = cfg.kp, p.pd.kd = cfg.kd, p.pd.feedforward = cfg.feedforward;
+      p.allocation.damping = cfg.damping;
+      p.limits.max_force = cfg.max_force, p.limits.max_force_rate = cfg.max_force_rate;
       std::string err = p.validate();
-      if (err.empty()) controller_->set_params(p);
+      if (err.empty()) controller_->set_options(p);
       return err;
     }));
   }
@@ -456,7 +460,7 @@ class ControllerNode {
     controller_->start(ros::Time::now().toSec());
     res.success = true;
     res.message = std::string("started: ") + control::to_string(controller_->reference().source()) + " drives, " +
-                  control::to_string(controller_->params().mode) + " loop";
+                  control::to_string(controller_->options().mode) + " loop";
     ROS_INFO("controller: %s", res.message.c_str());
     return true;
   }
@@ -471,7 +475,7 @@ class ControllerNode {
   bool on_closed_loop(std_srvs::SetBool::Request& req, std_srvs::SetBool::Response& res) {
     controller_->set_mode(req.data ? control::LoopMode::kClosed : control::LoopMode::kOpen);
     res.success = true;
-    res.message = std::string(control::to_string(controller_->params().mode)) + " loop";
+    res.message = std::string(control::to_string(controller_->options().mode)) + " loop";
     return true;
   }
 
@@ -523,7 +527,7 @@ class ControllerNode {
       swap->verdict.set_value("the controller is running (call controller/stop first)");
       return;
     }
-    swap->controller->set_params(controller_->params());  // the gains in force
+    swap->controller->set_options(controller_->options());  // the gains in force
     *controller_ = std::move(*swap->controller);
     look_at_ = std::move(swap->look_at);
     sweep_time_ = controller_->reachable_set().compute_time();
@@ -608,7 +612,7 @@ class ControllerNode {
     st.header.stamp = now;
     st.header.frame_id = opts_.base_frame;
     st.state = control::to_string(out.state);
-    st.mode = control::to_string(controller_->params().mode);
+    st.mode = control::to_string(controller_->options().mode);
     st.reason = util::printable(out.reason);
     st.path_time = out.path_time;
     st.desired_direction = to_msg(out.desired_direction);
@@ -669,7 +673,7 @@ class ControllerNode {
       s.summary(DiagnosticStatus::WARN, "no jet state");
     else
       s.summary(DiagnosticStatus::OK, control::to_string(last_.state));
-    s.add("mode", control::to_string(controller_->params().mode));
+    s.add("mode", control::to_string(controller_->options().mode));
     s.add("error_geodesic_rad", last_.error_geodesic);
     s.add("stability_margin", last_.stability_margin);
     s.add("solver_converged", last_.solver_converged);

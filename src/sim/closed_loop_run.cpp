@@ -103,7 +103,7 @@ RunResult run_path(const control::RobotModel& model, const control::ControllerOp
   const bool approach = plan.start == RunStart::kOnPath;
   // The approach is bounded by the controller (the reference's way there at max_angular_rate, then
   // approach.timeout); this only bounds the loop.
-  const double approach_bound = approach ? M_PI / params.max_angular_rate + params.approach.timeout + 1.0 : 0.0;
+  const double approach_bound = approach ? M_PI / params.limits.max_angular_rate + params.approach.timeout + 1.0 : 0.0;
   const int settle_steps = static_cast<int>(std::lround(settle / dt));
   const int last_step = settle_steps + static_cast<int>(std::lround((approach_bound + path->duration()) / dt));
   control::ControllerInputs in;

@@ -163,6 +163,7 @@ bool check_args(Args* a) {
 bool load_setup(const Args& a, Setup* s) {
   try {
     s->copt = config::load_controller_options(a.controller_file);
+    for (const std::string& w : s->copt.warnings) std::fprintf(stderr, "experiment: %s\n", w.c_str());
     if (a.duration > 0.0) s->copt.controller.path.duration = a.duration;
     if (!a.path_file.empty()) s->path = control::load_path_file(a.path_file);
     const std::string scenes[2] = {a.scene.empty() ? a.scene0 : a.scene, a.scene30};

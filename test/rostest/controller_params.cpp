@@ -39,7 +39,7 @@ Exit run_node(const std::string& name, double seconds) {
 void set_good(ros::NodeHandle& nh, const std::string& name) {
   nh.setParam("/" + name + "/scene", kScene);
   nh.setParam("/" + name + "/rate", 100.0);
-  nh.setParam("/" + name + "/gains/kp", 4.0);
+  nh.setParam("/" + name + "/pd/kp", 4.0);
 }
 
 }  // namespace
@@ -52,8 +52,9 @@ TEST(ControllerOptions, BadParametersAreRejectedByName) {
     std::string expect;
   };
   const std::vector<Case> cases = {
-      {"bad_kp", "gains/kp", XmlRpc::XmlRpcValue(-1.0), "~gains/kp"},
-      {"bad_unknown", "gains/kq", XmlRpc::XmlRpcValue(1.0), "~gains/kq: unknown"},
+      {"bad_kp", "pd/kp", XmlRpc::XmlRpcValue(-1.0), "~pd/kp"},
+      {"bad_unknown", "pd/kq", XmlRpc::XmlRpcValue(1.0), "~pd/kq: unknown"},
+      {"moved_twice", "gains/kp", XmlRpc::XmlRpcValue(1.0), "~gains/kp: moved to ~pd/kp"},
       {"bad_mode", "mode", XmlRpc::XmlRpcValue("sideways"), "~mode"},
       {"bad_type", "safety/stale_periods", XmlRpc::XmlRpcValue("three"), "~safety/stale_periods"},
       {"bad_rate", "rate", XmlRpc::XmlRpcValue(5000.0), "~rate"},

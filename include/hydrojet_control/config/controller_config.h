@@ -7,6 +7,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "hydrojet_control/actuation/flow_regulator.h"
 #include "hydrojet_control/config/yaml_tree.h"
@@ -56,15 +57,19 @@ struct ControllerNodeOptions {
   control::ControllerOptions controller;
   actuation::FlowRegulatorOptions flow_regulator = rig_flow_regulator();
   TeleopOptions teleop;  ///< teleop/* keys (config/teleop.yaml)
+  /// Keys read from a deprecated place or ignored (each names the key and what to write instead); the
+  /// node logs them, the tools print them.
+  std::vector<std::string> warnings;
 };
 
 /// The flow_regulator/* keys of a parameter tree into f, validated; an error names the key (the
 /// controller's options and the calibration recorder's read them alike).
 void read_flow_regulator(YamlTree<ParamError>& tree, actuation::FlowRegulatorOptions& f);
 
-/// Parses a mapping with keys scene, rate, mode, autostart, base_frame, gains/*, limits/*,
-/// allocation_weight, integrate_from_measured, safety/*, path/*, flow_regulator/*, teleop/*. Unknown keys and
-/// invalid values throw ParamError("<key>: <what>").
+/// Parses a mapping with keys scene, rate, mode, autostart, base_frame, control_law, pd/*, modal/*,
+/// limits/*, allocation/*, safety/*, approach/*, path/*, flow_regulator/*, teleop/* (a key that moved
+/// is read from its old place too, with a warning). Unknown keys and invalid values throw
+/// ParamError("<key>: <what>").
 ControllerNodeOptions parse_controller_options(const YAML::Node& root);
 /// Reads a YAML file of controller options.
 ControllerNodeOptions load_controller_options(const std::string& path);

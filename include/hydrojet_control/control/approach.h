@@ -21,7 +21,7 @@ struct ApproachOptions {
   double tolerance = 0.02;   ///< [rad] RMS error and RMS spread over the window (tracker noise: ~0.007)
   double settle_time = 0.3;  ///< [s] the window (about one period of the rod's first mode)
   double timeout = 5.0;      ///< [s] after the reference reached the first direction
-  /// Empty when valid, else "<field>: <what is wrong>" (fields approach_tolerance, ...).
+  /// Empty when valid, else "<field>: <what is wrong>".
   std::string validate() const;
 };
 
@@ -29,8 +29,9 @@ class ApproachMonitor {
  public:
   enum class Verdict { kMoving, kSettling, kSettled, kFailed };
 
-  explicit ApproachMonitor(const ApproachOptions& options = {}) : options_(options) {}
-  void set_options(const ApproachOptions& options) { options_ = options; }
+  /// std::invalid_argument naming the field when `options` is not valid (so does set_options).
+  explicit ApproachMonitor(const ApproachOptions& options = {});
+  void set_options(const ApproachOptions& options);
   /// A new approach: forgets the window.
   void reset();
   /// One cycle at t [s]: whether the reference is on the path's first direction, the loop's error

@@ -4,10 +4,10 @@
 //   time and sensor checks (SafetyMonitor) → observe_jets (Algorithm 1, line 4) → solve_model
 //   (line 6: equilibrium, C^b and the actuation Jacobian J_q, ActuatedModel) → solver and stability
 //   checks → track_reference (x_des from the Reference: the operator's source, rate-limited and
-//   clipped to the reachable set; x_obs) → estimate_modes (the modal law's first mode and Kalman
-//   filter, modal_law.h) → oscillation check → command_inputs (lines 5, 7, 9/12: DirectionPd, plus the
-//   modal law's shaping on a path, then input_step: eq. 19 on J_q and eq. 20's bounds in one box QP,
-//   rate and magnitude limits) → actuate (eq. 26, flow regulators: JetActuation) → finish_cycle.
+//   clipped to the reachable set; x_obs) → oscillation check → command_inputs (line 5: the law,
+//   DirectionLaw: the paper's or the modal law; lines 7, 9/12: input_step, eq. 19 on J_q and eq. 20's
+//   bounds in one box QP, rate and magnitude limits; the corners rounded, CornerRounding) → actuate
+//   (eq. 26, flow regulators: JetActuation) → finish_cycle.
 // Any follower-actuated robot (segments, point loads, N actuators anywhere); the HydroJet's results are
 // those of the tip-force formulation (resolved_rates.h).
 // ROS-free (Eigen, the rod and actuation libraries). Time is passed in; nothing reads a clock.
@@ -20,8 +20,8 @@
 #include "hydrojet_control/control/approach.h"
 #include "hydrojet_control/control/controller_io.h"
 #include "hydrojet_control/control/controller_options.h"
+#include "hydrojet_control/control/direction_law.h"
 #include "hydrojet_control/control/jet_actuation.h"
-#include "hydrojet_control/control/modal_law.h"
 #include "hydrojet_control/control/reachable_set.h"
 #include "hydrojet_control/control/reference.h"
 #include "hydrojet_control/control/resolved_rates.h"
@@ -34,10 +34,14 @@ namespace control {
 
 class Controller {
  public:
-  /// Computes the reachable sets of `model` once, σ_c ≥ params.min_stability_margin: the one for
-  /// operator targets with jet forces up to params.reachable_force_fraction · q_max, the one for
-  /// path points with q_max (the same set when the fraction is 1).
-  Controller(const RobotModel& model, const ControllerOptions& params);
+  /// Computes the reachable sets of `model` once, σ_c ≥ safety.min_stability_margin: the one for
+  /// operator targets with jet forces up to limits.reachable_force_fraction · q_max, the one for
+  /// path points with q_max (the same set when the fraction is 1). The law is the one
+  /// options.control_law names (make_direction_law). std::invalid_argument naming the key when
+  /// `options` is not valid.
+  Controller(const RobotModel& model, const ControllerOptions& options);
+  /// The same with the law given (its PD gains are options.pd's from then on).
+  Controller(const RobotModel& model, const ControllerOptions& options, std::unique_ptr<DirectionLaw> law);
 
   /// Starts at time t (also after an abort or the end); jets start from zero. What drives: the
   /// commands given since the last stop or abort, else the configured path_type (the spiral from
@@ -69,10 +73,14 @@ class Controller {
   const ReachableSet& path_reachable_set() const { return *path_reachable_; }
 
   /// Switches between closed and open loop (takes effect on the next update).
-  void set_mode(LoopMode mode) { params_.mode = mode; }
-  /// New gains/limits (validated by the caller); the state is kept.
-  void set_params(const ControllerOptions& p);
-  const ControllerOptions& params() const { return params_; }
+  void set_mode(LoopMode mode) { options_.mode = mode; }
+  /// New gains and limits (std::invalid_argument naming the key when not valid; nothing changes then);
+  /// the state is kept. Another control_law starts a new law; the modal law's options are read at
+  /// construction (and at a change of law) only.
+  void set_options(const ControllerOptions& options);
+  const ControllerOptions& options() const { return options_; }
+  /// The law that acts.
+  const DirectionLaw& law() const { return *law_; }
   ControllerState state() const { return state_; }
   /// Why it aborted (empty unless aborted).
   const std::string& abort_reason() const { return abort_reason_; }
@@ -99,35 +107,20 @@ class Controller {
   void commanded();
   void track_reference(const ControllerInputs& in, const rod::RodSolution& sol, double dt, ControllerOutput& out);
   void approach(double t, ControllerOutput& out);
-  void estimate_modes(const ControllerInputs& in, const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin,
-                      const InputVector& q_obs);
-  double modal_damping_ratio() const;
-  bool modal_drives() const;
-  double modal_weight() const;
-  ControllerOptions law_gains() const;
-  Vec3 shaping_step(const rod::RodSolution& sol, const ControllerOutput& out);
-  std::string command_inputs(const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin, double dt,
-                             ControllerOutput& out);
-  InputVector round_corners(const InputVector& q, const ActuatedModel::Linearisation& lin, double dt);
+  std::string command_inputs(const ControllerInputs& in, const rod::RodSolution& sol,
+                             const ActuatedModel::Linearisation& lin, double dt, ControllerOutput& out);
   std::string actuate(const InputVector& flows, double dt, ControllerOutput& out);
   ControllerOutput finish_cycle(ControllerOutput out);
   ControllerOutput abort(ControllerOutput out, const std::string& why);
   void reset_actuation();
 
-  ControllerOptions params_;
+  ControllerOptions options_;
   ActuatedModel model_;  ///< equilibrium, C^b, J_q and stability at inputs q
   JetActuation jets_;
   SafetyMonitor monitor_;
-  DirectionPd pd_;
-  ModalEstimator modal_;                  ///< the modal law's state estimate (closed loop)
-  Vec3 modal_input_ = Vec3::UnitZ();      ///< s: the model's direction at the last measured inputs
-  double modal_time_ = 0.0;               ///< [s] of the estimator's last step
-  bool shaping_primed_ = false;           ///< previous_shaping_ holds the last step's m
-  Vec3 previous_shaping_ = Vec3::Zero();  ///< the modal law's m at the last step (modal_shaping)
-  double omega_ = 0.0;                    ///< the first mode at the current equilibrium [rad/s] (0: none yet)
+  std::unique_ptr<DirectionLaw> law_;  ///< line 5: x_cntr from the error
+  CornerRounding rounding_;
   InputVector previous_command_;  ///< the last step's inputs [N], before the rounding (the base of the next step)
-  double common_force_ = 0.0;     ///< a: the rounding's offset along common_mode_ now [N] (round_corners)
-  InputVector common_mode_;       ///< the jets' common mode last found (empty: none yet)
   std::shared_ptr<const ReachableSet> path_reachable_;  ///< full q_max: path points
   std::shared_ptr<const ReachableSet> reachable_;       ///< with reserve: operator targets
   Reference reference_;

@@ -23,6 +23,8 @@
 
 #include <Eigen/Core>
 
+#include "hydrojet_control/control/direction_law.h"
+#include "hydrojet_control/control/modal_model.h"
 #include "hydrojet_control/control/task_space.h"
 
 namespace hydrojet {
@@ -45,7 +47,9 @@ struct ModalLawOptions {
   double tracker_sigma = 0.0075;   ///< tracker noise per direction component [-]
   double velocity_noise = 0.5;     ///< process noise on v̇ [1/s^1.5] (unmodelled forces)
   double disturbance_noise = 0.1;  ///< random walk of d [1/√s] (the model error moves with the path)
-};                                 // ranges: ControllerOptions::validate()
+  /// Empty when valid, else "<field>: <what is wrong>".
+  std::string validate() const;
+};
 
 /// The Kalman filter of the modal law (see above).
 class ModalEstimator {
@@ -87,6 +91,45 @@ struct ReferenceMotion {
 /// the PD's (see above; τ_a = o.actuator_lag).
 Vec3 modal_shaping(const ReferenceMotion& r, const Vec3& estimated_rate, double omega, double zeta,
                    const ModalLawOptions& o);
+
+/// The modal law as a DirectionLaw: the estimator, the PD with its gain schedule, the shaping and the
+/// rounding force. In open loop, and on every source but a path whose clock runs, the paper's law.
+class ModalLaw : public DirectionLaw {
+ public:
+  /// The paper's gains `pd` (a slow path's), the modal law's `options`; sample_period [s] is the
+  /// preview's step. std::invalid_argument naming the field when either is not valid.
+  ModalLaw(const PdOptions& pd, const ModalLawOptions& options, double sample_period);
+  void reset() override;
+  void skip(double dt) override { pd_.skip(dt); }
+  Vec3 correction(const LawCycle& c) override;
+  double fast_path_weight() const override;
+  /// modal/rounding_force with the gain schedule's weight.
+  double rounding_force() const override { return gain_weight() * options_.rounding_force; }
+  void set_pd(const PdOptions& pd) override;
+  const PdOptions& pd() const override { return pd_options_; }
+  ControlLaw kind() const override { return ControlLaw::kModal; }
+  const ModalLawOptions& options() const { return options_; }
+  const ModalEstimator& estimator() const { return estimator_; }
+
+ private:
+  void estimate(const LawCycle& c);
+  double damping_ratio() const;
+  double gain_weight() const;
+  Vec3 shaping_step(const LawCycle& c);
+
+  PdOptions pd_options_;
+  ModalLawOptions options_;
+  ModalOptions modes_;  ///< lateral_modes' options: the capsule's expected fill
+  double sample_period_;
+  DirectionPd pd_;
+  ModalEstimator estimator_;
+  bool drives_ = false;                   ///< this cycle: closed loop, on a running path, estimator started
+  Vec3 input_ = Vec3::UnitZ();            ///< s: the model's direction at the last measured inputs
+  double time_ = 0.0;                     ///< [s] of the estimator's last step
+  bool shaping_primed_ = false;           ///< previous_shaping_ holds the last step's m
+  Vec3 previous_shaping_ = Vec3::Zero();  ///< m at the last step
+  double omega_ = 0.0;                    ///< the first mode at the current equilibrium [rad/s] (0: none yet)
+};
 
 }  // namespace control
 }  // namespace hydrojet

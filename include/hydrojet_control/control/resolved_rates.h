@@ -7,7 +7,6 @@
 #include <Eigen/Core>
 #include <string>
 
-#include "hydrojet_control/control/controller_options.h"
 #include "hydrojet_control/control/robot_model.h"
 #include "hydrojet_control/rod/rod_solver.h"
 
@@ -15,8 +14,24 @@ namespace hydrojet {
 namespace control {
 
 /// The fast-path elements' weight at the reference's speed `rate` [rad/s]: rate² / (rate² + min_rate²),
-/// 1 when min_rate is 0 (ControllerOptions::fast_path_rate).
+/// 1 when min_rate is 0 (PdOptions::fast_path_rate).
 double fast_path_weight(double rate, double min_rate);
+
+/// The PD's gains (`pd/` in the controller file): eq. (17) plus an integral for fast paths.
+struct PdOptions {
+  double kp = 3.0;  ///< K_p of eq. (17) [1/s]: fraction of the direction error corrected per second
+  double kd = 0.0;  ///< K_d of eq. (17) [-]: weight of the error change per step
+  /// K_i [1/s²] of the direction error's integral: it makes the law type 2 on a moving path (eq. 17
+  /// alone leaves (1 − gain ratio)·v/K_p on a ramp); weighted by the path's speed, leaking as it slows.
+  double ki = 6.0;
+  double max_integral = 0.1;  ///< |∫x_err dt| is kept below this [rad s] (anti-windup)
+  double feedforward = 1.0;   ///< weight of the path's own motion per step [-] (0 = pure PD)
+  /// v₀ [rad/s]: the fast-path elements (K_i, the allocation's rounding, the modal law's shaping) act
+  /// with w = v²/(v² + v₀²) of the reference's speed v; 0: whole at every speed.
+  double fast_path_rate = 0.1;
+  /// Empty when valid, else "<field>: <what is wrong>"; the live gains within cfg/Controller.cfg's bounds.
+  std::string validate() const;
+};
 
 /// eqs. (17)–(18), Algorithm 1 line 5: x_cntr = PD(x_err) + feedforward. Remembers the previous
 /// error and desired direction for the derivative and feedforward terms.
@@ -42,7 +57,7 @@ class DirectionPd {
   /// the rotation (base frame) the tip direction should make this step. dt [s]. w: fast_path_weight()
   /// of x_des's speed; the integral leaks at (1 − w) K_p. The gains are `gains`' (the modal law passes
   /// its own K_p and K_i).
-  Vec3 correction(const Vec3& observed, const Vec3& desired, double dt, const ControllerOptions& gains);
+  Vec3 correction(const Vec3& observed, const Vec3& desired, double dt, const PdOptions& gains);
   /// The reference's speed over the last correction() [rad/s] (0 before the second).
   double speed() const { return speed_; }
 
@@ -77,7 +92,53 @@ struct AllocationRounding {
 AllocationRounding round_allocation(const InputVector& q, const InputVector& lower, const InputVector& mode,
                                     double scale);
 
-/// Limits and weights of one step of the law on the actuation Jacobian (ControllerOptions' names).
+/// The allocation's options (`allocation/` in the controller file): eq. (19)'s damping, eq. (20)'s
+/// weight and the rounding of the bounded allocation's corners (CornerRounding).
+struct AllocationOptions {
+  double damping = 0.02;  ///< μ of the damped pseudo-inverse of eq. (19) [rad/N]
+  double weight = 1e-6;   ///< λ of eq. (20) [-]
+  /// σ [-]: while the reference moves, the corners of the bounded allocation are rounded along the
+  /// jets' common mode at the scale σ ‖f‖ (f the step's tip force); 0: off (docs/controller.md).
+  double smoothing = 0.3;
+  /// The rounding's offset along the common mode changes at most this fast [N/s]: the valves lag
+  /// unequally, so a fast change of the jets' common force is a tip-force kick.
+  double max_common_force_rate = 0.05;
+  /// Empty when valid, else "<field>: <what is wrong>"; damping within cfg/Controller.cfg's bounds.
+  std::string validate() const;
+};
+
+/// The rounding of the bounded allocation's corners (AllocationOptions::smoothing): the step's
+/// inputs q plus a n along the jets' common mode n. Each time the tip force turns past a jet the box
+/// QP's active set changes and every jet's force rate steps, a tip-force transient through the jets'
+/// unequal valve lags; rounded, the jets' forces are smooth functions of the tip force.
+class CornerRounding {
+ public:
+  /// What the cycle gives the rounding besides the linearisation.
+  struct Cycle {
+    double speed_weight = 0.0;  ///< w of the reference's speed (fast_path_weight): the target's weight
+    double min_force = 0.0;     ///< [N] the scale acts as if the tip force were at least this
+    double top = 1.0;           ///< a jet may be raised to this fraction of its q_max
+    double dt = 0.0;            ///< [s]
+  };
+  /// The inputs of `model` that are jets (jets[i] = 1, force actuators 0).
+  CornerRounding(const ActuatedModel& model, const InputVector& jets);
+  /// No offset, no mode (start, stop, abort).
+  void reset();
+  /// q rounded: the target of a is w (c − y₀) (round_allocation at the scale σ max(‖f‖, min_force),
+  /// f the step's tip wrench with moments as forces at the arm L); a moves at most at
+  /// max_common_force_rate (decaying along the last mode when the option is off or the mode vanishes)
+  /// and stays within the bounds (no jet below its lower bound, none above top · q_max).
+  InputVector apply(const InputVector& q, const ActuatedModel::Linearisation& lin, const Cycle& cycle,
+                    const AllocationOptions& options);
+
+ private:
+  InputVector jets_, lower_, upper_;
+  double length_;
+  double common_force_ = 0.0;  ///< a: the offset along common_mode_ now [N]
+  InputVector common_mode_;    ///< the jets' common mode last found (empty: none yet)
+};
+
+/// Limits and weights of one step of the law on the actuation Jacobian (from AllocationOptions and LimitOptions).
 struct InputStepOptions {
   double damping = 0.02;            ///< μ of eq. (19) [rad/N], on the tip-force change
   double allocation_weight = 1e-6;  ///< λ of eq. (20) [-]: the smallest inputs among equally good ones

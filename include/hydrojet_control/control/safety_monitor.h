@@ -9,19 +9,35 @@
 #include <string>
 
 #include "hydrojet_control/control/controller_io.h"
-#include "hydrojet_control/control/controller_options.h"
+#include "hydrojet_control/rod/rod_solver.h"
 
 namespace hydrojet {
 namespace control {
 
+/// The monitor's thresholds (`safety/` in the controller file).
+struct SafetyOptions {
+  double max_oscillation = 0.5;         ///< abort when the desired–measured tip angle exceeds this [rad]
+                                        ///< (armed once the tip has come within the limit)
+  double sample_period = 0.01;          ///< tracker and flow sample period [s]
+  int stale_periods = 3;                ///< data older than stale_periods·sample_period is stale
+  int max_solver_failures = 2;          ///< abort after this many non-converged solves in a row
+  double min_stability_margin = 0.5;    ///< abort when σ_c (eq. 23) falls below this [N/m]
+  double unreachable_tolerance = 1e-3;  ///< allocation residual [N] above which the force is out of reach
+  double flow_fault_tolerance = 3e-6;   ///< |measured − commanded flow| that counts as a jet fault [m^3/s]
+  double flow_fault_time = 0.5;         ///< a deviation twice the tolerance trips after this long [s]
+  /// Empty when valid, else "<field>: <what is wrong>".
+  std::string validate() const;
+};
+
 class SafetyMonitor {
  public:
-  /// Thresholds from options (max_oscillation, sample_period, stale_periods, max_solver_failures,
-  /// min_stability_margin, flow_fault_tolerance, flow_fault_time) for input_count inputs.
-  SafetyMonitor(const ControllerOptions& options, int input_count);
+  /// The thresholds of `options` (validated: std::invalid_argument naming the field) for
+  /// input_count inputs.
+  SafetyMonitor(const SafetyOptions& options, int input_count);
 
-  /// New thresholds; the history is kept.
-  void set_options(const ControllerOptions& options) { options_ = options; }
+  /// New thresholds (validated as by the constructor); the history is kept.
+  void set_options(const SafetyOptions& options);
+  const SafetyOptions& options() const { return options_; }
   /// Forgets the history (start of a path): solver failures, oscillation arming, flow-fault
   /// integrals and the last flow command.
   void reset();
@@ -52,7 +68,7 @@ class SafetyMonitor {
   std::string check_oscillation(double error_geodesic);
 
  private:
-  ControllerOptions options_;
+  SafetyOptions options_;
   int solver_failures_ = 0;
   bool oscillation_armed_ = false;
   InputVector flow_fault_integral_;  ///< ∫(|ΔQ| − tol)⁺ dt per jet [m^3]

@@ -1,0 +1,64 @@
+// The law of a control cycle: what turns the direction error into x_cntr, the rotation the tip
+// direction should make this step (Algorithm 1, line 5), which the allocation then resolves into
+// actuator inputs (lines 7, 9/12). Two laws: the paper's (eqs. 17–18, papers_law.h) and the modal law
+// (modal_law.h); `control_law` in the controller file chooses (make_direction_law). ROS-free.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "hydrojet_control/control/controller_io.h"
+#include "hydrojet_control/control/reference.h"
+#include "hydrojet_control/control/resolved_rates.h"
+#include "hydrojet_control/control/robot_model.h"
+
+namespace hydrojet {
+namespace control {
+
+/// Which law acts: the paper's, or the modal law on a path whose clock runs (the paper's for every
+/// other source).
+enum class ControlLaw { kPapers, kModal };
+const char* to_string(ControlLaw l);
+
+/// What a law sees of one cycle (every reference valid for the call only).
+struct LawCycle {
+  double t = 0.0;                                               ///< [s]
+  double dt = 0.0;                                              ///< since the last cycle [s]
+  bool closed_loop = true;                                      ///< x_obs is the tracker's (else the model's, §7.3)
+  Vec3 observed = Vec3::UnitZ();                                ///< x_obs (unit, base frame)
+  Vec3 desired = Vec3::UnitZ();                                 ///< x_des
+  Vec3 measured = Vec3::UnitZ();                                ///< the tracker's tip direction (unit, base frame)
+  const ActuatedModel* model = nullptr;                         ///< solved at q_obs this cycle (line 6)
+  const rod::RodSolution* solution = nullptr;                   ///< that solve
+  const ActuatedModel::Linearisation* linearisation = nullptr;  ///< its C^b and J_q
+  const InputVector* observed_inputs = nullptr;                 ///< q_obs [N]
+  const Reference* reference = nullptr;                         ///< the reference, advanced to x_des
+};
+
+class DirectionLaw {
+ public:
+  virtual ~DirectionLaw() = default;
+  /// Starts afresh (controller start).
+  virtual void reset() = 0;
+  /// A cycle without a correction (the controller held its inputs) of dt [s].
+  virtual void skip(double dt) = 0;
+  /// x_cntr [rad, base frame] for this cycle.
+  virtual Vec3 correction(const LawCycle& cycle) = 0;
+  /// The fast-path weight of the reference's speed over the last correction (PdOptions::fast_path_rate).
+  virtual double fast_path_weight() const = 0;
+  /// [N] the allocation's rounding acts as if the tip force were at least this (0: as it is).
+  virtual double rounding_force() const { return 0.0; }
+  /// The PD's gains (the live ones dynamic_reconfigure sets), validated (std::invalid_argument).
+  virtual void set_pd(const PdOptions& pd) = 0;
+  virtual const PdOptions& pd() const = 0;
+  virtual ControlLaw kind() const = 0;
+};
+
+struct ModalLawOptions;
+/// The law `law` names with its options (std::invalid_argument naming the field when invalid);
+/// sample_period [s] is the tracker's.
+std::unique_ptr<DirectionLaw> make_direction_law(ControlLaw law, const PdOptions& pd, const ModalLawOptions& modal,
+                                                 double sample_period);
+
+}  // namespace control
+}  // namespace hydrojet
