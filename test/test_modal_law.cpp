@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <complex>
 #include <random>
 
@@ -178,8 +179,14 @@ TEST(ModalLaw, TheShapingInvertsTheModeAndTheActuatorLagOnASinusoid) {
     const std::complex<double> H = 1.0 / ((1.0 + jW * tau) * (1.0 + 2.0 * zeta * jW / w + jW * jW / (w * w)));
     const double plain_truth = std::abs(1.0 - H);                            // 0.1307 at τ_a = 0
     const double shaped_truth = std::abs(H * tau * jW * jW * jW) / (w * w);  // the r⃛ term left out
-    EXPECT_NEAR(err_plain, plain_truth, 1e-4) << "tau " << tau;
-    EXPECT_NEAR(err_shaped, shaped_truth, 1e-4) << "tau " << tau;
+    std::printf(
+        "tau_a %.2f s: error unshaped %.6f (closed form %.6f, off %.1e), shaped %.6f (closed form %.6f, off %.1e)\n",
+        tau, err_plain, plain_truth, std::abs(err_plain - plain_truth), err_shaped, shaped_truth,
+        std::abs(err_shaped - shaped_truth));
+    // Within 2e-5 (measured at most 1.1e-5: the lag's output averaged over a held step is exact to
+    // first order only, an error of order (dt/τ_a)² of the lagged motion).
+    EXPECT_NEAR(err_plain, plain_truth, 2e-5) << "tau " << tau;
+    EXPECT_NEAR(err_shaped, shaped_truth, 2e-5) << "tau " << tau;
     if (tau == 0.0) {
       EXPECT_NEAR(plain_truth, 0.1307, 1e-4);
     } else {

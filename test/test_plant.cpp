@@ -63,7 +63,8 @@ TEST(PlantConfig, ErrorsNameTheKey) {
   EXPECT_EQ(key("plant: {mismatch: {tip_mass_scale: -1}}"), "plant.mismatch.tip_mass_scale");
   EXPECT_EQ(key("plant: {mismatch: {colour: 1}}"), "plant.mismatch.colour");
   EXPECT_EQ(key("plant: {valves: [{dead_zone: 2}, {}, {}]}"), "plant.valves[0].dead_zone");
-  EXPECT_EQ(key("plant: {valves: [{}, {}]}"), "plant.valves");
+  EXPECT_EQ(key("plant: {valves: []}"), "plant.valves");
+  EXPECT_EQ(key("plant: {valves: {dead_zone: 0.1}}"), "plant.valves");
   EXPECT_EQ(key("plant: {dynamics: {nodes: 2.5}}"), "plant.dynamics.nodes");
   EXPECT_EQ(key("plant: {sensor_noise: maybe}"), "plant.sensor_noise");
   EXPECT_EQ(key("plant: {dynamics: {internal_dt: 0.5}}"), "plant.internal_dt");

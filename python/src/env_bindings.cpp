@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <memory>
+#include <optional>
 #include <tuple>
 #include <vector>
 
@@ -20,8 +21,8 @@ namespace hydrojet {
 namespace python {
 namespace {
 
-/// One episode: `settle` seconds at rest with the valves shut (sampled each control period, as the
-/// experiment's loop does), then the path's clock. Actions are per actuator in [-1, 1]: a jet's
+/// One episode (sim::Episode, the experiment's loop): `settle` seconds at rest with the valves shut,
+/// then the path's clock. Actions are per actuator in [-1, 1]: a jet's
 /// valve duty (a + 1) / 2, a force actuator's drive a.
 class EnvCore {
  public:
@@ -44,48 +45,38 @@ class EnvCore {
 
   /// A new episode with the plant's noise seeded; false (see error()) when the plant fails.
   bool reset(unsigned seed) {
-    plant_ = std::make_unique<plant::Plant>(model_, seed);
-    if (!plant_->error().empty()) return false;
-    in_ = control::ControllerInputs();
-    const int n = plant_->input_count();
-    const rod::InputVector shut = rod::InputVector::Zero(n);
-    const int settle_steps = static_cast<int>(std::lround(settle_ / dt_));
-    for (int k = 0; k <= settle_steps; ++k) {
-      step_ = k;
-      if (!plant_->advance_to(t())) return false;
-      sim::read_sensors(*plant_, t(), in_);
-      if (k < settle_steps) plant_->command(shut, t());
-    }
-    step0_ = step_;
+    episode_.emplace(model_, seed, dt_);
+    if (!episode_->settle(settle_)) return false;
+    step0_ = episode_->steps();
     direction_ = measured(rod::Vec3::UnitZ());
     return true;
   }
 
   /// Applies `action` for one control period: (plant ok, error [rad] against the path).
   std::tuple<bool, double> step(const Eigen::VectorXd& action) {
-    if (!plant_) throw std::invalid_argument("step() before reset()");
-    const rod::InputVector a = to_inputs(action, plant_->input_count(), "action");
+    if (!episode_) throw std::invalid_argument("step() before reset()");
+    const plant::Plant& plant = episode_->plant();
+    const rod::InputVector a = to_inputs(action, plant.input_count(), "action");
     rod::InputVector command(a.size());
     for (int i = 0; i < a.size(); ++i) {
       const double ai = std::clamp(a[i], -1.0, 1.0);
-      command[i] = plant_->is_jet(i) ? 0.5 * (ai + 1.0) : ai;
+      command[i] = plant.is_jet(i) ? 0.5 * (ai + 1.0) : ai;
     }
-    plant_->command(command, t());
-    ++step_;
     bool ok;
     {
       nb::gil_scoped_release release;
-      ok = plant_->advance_to(t());
+      ok = episode_->step(command);
     }
-    sim::read_sensors(*plant_, t(), in_);
     direction_ = measured(direction_);
     return {ok, control::geodesic_error(path_->direction_at(path_time()), direction_)};
   }
 
   /// The measured direction, the path's preview, the actuators' measured states over their scale.
   Eigen::VectorXf observation() const {
-    if (!plant_) throw std::invalid_argument("observation() before reset()");
-    const int n = plant_->input_count();
+    if (!episode_) throw std::invalid_argument("observation() before reset()");
+    const plant::Plant& plant = episode_->plant();
+    const control::ControllerInputs& in = episode_->sensors();
+    const int n = plant.input_count();
     Eigen::VectorXf obs(3 * (1 + preview_.size()) + n);
     obs.head<3>() = direction_.cast<float>();
     for (size_t k = 0; k < preview_.size(); ++k)
@@ -93,18 +84,22 @@ class EnvCore {
           path_->direction_at(std::min(path_time() + preview_[k], path_->duration())).cast<float>();
     for (int i = 0; i < n; ++i)
       obs[3 * (1 + preview_.size()) + i] =
-          static_cast<float>((plant_->is_jet(i) ? in_.flows[i] : in_.forces[i]) / scale_[i]);
+          static_cast<float>((plant.is_jet(i) ? in.flows[i] : in.forces[i]) / scale_[i]);
     return obs.cwiseMax(-2.0f).cwiseMin(2.0f);
   }
 
-  double t() const { return step_ * dt_; }  // k·dt, as the experiment's clock (no drift)
-  double path_time() const { return (step_ - step0_) * dt_; }
-  const control::ControllerInputs& sensors() const { return in_; }
-  std::string error() const { return plant_ ? plant_->error() : std::string(); }
+  double t() const { return episode_ ? episode_->t() : 0.0; }
+  double path_time() const { return episode_ ? (episode_->steps() - step0_) * dt_ : 0.0; }
+  const control::ControllerInputs& sensors() const {
+    static const control::ControllerInputs none;
+    return episode_ ? episode_->sensors() : none;
+  }
+  std::string error() const { return episode_ ? episode_->error() : std::string(); }
 
  private:
   rod::Vec3 measured(const rod::Vec3& last) const {
-    return in_.tip_valid ? rod::Vec3(in_.tip_rotation.col(2).normalized()) : last;
+    const control::ControllerInputs& in = episode_->sensors();
+    return in.tip_valid ? rod::Vec3(in.tip_rotation.col(2).normalized()) : last;
   }
 
   plant::PlantModel model_;
@@ -113,9 +108,8 @@ class EnvCore {
   std::vector<double> preview_;
   Eigen::VectorXd scale_;
   double settle_;
-  std::unique_ptr<plant::Plant> plant_;
-  control::ControllerInputs in_;
-  long step_ = 0, step0_ = 0;  ///< control periods since the plant started; the path's clock started at step0_
+  std::optional<sim::Episode> episode_;
+  long step0_ = 0;  ///< the path's clock started at this control period of the episode
   rod::Vec3 direction_ = rod::Vec3::UnitZ();
 };
 

@@ -54,8 +54,7 @@ double FlowRegulator::update(double q_des, double q_meas, double dt) {
   // Conditional integration: if the output (with the integrator as it stands) is already beyond a
   // limit and e pushes further out, freeze I. So I overshoots its headroom by at most one step.
   const double before = base + integrator_;
-  const bool frozen =
-      params_.anti_windup && ((before > params_.output_max && e > 0.0) || (before < params_.output_min && e < 0.0));
+  const bool frozen = (before > params_.output_max && e > 0.0) || (before < params_.output_min && e < 0.0);
   if (!frozen) integrator_ += params_.ki * e * dt;
   const double unclamped = base + integrator_;
   saturated_ = unclamped > params_.output_max || unclamped < params_.output_min;
@@ -67,33 +66,6 @@ double FlowRegulator::update(double q_des, double q_meas, double dt) {
 double FlowRegulator::feedforward(double q) const {
   const double u = params_.feedforward * q;
   return u <= 0.0 || params_.valve_exponent == 1.0 ? u : std::pow(u, 1.0 / params_.valve_exponent);
-}
-
-FlowRegulatorBank::FlowRegulatorBank(const FlowRegulatorOptions& params)
-    : jets_{FlowRegulator(params), FlowRegulator(params), FlowRegulator(params)} {}
-
-FlowRegulatorBank::FlowRegulatorBank(const std::array<FlowRegulatorOptions, 3>& params)
-    : jets_{FlowRegulator(params[0]), FlowRegulator(params[1]), FlowRegulator(params[2])} {}
-
-Eigen::Vector3d FlowRegulatorBank::update(const Eigen::Vector3d& q_des_flow, const Eigen::Vector3d& q_meas_flow,
-                                          double dt) {
-  Eigen::Vector3d u;
-  for (int i = 0; i < 3; ++i) u(i) = jets_[i].update(q_des_flow(i), q_meas_flow(i), dt);
-  return u;
-}
-
-void FlowRegulatorBank::reset() {
-  for (auto& j : jets_) j.reset();
-}
-
-bool FlowRegulatorBank::ok() const {
-  return std::all_of(jets_.begin(), jets_.end(), [](const FlowRegulator& j) { return j.ok(); });
-}
-
-std::string FlowRegulatorBank::error() const {
-  for (int i = 0; i < 3; ++i)
-    if (!jets_[i].ok()) return "jet " + std::to_string(i + 1) + ": " + jets_[i].error();
-  return {};
 }
 
 }  // namespace actuation

@@ -93,13 +93,20 @@ void parse_dynamics_and_sensors(Tree& t, plant::PlantModel* p) {
   p->rod.nodes = t.integer(D + "nodes", p->rod.nodes);
 }
 
-/// plant.valves: a list of three valve mappings (a robot with more jets uses them in turn).
+/// plant.valves: a list of valve mappings, jet i's the i-th (in turn when there are fewer than jets);
+/// each over the default valve in its place.
 void parse_valves(Tree& t, plant::PlantModel* p) {
   if (!t.has("plant.valves")) return;
   t.allow("plant.valves");
   const YAML::Node v = t.find("plant.valves");
-  if (!v.IsSequence() || v.size() != 3) t.fail("plant.valves", "must be a list of 3 valve mappings");
-  for (int i = 0; i < 3; ++i) parse_valve(v[i], "plant.valves[" + std::to_string(i) + "]", &p->valves[i]);
+  if (!v.IsSequence() || v.size() < 1 || v.size() > static_cast<size_t>(rod::kMaxInputs))
+    t.fail("plant.valves", "must be a list of 1 to " + std::to_string(rod::kMaxInputs) + " valve mappings");
+  const std::vector<plant::ValveModel> defaults = p->valves;
+  p->valves.resize(v.size());
+  for (size_t i = 0; i < v.size(); ++i) {
+    p->valves[i] = defaults[i % defaults.size()];
+    parse_valve(v[i], "plant.valves[" + std::to_string(i) + "]", &p->valves[i]);
+  }
 }
 
 /// The `plant` section of a plant file over the defaults in *m and *p.

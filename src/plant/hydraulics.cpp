@@ -17,8 +17,8 @@ std::string ValveModel::validate() const {
   return "";
 }
 
-std::array<ValveModel, 3> hydrojet_valves() {
-  std::array<ValveModel, 3> v;
+std::vector<ValveModel> hydrojet_valves() {
+  std::vector<ValveModel> v(3);
   v[0].max_flow = 1.60e-5, v[0].dead_zone = 0.05, v[0].time_constant = 0.04;
   v[1].max_flow = 1.52e-5, v[1].dead_zone = 0.08, v[1].time_constant = 0.05;
   v[2].max_flow = 1.66e-5, v[2].dead_zone = 0.04, v[2].time_constant = 0.035;

@@ -20,7 +20,8 @@ int valve_count(const PlantModel& p) {
 std::string PlantModel::validate() const {
   const std::string r = rod.validate();
   if (!r.empty()) return "dynamics." + r;
-  for (int i = 0; i < 3; ++i) {
+  if (valves.empty()) return "valves: none (at least one model, used in turn by the jets)";
+  for (size_t i = 0; i < valves.size(); ++i) {
     const std::string v = valves[i].validate();
     if (!v.empty()) return "valves[" + std::to_string(i) + "]." + v;
   }

@@ -1,8 +1,8 @@
 // calibration_recorder_node: the data collection of paper §6.2. Drives the rig driver or the
 // simulated plant through N random jet-force combinations (the paper used 40), holding each with
-// the per-jet PI flow regulators (actuation/flow_regulator.h; desired flow from the thrust
-// equation, eq. 26) for ~hold_time while the rod settles, records the driver's topics to a bag, and
-// then runs the calibrator (the same code as the `calibrate` tool) on that bag.
+// the controller's actuation (control/jet_actuation.h: desired flow from the thrust
+// equation, eq. 26, and the per-jet PI flow regulators) for ~hold_time while the rod settles, records the driver's
+// topics to a bag, and then runs the calibrator (the same code as the `calibrate` tool) on that bag.
 //
 // Topics: publishes jets/command (JetCommand); subscribes jets/state, tracker/tip_pose,
 // tracker/base_pose (all written to ~bag with their header stamps). Timer at ~rate on ROS time, so
@@ -18,18 +18,18 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <random>
 #include <set>
 #include <sstream>
 
 #include "hydrojet_control/JetCommand.h"
 #include "hydrojet_control/JetState.h"
-#include "hydrojet_control/actuation/flow_regulator.h"
 #include "hydrojet_control/actuation/jet_map.h"
-#include "hydrojet_control/actuation/thrust.h"
 #include "hydrojet_control/calibration/app.h"
 #include "hydrojet_control/config/controller_config.h"
 #include "hydrojet_control/config/scene.h"
+#include "hydrojet_control/control/jet_actuation.h"
 #include "hydrojet_control/ros/params.h"
 #include "hydrojet_control/util/json_writer.h"
 #include "hydrojet_control/ros/names.h"
@@ -96,9 +96,10 @@ RecorderOptions read_options(const ros::NodeHandle& pnh) {
 
 class Recorder {
  public:
-  Recorder(ros::NodeHandle& nh, ros::NodeHandle& pnh) : o_(read_options(pnh)), rng_(o_.seed), bank_(o_.flow) {
+  Recorder(ros::NodeHandle& nh, ros::NodeHandle& pnh) : o_(read_options(pnh)), rng_(o_.seed) {
     scene_ = config::load_scene(o_.scene);
     if (!scene_.jets) throw config::SceneError("jets", "missing (the recorder needs the jet geometry and nozzles)");
+    jets_.emplace(scene_.rod, scene_.nozzle, o_.flow);
     make_targets();
     bag_.open(o_.bag, rosbag::bagmode::Write);
     cmd_pub_ = nh.advertise<hydrojet_control::JetCommand>(names::kJetCommand, 10);
@@ -187,8 +188,9 @@ class Recorder {
                    targets_[k][0], targets_[k][1], targets_[k][2]);
         }
         force = targets_[k];
-        for (int i = 0; i < 3; ++i) flow_des[i] = actuation::flow_from_force(force[i], scene_.nozzle);
-        duty = bank_.update(flow_des, flow_, dt);
+        const rod::InputVector q = force, flows = jets_->flows_for_forces(q);
+        flow_des = flows;
+        duty = jets_->regulate(q, flows, rod::InputVector(flow_), dt);
       }
     }
     publish(now, duty, force, flow_des);
@@ -260,7 +262,7 @@ class Recorder {
   RecorderOptions o_;
   config::Scene scene_;
   std::mt19937 rng_;
-  actuation::FlowRegulatorBank bank_;
+  std::optional<control::JetActuation> jets_;  ///< eq. (26) and the jets' PI flow regulators
   std::vector<Eigen::Vector3d> targets_;
   rosbag::Bag bag_;
   ros::Publisher cmd_pub_, result_pub_;

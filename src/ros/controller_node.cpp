@@ -111,10 +111,14 @@ class FollowPathServer {
     server_.start();
   }
 
-  /// After each control cycle: a path built since, the error statistics, feedback at 10 Hz and the end
-  /// of the goal.
-  void cycle(const ros::Time& now, const control::ControllerOutput& out) {
+  /// Before each control cycle: a path built since drives the controller (starting it when idle), so
+  /// that the cycle's output, by which the goal is judged, is the path's.
+  void before_cycle(const ros::Time& now) {
     if (std::optional<Built> built = built_.take()) adopt(*built, now);
+  }
+
+  /// After each control cycle: the error statistics, feedback at 10 Hz and the end of the goal.
+  void cycle(const ros::Time& now, const control::ControllerOutput& out) {
     if (!server_.isActive() || !path_) return;
     if (out.state == control::ControllerState::kAborted) return finish(false, "controller aborted: " + out.reason);
     if (out.state == control::ControllerState::kIdle) return finish(false, "controller stopped");
@@ -547,6 +551,7 @@ class ControllerNode {
       controller_->start(in.t);
       autostarted_ = true;
     }
+    follow_path_->before_cycle(now);
     const auto t0 = std::chrono::steady_clock::now();
     const control::ControllerOutput out = controller_->update(in);
     const double cycle_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

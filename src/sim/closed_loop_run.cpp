@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <stdexcept>
 
 namespace hydrojet {
 namespace sim {
@@ -90,13 +91,39 @@ bool parse_run_start(const std::string& name, RunStart* start) {
   return false;
 }
 
+Episode::Episode(const plant::PlantModel& model, unsigned seed, double control_period)
+    : plant_(model, seed), dt_(control_period) {
+  if (!(control_period >= 1e-4 && control_period <= 1.0))
+    throw std::invalid_argument("control_period: must lie in [1e-4, 1] s");
+}
+
+bool Episode::advance() {
+  if (!plant_.advance_to(t())) return false;
+  read_sensors(plant_, t(), in_);
+  return true;
+}
+
+bool Episode::settle(double seconds) {
+  const long settle_steps = std::lround(seconds / dt_);
+  const rod::InputVector shut = rod::InputVector::Zero(plant_.input_count());
+  if (!plant_.error().empty() || !advance()) return false;
+  while (steps_ < settle_steps)
+    if (!step(shut)) return false;
+  return true;
+}
+
+bool Episode::step(const rod::InputVector& command) {
+  plant_.command(command, t());
+  ++steps_;
+  return advance();
+}
+
 RunResult run_path(const control::RobotModel& model, const control::ControllerOptions& params,
                    const plant::PlantModel& plant_params, unsigned seed, const RunPlan& plan) {
   const auto wall0 = std::chrono::steady_clock::now();
   RunResult r;
   r.start = plan.start;
-  const double dt = plan.control_period, settle = plan.settle;
-  plant::Plant plant(plant_params, seed);
+  Episode episode(plant_params, seed, plan.control_period);
   control::Controller controller(model, params);
   const std::shared_ptr<const control::Path> path =
       plan.path ? plan.path : std::shared_ptr<const control::Path>(control::make_spiral(params.path));
@@ -104,39 +131,38 @@ RunResult run_path(const control::RobotModel& model, const control::ControllerOp
   // The approach is bounded by the controller (the reference's way there at max_angular_rate, then
   // approach.timeout); this only bounds the loop.
   const double approach_bound = approach ? M_PI / params.limits.max_angular_rate + params.approach.timeout + 1.0 : 0.0;
-  const int settle_steps = static_cast<int>(std::lround(settle / dt));
-  const int last_step = settle_steps + static_cast<int>(std::lround((approach_bound + path->duration()) / dt));
-  control::ControllerInputs in;
+  const long last_step = std::lround(plan.settle / plan.control_period) +
+                         std::lround((approach_bound + path->duration()) / plan.control_period);
   double path_start = -1.0;  // [s] simulated time of the path clock's start
-  for (int k = 0; k <= last_step; ++k) {
-    const double t = k * dt;
-    if (!plant.advance_to(t)) {
-      r.reason = "plant: " + plant.error();
-      r.aborted_at = path_start >= 0 ? t - path_start : 0.0;
-      break;
-    }
-    if (k == settle_steps) {
-      controller.follow(path, t,
-                        approach ? control::Reference::PathStart::kApproach : control::Reference::PathStart::kJump,
-                        control::Reference::PathClip::kDesigned);
-      controller.start(t);
-    }
-    read_sensors(plant, t, in);
-    const control::ControllerOutput out = controller.update(in);
-    plant.command(out.valve_command, t);
-    if (k < settle_steps) continue;
+  bool ok = episode.settle(plan.settle);
+  if (ok) {
+    controller.follow(path, episode.t(),
+                      approach ? control::Reference::PathStart::kApproach : control::Reference::PathStart::kJump,
+                      control::Reference::PathClip::kDesigned);
+    controller.start(episode.t());
+  }
+  while (ok) {
+    const double t = episode.t();
+    const control::ControllerOutput out = controller.update(episode.sensors());
     if (out.state == control::ControllerState::kAborted || !out.path_failure.empty()) {
       r.aborted_at = path_start >= 0 ? t - path_start : 0.0;
       r.reason = out.state == control::ControllerState::kAborted ? out.reason : out.path_failure;
       break;
     }
-    if (out.approaching) continue;
-    if (path_start < 0) path_start = t, r.approach_time = out.approach_time;
-    r.samples.push_back(record(plant, out, t - path_start));
-    if (out.state == control::ControllerState::kFinished) {
-      r.completed = true;
-      break;
+    if (!out.approaching) {
+      if (path_start < 0) path_start = t, r.approach_time = out.approach_time;
+      r.samples.push_back(record(episode.plant(), out, t - path_start));
+      if (out.state == control::ControllerState::kFinished) {
+        r.completed = true;
+        break;
+      }
     }
+    if (episode.steps() >= last_step) break;
+    ok = episode.step(out.valve_command);
+  }
+  if (!ok) {
+    r.reason = "plant: " + episode.error();
+    r.aborted_at = path_start >= 0 ? episode.t() - path_start : 0.0;
   }
   if (!r.completed && r.reason.empty()) r.reason = "the run's time bound passed before the path ended";
   summarise(r);

@@ -1,5 +1,5 @@
 // Per-jet flow regulation: the actuator feedback loop of Campisano et al. 2021, §4 / Figure 3
-// (q_obs from the flow sensors). ROS-free (Eigen only); time is passed in, no clock is read.
+// (q_obs from the flow sensors). ROS-free; time is passed in, no clock is read.
 //
 // PI with optional feedforward, output clamped to [output_min, output_max] ⊆ [0, 1] (valve duty):
 //   e = Q_des − Q_meas
@@ -15,10 +15,7 @@
 // becomes reachable (no wound-up integral to unwind).
 #pragma once
 
-#include <array>
 #include <string>
-
-#include <Eigen/Core>
 
 namespace hydrojet {
 namespace actuation {
@@ -33,7 +30,6 @@ struct FlowRegulatorOptions {
   double valve_exponent = 1.0;
   double output_min = 0.0;  ///< lower duty limit [1], ≥ 0
   double output_max = 1.0;  ///< upper duty limit [1], ≤ 1
-  bool anti_windup = true;  ///< false: plain PI (integrator unbounded), for comparison only
 };
 
 /// Empty if usable, else a message naming the bad field (non-finite or negative gains, limits not
@@ -60,7 +56,7 @@ class FlowRegulator {
   bool saturated() const { return saturated_; }      ///< last unclamped output was out of range
   bool ok() const { return error_.empty(); }         ///< false after a rejected step
   const std::string& error() const { return error_; }
-  const FlowRegulatorOptions& parameters() const { return params_; }
+  const FlowRegulatorOptions& options() const { return params_; }
 
  private:
   double feedforward(double q) const;
@@ -72,25 +68,6 @@ class FlowRegulator {
   bool primed_ = false;            ///< a valid step since reset() (the first has no rate)
   bool saturated_ = false;
   std::string error_;
-};
-
-/// Three regulators, one per jet.
-class FlowRegulatorBank {
- public:
-  explicit FlowRegulatorBank(const FlowRegulatorOptions& params = FlowRegulatorOptions());
-  explicit FlowRegulatorBank(const std::array<FlowRegulatorOptions, 3>& params);
-
-  /// Valve commands [1] for desired / measured flows [m^3/s] after dt [s]. A jet with bad input
-  /// gets 0 (see FlowRegulator::update); the others are unaffected.
-  Eigen::Vector3d update(const Eigen::Vector3d& q_des_flow, const Eigen::Vector3d& q_meas_flow, double dt);
-  void reset();
-  bool ok() const;
-  /// First error among the jets, prefixed with "jet i: ", or empty.
-  std::string error() const;
-  const FlowRegulator& operator[](int i) const { return jets_[i]; }
-
- private:
-  std::array<FlowRegulator, 3> jets_;
 };
 
 }  // namespace actuation

@@ -1,7 +1,7 @@
 // The one reader behind every configuration of the stack: scene files, plant files, controller,
 // rig, plant-node and recorder options (YAML files or private ROS parameters turned into YAML).
-// Typed, validated access by paths as the user writes them ("gains/kp", "rod.length"); every
-// error names the full key ("~gains/kp: must be a number, got 'fast'"); keys read are remembered,
+// Typed, validated access by paths as the user writes them ("pd/kp", "rod.length"); every
+// error names the full key ("~pd/kp: must be a number, got 'fast'"); keys read are remembered,
 // so that reject_unknown() names a key nobody asked for (a typo does not pass silently). An empty
 // (null) value counts as absent. ROS-free, header-only (yaml-cpp only).
 #pragma once
@@ -21,7 +21,7 @@ namespace hydrojet {
 namespace config {
 
 /// A configuration key is missing or invalid. key() is its full path ("rod.length",
-/// "~gains/kp"; empty for errors about the input as a whole), detail() what is wrong with it.
+/// "~pd/kp"; empty for errors about the input as a whole), detail() what is wrong with it.
 ///
 /// The error family and who throws (every layer of the stack follows this rule):
 ///   - Configuration parsing (scene and plant files, controller, rig, node and recorder options)

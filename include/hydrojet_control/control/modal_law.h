@@ -5,7 +5,7 @@
 // quasi-static direction at the measured actuator forces (the solve of Algorithm 1, line 6, at
 // q_obs: the flow sensors measure the actuators, so their lag needs no state of its own):
 //   ẏ = v,   v̇ = ω² (s + d − y) − 2ζω v,   ḋ = noise     (y the tip direction, d the model's error),
-// a Kalman filter (linear_quadratic.h's equations; the components share one covariance) estimates
+// a Kalman filter (the components share one covariance) estimates
 // (y, v, d) from the tracker. ω is the first lateral mode (modal_model.h) at the current
 // equilibrium with the capsule's expected fill; ζ = ω τ_kv / 2 (Kelvin–Voigt damping).
 //

@@ -169,7 +169,7 @@ class AuroraClient : private DeviceSession {
   void stop() { worker_.stop(); }
 
   AuroraStatus status() const;
-  const AuroraOptions& config() const { return cfg_; }
+  const AuroraOptions& options() const { return cfg_; }
 
  private:
   // DeviceSession: one session is connect() then track().

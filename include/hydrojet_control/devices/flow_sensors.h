@@ -72,7 +72,7 @@ class FlowSensor : private DeviceSession {
   void start() { worker_.start(); }
   void stop() { worker_.stop(); }
   FlowSensorStatus status() const;
-  const FlowSensorOptions& config() const { return cfg_; }
+  const FlowSensorOptions& options() const { return cfg_; }
 
  private:
   // DeviceSession: one session is open_port() then stream().

@@ -27,7 +27,7 @@ struct ValveModel {
 
 /// The HydroJet's three valves as config/plant.yaml describes them: they differ a little (dead
 /// zone, flow, lag), as three valves always do.
-std::array<ValveModel, 3> hydrojet_valves();
+std::vector<ValveModel> hydrojet_valves();
 
 /// One valve and its line.
 class Valve {
@@ -49,12 +49,13 @@ class Valve {
   double stuck_duty_ = -1.0;
 };
 
-/// The jets' hydraulics: one valve per jet (three for the HydroJet; a robot with more jets uses the
-/// three valve models in turn).
+/// The jets' hydraulics: one valve per jet, valve i modelled by p[i], or by the models in turn when
+/// there are fewer models than jets.
 class Hydraulics {
  public:
-  explicit Hydraulics(const std::array<ValveModel, 3>& p, int jets = 3) {
-    for (int i = 0; i < jets; ++i) valves_.emplace_back(p[i % 3]);
+  /// p: at least one model.
+  Hydraulics(const std::vector<ValveModel>& p, int jets) {
+    for (int i = 0; i < jets; ++i) valves_.emplace_back(p[i % p.size()]);
   }
   /// Advances every valve by dt [s] under its duty; returns the flows [m^3/s].
   rod::InputVector step(const rod::InputVector& duty, double dt) {

@@ -37,7 +37,7 @@ struct PlantModel {
   /// its jets each have a valve (valves in turn), its force actuators a drive.
   DynamicRodModel rod;
   actuation::Nozzle nozzle;
-  std::array<ValveModel, 3> valves = hydrojet_valves();
+  std::vector<ValveModel> valves = hydrojet_valves();  ///< jet i's is valves[i], in turn when fewer
   TrackerNoise tracker;
   FlowNoise flow;
   bool sensor_noise = true;  ///< false: exact sensors (no noise, quantisation, latency)

@@ -79,6 +79,36 @@ inline double ml_per_min(double m3_per_s) { return m3_per_s * 6e7; }
 /// forces, stamped t.
 void read_sensors(plant::Plant& plant, double t, control::ControllerInputs& in);
 
+/// One episode on the simulated plant, the loop that the experiment's runs and hydrojet.gym share: the
+/// plant built with its noise seeded, a clock of whole control periods (t = k·dt, no drift), the
+/// valves shut while it settles, then one command per period; the sensors read as the rig's driver
+/// delivers them after every advance.
+class Episode {
+ public:
+  /// std::invalid_argument when `model` is not valid or control_period is not in [1e-4, 1] s.
+  Episode(const plant::PlantModel& model, unsigned seed, double control_period);
+  /// `seconds` at rest with the valves shut (rounded to whole periods): the clock stops on the first
+  /// period after them, sensors read, nothing commanded there yet. False (error()) when the plant fails.
+  bool settle(double seconds);
+  /// `command` (valve duties and drives, plant::Plant::command) from now for one period, then the
+  /// sensors. False (error()) when the plant fails.
+  bool step(const rod::InputVector& command);
+  double t() const { return steps_ * dt_; }
+  long steps() const { return steps_; }  ///< control periods since the plant started
+  plant::Plant& plant() { return plant_; }
+  const plant::Plant& plant() const { return plant_; }
+  const control::ControllerInputs& sensors() const { return in_; }
+  const std::string& error() const { return plant_.error(); }
+
+ private:
+  bool advance();  ///< to t(), then the sensors
+
+  plant::Plant plant_;
+  double dt_;
+  long steps_ = 0;
+  control::ControllerInputs in_;
+};
+
 /// Runs the plan's path on the plant, `settle` seconds at rest, then the controller: until the path
 /// ends, the controller aborts or an approach fails. The error statistics cover the path from its
 /// clock's start.
