@@ -296,7 +296,8 @@ TEST_F(JoystickFifo, StatesDisconnectAndReconnect) {
 
 TEST_F(JoystickFifo, CoalescesAxisBurstsAndReportsButtonsAtOnce) {
   JoystickOptions o = fifo_options(fifo.path());
-  o.coalesce_interval = 0.2;
+  // The longest allowed, against a loaded machine's scheduling: "at once" below means within half of it.
+  o.coalesce_interval = 1.0;
   JoystickReader reader(o, rec.callback());
   reader.start();
   ASSERT_TRUE(fifo.open_writer());
@@ -307,11 +308,11 @@ TEST_F(JoystickFifo, CoalescesAxisBurstsAndReportsButtonsAtOnce) {
   ASSERT_TRUE(eventually([&] { return rec.count() >= 1; }, kWait));
   EXPECT_EQ(rec.last().axes, (std::vector<double>{-1.0, -1.0, -1.0}));
   EXPECT_EQ(rec.count(), 1u);
-  // A button goes out without waiting for the coalesce interval.
+  // A button goes out without waiting for the coalesce interval: within half of it.
   const auto t0 = std::chrono::steady_clock::now();
   ASSERT_TRUE(fifo.write(button(0, 1)));
   ASSERT_TRUE(eventually([&] { return rec.count() >= 2; }, kWait));
-  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 0.15);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 0.5 * o.coalesce_interval);
   EXPECT_EQ(rec.last().buttons, (std::vector<int>{1}));
 }
 

@@ -56,9 +56,13 @@ RECOVER_S = 3.0        # [s] of running after a restart that count as recovered
 SETTLED_RAD = 0.03     # [rad] the tip counts as at rest when its direction stayed this close ...
 SETTLED_S = 0.5        # [s] ... to the latest for this long (tracker noise is ~0.005 rad per sample)
 WARMUP_S = 60.0        # [s] simulated; memory is compared from here on
-# The self-test's switch (scripts/ci_selftest): the first fault sent to the plant never ends, though it
-# is judged as scheduled, so the controller cannot recover from it; this judge must say so.
-NOT_RECOVERED = os.environ.get("HYDROJET_SELFTEST_INJECT") == "soak_fault_not_recovered"
+# The self-test's switches (scripts/ci_selftest): soak_fault_not_recovered: the first fault sent to the
+# plant never ends, though it is judged as scheduled, so the controller cannot recover from it;
+# soak_restart_not_recovered: the first fault is a plant restart whose new plant loses its tracker for
+# good once the controller hears it. This judge must say "not recovered" for each.
+INJECT = os.environ.get("HYDROJET_SELFTEST_INJECT", "")
+NOT_RECOVERED = INJECT == "soak_fault_not_recovered"
+RESTART_NOT_RECOVERED = INJECT == "soak_restart_not_recovered"
 
 # Expected abort reason (prefixes of SafetyMonitor's texts) and detection bound per fault kind.
 # The bounds: data older than STALE_AFTER is refused at the next control cycle, so a dropout is seen
@@ -191,7 +195,10 @@ class Monitor:
         self.t = m.clock.to_sec()
 
     def on_status(self, m):
-        if self.status is None or m.state != self.status.state:
+        # A new state, or an abort for another reason (a restart that aborts again in its first cycle
+        # never reports 'running').
+        if self.status is None or m.state != self.status.state or (
+                m.state == "aborted" and m.reason != self.status.reason):
             self.transitions.append((m.header.stamp.to_sec(), m.state, m.reason))
         self.status = m
 
@@ -242,6 +249,10 @@ class Monitor:
         return None
 
 
+FAULT_KINDS = ("tracker_dropout", "flow_nan", "flow_negative", "flow_silent", "stuck_valve", "controller_stop",
+               "plant_restart")
+
+
 def schedule(rng, sim_seconds):
     """The seeded list of events: (sim time, kind, parameters)."""
     kinds = ["tracker_dropout", "flow_nan", "flow_negative", "flow_silent", "stuck_valve", "controller_stop",
@@ -253,6 +264,8 @@ def schedule(rng, sim_seconds):
         if t > sim_seconds - 10.0:
             return events
         kind = rng.choices(kinds, weights)[0]
+        if RESTART_NOT_RECOVERED and not any(e[1] in FAULT_KINDS for e in events) and kind in FAULT_KINDS:
+            kind = "plant_restart"
         p = {"jet": rng.randrange(3)}
         if kind == "tracker_dropout":
             p["duration"] = rng.uniform(0.05, 2.0)
@@ -319,6 +332,10 @@ class Soak:
         return result[0]
 
     def ensure_running(self):
+        """Running before the next event; an abort since the last event's judgement is a row of its own
+        (the restart here would clear it unrecorded)."""
+        if self.mon.state() == "aborted":
+            self.unplanned("between events")
         if self.mon.state() not in ("running", "finished"):
             self.call("/controller/start")
             if not self.wait_until(lambda: self.mon.state() in ("running", "finished"), 10.0):
@@ -399,7 +416,9 @@ class Soak:
         # operator would (a restart into a still-ringing rod trips the oscillation check at once).
         self.wait_sim(injected + p["duration"] + 0.2)
         if kind == "plant_restart":  # as an operator would: once the controller hears the new plant
-            self.wait_until(self.controller_hears_plant, 30.0)
+            row["heard_plant"] = self.wait_until(self.controller_hears_plant, 30.0)
+            if not row["heard_plant"]:
+                row["note"] = "the controller did not hear the new plant within 30 s"
         resting = self.wait_until(lambda: self.mon.settled(), 30.0)
         row["settled"] = round(self.mon.t, 3) if resting else None
         if det and row["zero_ok"]:  # and they stayed zero until the restart
@@ -409,6 +428,8 @@ class Soak:
         # transition recorded after the call.
         started = max(self.mon.t, det[0] if det else self.mon.t)
         seen = len(self.mon.transitions)
+        if kind == "plant_restart" and RESTART_NOT_RECOVERED:  # the new plant's tracker goes dark for good
+            self.inject("tracker_dropout", {"jet": 0, "duration": 1e6})
         self.call("/controller/start")
         # Judged on controller/status itself, stamped RECOVER_S after the restart: the clock arrives on
         # a topic of its own and can run ahead of the status this script has read (a restart was once
@@ -419,6 +440,8 @@ class Soak:
         row["recovered"] = bool(ok and again is None and self.mon.state() in ("running", "finished"))
         if again:
             row["after_restart"] = again[2]
+        elif not row["recovered"] and self.mon.status is not None:
+            row["after_restart"] = "%s: %s" % (self.mon.state(), self.mon.status.reason)
         row["ok"] = row["detect_ok"] and row["reason_ok"] and row["zero_ok"] and row["recovered"]
         self.rows.append(row)
         if not row["ok"]:
@@ -426,16 +449,27 @@ class Soak:
         self.say(row)
 
     def controller_hears_plant(self):
-        """The controller node is connected to the running plant's sensor topics: after a plant
-        restart ROS connects the subscribers anew, and in lockstep the clock can run on meanwhile
-        (a start before that aborts again on the old plant's last pose)."""
+        """The controller node has received messages from the running plant on each of its sensor
+        topics: after a plant restart ROS connects the subscribers anew, and in lockstep the clock
+        can run on meanwhile (a start before that aborts again on the old plant's last pose). The
+        handshake is judged by the messages counted on the connections to the new plant (bus info's
+        'connected' field is true from the connection's creation on)."""
         try:
             master = rosgraph.Master("/soak")
             plant = master.lookupNode("/plant")
-            _, _, bus = xmlrpc.client.ServerProxy(master.lookupNode("/controller")).getBusInfo("/soak")
+            node = xmlrpc.client.ServerProxy(master.lookupNode("/controller"))
+            _, _, bus = node.getBusInfo("/soak")
+            stats = node.getBusStats("/soak")
         except Exception:  # a node not (yet) registered, or busy: ask again
             return False
-        heard = {c[4] for c in bus if len(c) > 5 and c[2] == "i" and c[1] == plant and c[5]}
+        # roscpp answers getBusStats with [publications, subscriptions] alone (no code and message).
+        if len(stats) == 3 and isinstance(stats[0], int):
+            stats = stats[2]
+        # bus info: [connection id, peer, direction, transport, topic, ...];
+        # subscriptions' stats: [topic, [[connection id, bytes, messages, drops, connected], ...]]
+        from_plant = {c[0] for c in bus if len(c) > 4 and c[2] == "i" and c[1] == plant}
+        heard = {topic for topic, conns in (stats[1] if len(stats) > 1 else [])
+                 for conn in conns if conn[0] in from_plant and len(conn) > 2 and conn[2] > 0}
         return {"/tracker/tip_pose", "/tracker/base_pose", "/jets/state"} <= heard
 
     def unplanned(self, when):
@@ -495,9 +529,10 @@ class Soak:
 
     def say(self, row):
         why = [k for k in ("detect_ok", "reason_ok", "zero_ok", "recovered") if k in row and not row[k]]
+        extra = "".join("; %s: %s" % (k.replace("_", " "), row[k]) for k in ("after_restart", "note") if row.get(k))
         print("  %8.2f s  %-18s %s  %s%s" % (row.get("injected") or row.get("detected") or 0.0, row["kind"],
                                            "ok  " if row["ok"] else "FAIL", row.get("reason", ""),
-                                           "  (failed: %s)" % ", ".join(why) if why else ""), flush=True)
+                                           "  (failed: %s%s)" % (", ".join(why), extra) if why else ""), flush=True)
 
     # --- the run ------------------------------------------------------------------------------------
     def run(self):
@@ -555,7 +590,8 @@ def table(rows):
            "|---|---|---|---|---|---|---|---|---|---|"]
     for i, r in enumerate(rows, 1):
         lat = "%s (≤ %s)" % (f(r.get("latency")), f(r.get("bound"))) if "bound" in r else "—"
-        rec = "—" if "recovered" not in r else ("yes" if r["recovered"] else "NO")
+        rec = "—" if "recovered" not in r else ("yes" if r["recovered"] else "NO" + (
+            " (%s)" % r["after_restart"].replace("|", "/") if r.get("after_restart") else ""))
         out.append("| %d | %s | %s | %s | %s | %s | %s | %s | %s | %s |" % (
             i, r["kind"], f(r.get("jet")), f(r.get("injected")), f(r.get("detected")), lat,
             (r.get("reason") or "").replace("|", "/"), f(r.get("jets_zero")), rec, "ok" if r["ok"] else "FAIL"))

@@ -54,7 +54,7 @@ TEST(ControllerOptions, BadParametersAreRejectedByName) {
   const std::vector<Case> cases = {
       {"bad_kp", "pd/kp", XmlRpc::XmlRpcValue(-1.0), "~pd/kp"},
       {"bad_unknown", "pd/kq", XmlRpc::XmlRpcValue(1.0), "~pd/kq: unknown"},
-      {"moved_twice", "gains/kp", XmlRpc::XmlRpcValue(1.0), "~gains/kp: moved to ~pd/kp"},
+      {"moved_twice", "gains/kp", XmlRpc::XmlRpcValue(1.0), "~gains/kp: moved to pd/kp"},
       {"bad_mode", "mode", XmlRpc::XmlRpcValue("sideways"), "~mode"},
       {"bad_type", "safety/stale_periods", XmlRpc::XmlRpcValue("three"), "~safety/stale_periods"},
       {"bad_rate", "rate", XmlRpc::XmlRpcValue(5000.0), "~rate"},

@@ -5,9 +5,12 @@ wide ranges (NaN, +-inf, 1e+-300, huge counts, wrong frames, special files, byte
 target directions, look-at points, view rates, joystick messages, follow_path goals, reconfigure
 requests and scene reloads. Then a valid goal.
 
-Asserts: both nodes alive; controller/status never silent for more than 0.5 s of wall time; the
-controller never aborts; the desired direction a finite unit vector in every status; every reply and
-result decodable text; the valid goal succeeds afterwards. The seed is printed (and set by ~seed).
+Asserts: both nodes alive; controller/status never silent for more than 0.5 s of wall time (measured
+by status_gaps.py, a listener process of its own); the controller never aborts; the desired direction
+a finite unit vector in every status; every message, reply and result text (no byte that was not
+UTF-8: genpy decodes those as U+FFFD, no control character); a scene reload refused for what is wrong
+with the scene (the controller stopped) or because the controller runs, a good one loaded; the valid
+goal succeeds afterwards. The seed is printed (and set by ~seed).
 """
 import math
 import os
@@ -28,9 +31,10 @@ from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import PointStamped, TwistStamped, Vector3, Vector3Stamped
 from hydrojet_control.msg import ControllerStatus, FollowPathAction, FollowPathGoal
 from sensor_msgs.msg import Joy
+from std_msgs.msg import Empty, Float64MultiArray
 from std_srvs.srv import Trigger
 
-SILENCE_LIMIT = 0.5  # [s] of wall time between two controller/status messages
+SILENCE_LIMIT = 0.5  # [s] of wall time between two controller/status messages (status_gaps.py)
 SPECIAL = [float("nan"), float("inf"), -float("inf"), 1e308, -1e308, 1.5e154, 1e-300, -1e-300, 0.0, -0.0,
            1e300, 5e-324, 2147483647.0, -2147483648.0]
 
@@ -51,6 +55,17 @@ def number32(rng):
     return math.copysign(float("inf"), v) if math.isfinite(v) and abs(v) > 3.4e38 else v
 
 
+def text_fault(s):
+    """Why `s` is not text as the controller promises it (util::printable), or None: a byte that was not
+    UTF-8 (decoded by genpy as U+FFFD or a surrogate), or a control character but tab and newline."""
+    for c in s:
+        if c == "\ufffd" or 0xD800 <= ord(c) <= 0xDFFF:
+            return "a byte that was not UTF-8 (%r)" % c
+        if (ord(c) < 0x20 and c not in "\t\n") or ord(c) == 0x7F:
+            return "a control character %r" % c
+    return None
+
+
 def count(rng):
     return rng.choice([0, 1, 2, 3, 7, 50, rng.randrange(0, 2000), 2147483647, -1, -2147483648])
 
@@ -59,10 +74,12 @@ class HostileInputs(unittest.TestCase):
     def setUp(self):
         self.rng = random.Random(rospy.get_param("~seed", 1))
         self.statuses = []
-        self.gaps = []
-        self.last_wall = None
+        self.results = []  # follow_path results, from actionlib's thread (checked in this one)
+        self.gap_report = None
         self.lock = threading.Lock()
         rospy.Subscriber("controller/status", ControllerStatus, self.on_status, queue_size=100)
+        rospy.Subscriber("status_gaps/report", Float64MultiArray, self.on_gaps, queue_size=10)
+        self.gap_reset = rospy.Publisher("status_gaps/reset", Empty, queue_size=1, latch=True)
         self.target = rospy.Publisher("controller/target_direction", Vector3Stamped, queue_size=100)
         self.look = rospy.Publisher("controller/look_at", PointStamped, queue_size=100)
         self.rate = rospy.Publisher("controller/view_rate", TwistStamped, queue_size=100)
@@ -71,12 +88,12 @@ class HostileInputs(unittest.TestCase):
         self.files = self.make_files()
 
     def on_status(self, m):
-        now = time.monotonic()
         with self.lock:
-            if self.last_wall is not None:
-                self.gaps.append(now - self.last_wall)
-            self.last_wall = now
             self.statuses.append(m)
+
+    def on_gaps(self, m):
+        with self.lock:
+            self.gap_report = list(m.data)
 
     def make_files(self):
         """Path files a goal may name: special files, bytes, a huge sparse file, a directory, good ones."""
@@ -156,8 +173,8 @@ class HostileInputs(unittest.TestCase):
         self.action.send_goal(g, done_cb=self.on_done)
 
     def on_done(self, state, result):
-        if result is not None:
-            result.reason.encode("utf-8")  # text only
+        with self.lock:  # an assertion here, in actionlib's thread, would fail nothing
+            self.results.append(result)
 
     def reconfigure(self):
         names = ["kp", "kd", "feedforward", "damping", "max_force", "max_force_rate"]
@@ -169,26 +186,43 @@ class HostileInputs(unittest.TestCase):
                 raise
 
     def reload_scene(self):
-        """Stopped (else it is refused), a scene reload of a good or bad ~scene, started again."""
+        """A reload of a good or a bad ~scene: the controller stopped first, the reply names what is
+        wrong (or the good scene is loaded), then started again; now and then one while it runs,
+        refused for that."""
         good = rospy.get_param("/controller/scene")
-        bad = self.rng.choice([42, "", "/dev/zero", "/nonexistent.yaml", self.files[4], self.files[7],
-                               self.absurd_scene, good])
-        stopped = self.rng.random() < 0.5
-        if stopped:
-            self.stop_srv()
+        with self.lock:
+            running = bool(self.statuses) and self.statuses[-1].state == "running"
+        if running and self.rng.random() < 0.2:
+            reply = self.reload_srv()
+            self.assert_text(reply.message, "reload_scene's reply")
+            self.assertFalse(reply.success, reply.message)
+            self.assertIn("the controller is running", reply.message)
+            return
+        bad, why = self.rng.choice(self.scenes)
+        self.stop_srv()
+        # The rod comes to rest before the start below, as an operator waits: a start into a rod still
+        # swinging back from the jets' last force trips the oscillation check, rightly.
+        rospy.sleep(2.0)
         if bad == 42:
             rospy.set_param("/controller/scene", 42)
-        elif bad == "":
+        elif bad is None:
             rospy.delete_param("/controller/scene")
         else:
             rospy.set_param("/controller/scene", bad)
         reply = self.reload_srv()
-        reply.message.encode("utf-8")
-        if bad != good:
-            self.assertFalse(reply.success, "%r: %s" % (bad, reply.message))
         rospy.set_param("/controller/scene", good)
-        if stopped:
-            self.start_srv()
+        self.assert_text(reply.message, "reload_scene's reply")
+        if why is None:
+            self.assertTrue(reply.success, "%r: %s" % (bad, reply.message))
+            self.assertIn("loaded", reply.message)
+        else:
+            self.assertFalse(reply.success, "%r: %s" % (bad, reply.message))
+            self.assertRegex(reply.message, why, "%r refused for another reason" % (bad,))
+        self.start_srv()
+
+    def assert_text(self, s, what):
+        fault = text_fault(s)
+        self.assertIsNone(fault, "%s is not text: %s in %r" % (what, fault, s[:200]))
 
     # --- the test ----------------------------------------------------------------------------------
     def test_hostile_inputs_change_nothing_but_what_is_valid(self):
@@ -202,8 +236,20 @@ class HostileInputs(unittest.TestCase):
         self.reload_srv = rospy.ServiceProxy("controller/reload_scene", Trigger)
         self.stop_srv = rospy.ServiceProxy("controller/stop", Trigger)
         self.start_srv = rospy.ServiceProxy("controller/start", Trigger)
+        # ~scene values and the reason each is refused for (None: the good scene, loaded).
+        self.scenes = [(42, "~scene is not a file name"), (None, "~scene is not set"),
+                       ("/dev/zero", "not a regular file"), ("/nonexistent.yaml", r"cannot be read \(No such file"),
+                       (self.files[4], "malformed YAML|must be|missing|unknown key"),
+                       (self.files[7], "not a regular file"),
+                       (self.absurd_scene, "the sweep took more than max_time"),
+                       (rospy.get_param("/controller/scene"), None)]
+        # The listener's measure of silence starts now.
+        self.gap_reset.publish(Empty())
+        until = time.monotonic() + 30.0
+        while not (self.gap_report and self.gap_report[0] >= 1):
+            self.assertLess(time.monotonic(), until, "no report from status_gaps")
+            time.sleep(0.05)
         with self.lock:
-            self.gaps = []
             first = len(self.statuses)
         senders = [(self.send_target, 5), (self.send_look_at, 3), (self.send_rate, 4), (self.send_joy, 2),
                    (self.send_goal, 5), (self.reconfigure, 3), (self.reload_scene, 1)]
@@ -231,8 +277,12 @@ class HostileInputs(unittest.TestCase):
             uri = rosgraph.Master("/hostile_inputs_test").lookupNode(node)
             code, _, pid = xmlrpc.client.ServerProxy(uri).getPid("/hostile_inputs_test")
             self.assertEqual(code, 1, node + " is not alive")
+        time.sleep(0.5)  # the listener's next report
         with self.lock:
-            print("statuses %d, longest silence %.3f s" % (len(self.statuses) - first, max(self.gaps or [0.0])))
+            report = list(self.gap_report)
+        print("statuses %d (the listener counted %d), longest silence %.3f s" % (
+            len(self.statuses) - first, report[2], report[1]))
+        self.assertGreater(report[2], 0, "the listener heard no status")
 
     def test_reconfigure_reports_the_configuration_in_force(self):
         """A refused request changes nothing and is answered with the configuration in force; a valid
@@ -257,14 +307,19 @@ class HostileInputs(unittest.TestCase):
 
     def check(self, first):
         with self.lock:
-            gaps, statuses = list(self.gaps), self.statuses[first:]
-        self.assertLessEqual(max(gaps or [0.0]), SILENCE_LIMIT, "controller/status was silent")
+            report, statuses = list(self.gap_report), self.statuses[first:]
+            results, self.results = self.results, []
+        self.assertLessEqual(report[1], SILENCE_LIMIT, "controller/status was silent (status_gaps)")
         for s in statuses:
             self.assertNotEqual(s.state, "aborted", "aborted: " + s.reason)
             d = s.desired_direction
             n = math.sqrt(d.x * d.x + d.y * d.y + d.z * d.z)
             self.assertTrue(math.isfinite(n) and abs(n - 1.0) < 1e-9, "desired direction %s" % d)
-            s.message.encode("utf-8")
+            self.assert_text(s.message, "status message")
+            self.assert_text(s.reason, "status reason")
+        for r in results:
+            if r is not None:
+                self.assert_text(r.reason, "follow_path result")
         with self.lock:
             del self.statuses[first:first + len(statuses) - 1]
 

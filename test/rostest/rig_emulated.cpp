@@ -91,6 +91,9 @@ TEST(RigEmulated, PoseToControllerCommandToBoardTrackerLossClosesValves) {
   hydrojet_control::ControllerStatus status;
   hydrojet_control::JetState jets;
   int tip_poses = 0, rms_msgs = 0, jet_msgs = 0, jets_all_valid = 0;
+  // (header seq, stamp) of each tip pose and jet state: the publisher numbers and stamps them, so that
+  // a rate from them is the rig node's, whatever this process's scheduling or queue drops.
+  std::vector<std::pair<uint32_t, ros::Time>> tip_seq, jet_seq;
   ros::WallTime last_tip;
   std::string tracker_error, valves_error;
   ros::Subscriber s1 = nh.subscribe<hydrojet_control::ControllerStatus>(
@@ -102,6 +105,7 @@ TEST(RigEmulated, PoseToControllerCommandToBoardTrackerLossClosesValves) {
   ros::Subscriber s2 = nh.subscribe<geometry_msgs::PoseStamped>(
       names::kTipPose, 100, [&](const geometry_msgs::PoseStamped::ConstPtr& m) {
         ++tip_poses;
+        tip_seq.emplace_back(m->header.seq, m->header.stamp);
         last_tip = ros::WallTime::now();
         tip_stamps_increase = tip_stamps_increase && (tip_stamps.empty() || m->header.stamp > tip_stamps.back());
         tip_stamps.push_back(m->header.stamp);
@@ -116,6 +120,7 @@ TEST(RigEmulated, PoseToControllerCommandToBoardTrackerLossClosesValves) {
       names::kJetState, 100, [&](const hydrojet_control::JetState::ConstPtr& m) {
         jets = *m;
         ++jet_msgs;
+        jet_seq.emplace_back(m->header.seq, m->header.stamp);
         jets_all_valid += m->flow_valid.size() == 3 && m->flow_valid[0] && m->flow_valid[1] && m->flow_valid[2];
       });
   // The device's frame number of each tip pose, on its own topic with the pose's stamp.
@@ -165,13 +170,20 @@ TEST(RigEmulated, PoseToControllerCommandToBoardTrackerLossClosesValves) {
 
   // The loop keeps running on the driver's data for 3 s (no stale-data or flow-fault abort: poses,
   // flows and valve acknowledgements keep up), and the stream rates are measured.
-  const int tip0 = tip_poses, jets0 = jet_msgs;
+  const size_t tip0 = tip_seq.size(), jets0 = jet_seq.size();
   const long acked0 = read_board(state).acked;
   const ros::WallTime w0 = ros::WallTime::now();
   spin_until([&] { return status.state != "running"; }, 3.0);
   const double window = (ros::WallTime::now() - w0).toSec();
   EXPECT_EQ(status.state, "running") << status.reason;
-  const double tip_hz = (tip_poses - tip0) / window, jets_hz = (jet_msgs - jets0) / window;
+  // Messages published per second of the publisher's own stamps (seq counts every publish).
+  const auto published_hz = [](const std::vector<std::pair<uint32_t, ros::Time>>& v, size_t from) {
+    if (v.size() < from + 2) return 0.0;
+    const double span = (v.back().second - v[from].second).toSec();
+    return span > 0.0 ? (v.back().first - v[from].first) / span : 0.0;
+  };
+  const double tip_hz = published_hz(tip_seq, tip0), jets_hz = published_hz(jet_seq, jets0);
+  // Acknowledgements counted by the valve emulator over this window (both go on while this process waits).
   const double ack_hz = (read_board(state).acked - acked0) / window;
   EXPECT_GT(tip_hz, 30.0);   // the Aurora's 40 Hz
   EXPECT_GT(jets_hz, 40.0);  // three sensors at 50 Hz each
