@@ -1,5 +1,6 @@
 #include "hydrojet_control/calibration/samples.h"
 #include "hydrojet_control/util/files.h"
+#include "hydrojet_control/util/format.h"
 
 #include <algorithm>
 #include <cctype>
@@ -43,11 +44,7 @@ bool parse_number(const std::string& s, double* v) {
   return end == s.c_str() + s.size();
 }
 
-std::string num(double v) {
-  char b[32];
-  std::snprintf(b, sizeof(b), "%.6g", v);
-  return b;
-}
+using util::num;
 
 /// The column name of input i (0-based): "q1".
 std::string input_column(int i) { return "q" + std::to_string(i + 1); }

@@ -7,6 +7,7 @@
 
 #include "hydrojet_control/actuation/bounded_allocation.h"
 #include "hydrojet_control/rod/so3.h"
+#include "hydrojet_control/util/format.h"
 
 namespace hydrojet {
 namespace control {
@@ -16,11 +17,7 @@ namespace {
 constexpr int kMaxHalvings = 12;
 constexpr const char* kOutOfReach = "the point is out of the jets' reach: the closest aim misses it by";
 
-std::string metres(const char* what, double v) {
-  std::ostringstream os;
-  os << what << " " << v << " m";
-  return os.str();
-}
+std::string metres(const char* what, double v) { return std::string(what) + " " + util::num(v) + " m"; }
 
 }  // namespace
 

@@ -10,6 +10,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "hydrojet_control/util/files.h"
+#include "hydrojet_control/util/format.h"
 
 namespace hydrojet {
 namespace control {
@@ -17,18 +18,10 @@ namespace {
 
 bool finite(double v) { return std::isfinite(v); }
 
-std::string num(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
-}
+using util::num;
 
-/// "<field>: <rule>, got <v>" (the validate() convention of the option structs).
-std::string bad(const std::string& field, double v, const std::string& rule) {
-  std::ostringstream os;
-  os << field << ": " << rule << ", got " << v;
-  return os.str();
-}
+/// "<field>: <rule>, got <v>" (the validate() convention of the option structs), v as a double.
+std::string bad(const std::string& field, double v, const std::string& rule) { return util::bad(field, v, rule); }
 
 /// Eq. (28) as a Path: the same SpiralPath::direction_at, so the directions are bit-identical.
 class SpiralPathImpl : public Path {

@@ -12,6 +12,7 @@
 
 #include "hydrojet_control/rod/rod_solver.h"
 #include "hydrojet_control/rod/so3.h"
+#include "hydrojet_control/util/format.h"
 
 namespace hydrojet {
 namespace plant {
@@ -22,15 +23,12 @@ bool finite_nonneg(double x) { return std::isfinite(x) && x >= 0.0; }
 bool finite_pos(double x) { return std::isfinite(x) && x > 0.0; }
 
 std::string bad(const char* name, const char* what, double value) {
-  std::ostringstream os;
-  os << name << " " << what << " (got " << value << ")";
-  return os.str();
+  return std::string(name) + " " + what + " (got " + util::num(value) + ")";
 }
 
 std::string bad_vec(const char* name, const char* what, const Vec3& v) {
-  std::ostringstream os;
-  os << name << " " << what << " (got [" << v.x() << ", " << v.y() << ", " << v.z() << "])";
-  return os.str();
+  return std::string(name) + " " + what + " (got [" + util::num(v.x()) + ", " + util::num(v.y()) + ", " +
+         util::num(v.z()) + "])";
 }
 
 }  // namespace

@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include "hydrojet_control/util/format.h"
+
 namespace hydrojet {
 namespace config {
 
@@ -179,11 +181,7 @@ class YamlTree {
     if (n.IsDefined()) visit(n, under);
   }
 
-  static std::string format(double v) {
-    std::ostringstream os;
-    os << v;
-    return os.str();
-  }
+  static std::string format(double v) { return util::num(v); }
 
  private:
   /// Marks the key as read; true when it is absent (an optional key falls back to its default).

@@ -44,7 +44,7 @@ class Controller {
   Controller(const RobotModel& model, const ControllerOptions& options, std::unique_ptr<DirectionLaw> law);
 
   /// Starts at time t (also after an abort or the end); jets start from zero. What drives: the
-  /// commands given since the last stop or abort, else the configured path_type (the spiral from
+  /// commands given since the last stop or abort, else the configured path.type (the spiral from
   /// its start, or hold the measured direction).
   void start(double t);
   /// Stops: jets to zero, state idle; forgets the commands.
