@@ -81,7 +81,6 @@ ModalLaw::ModalLaw(const PdOptions& pd, const ModalLawOptions& options, double s
   if (!(std::isfinite(sample_period) && sample_period > 0.0))
     throw std::invalid_argument(util::bad("sample_period", sample_period, "must be finite and > 0"));
   set_pd(pd);
-  modes_.tip_mass_scale = options.tip_mass_scale;
 }
 
 void ModalLaw::set_pd(const PdOptions& pd) {
@@ -133,8 +132,8 @@ void ModalLaw::estimate(const LawCycle& c) {
   // A body whose mass is all at its tip needs only this cycle's C^b; one with mass of its own needs
   // the probe solves.
   const ModalModel modes = !lin.ok || has_body_mass(model.rod())
-                               ? lateral_modes(model.solver(), *c.observed_inputs, rod::TipWrench(), modes_)
-                               : lateral_modes(model.rod(), lin.body_compliance, modes_);
+                               ? lateral_modes(model.solver(), *c.observed_inputs, rod::TipWrench(), options_)
+                               : lateral_modes(model.rod(), lin.body_compliance, options_);
   if (modes.ok) omega_ = modes.frequency(0);
   if (!(omega_ > 0.0)) return;  // none yet: the paper's law drives
   const Vec3 s = c.solution->tip_rotation.col(2);

@@ -30,9 +30,12 @@
 namespace hydrojet {
 namespace control {
 
-struct ModalLawOptions {
-  double kp = 5.0;   ///< K_p of the PD under the modal law [1/s]
-  double ki = 12.0;  ///< K_i of the PD under the modal law [1/s²]
+/// The modal law's options: the reduced model's (lateral_modes: the capsule's expected fill
+/// tip_mass_scale, its inertia, the probes) and the law's own.
+struct ModalLawOptions : ModalOptions {
+  ModalLawOptions() { tip_mass_scale = 3.0; }  ///< water fills the capsule (the plants: ×1.5–4)
+  double kp = 5.0;                             ///< K_p of the PD under the modal law [1/s]
+  double ki = 12.0;                            ///< K_i of the PD under the modal law [1/s²]
   /// v_s [rad/s]: the PD's gains move from the paper's law's (gains/*) to kp, ki with the weight
   /// v²/(v² + v_s²) of the reference's speed v (fast_path_weight); 0: kp, ki at every speed.
   double gain_speed = 0.25;
@@ -42,7 +45,6 @@ struct ModalLawOptions {
   /// [N] the allocation's rounding acts as if the tip force were at least this, with the gain
   /// schedule's weight: the jets keep a common flow through the centre of a fast path (Controller).
   double rounding_force = 0.15;
-  double tip_mass_scale = 3.0;     ///< the capsule's expected mass over the scene's (water fills it) [-]
   double damping_time = 0.02;      ///< τ_kv the law assumes: ζ = ω τ / 2 [s]
   double tracker_sigma = 0.0075;   ///< tracker noise per direction component [-]
   double velocity_noise = 0.5;     ///< process noise on v̇ [1/s^1.5] (unmodelled forces)
@@ -119,7 +121,6 @@ class ModalLaw : public DirectionLaw {
 
   PdOptions pd_options_;
   ModalLawOptions options_;
-  ModalOptions modes_;  ///< lateral_modes' options: the capsule's expected fill
   double sample_period_;
   DirectionPd pd_;
   ModalEstimator estimator_;
