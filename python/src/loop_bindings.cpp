@@ -43,13 +43,22 @@ sim::RunStart parse_start(const std::string& start) {
   return s;
 }
 
+/// A controller options file; a key read from a deprecated place gives a FutureWarning (shown by
+/// default, as the node logs it), an error when warnings are errors. The GIL is held.
+config::ControllerNodeOptions load_options(const std::string& file) {
+  config::ControllerNodeOptions o = config::load_controller_options(file);
+  for (const std::string& w : o.warnings)
+    if (PyErr_WarnEx(PyExc_FutureWarning, (file + ": " + w).c_str(), 1) < 0) throw nb::python_error();
+  return o;
+}
+
 /// The controller of a scene with the options of a controller YAML file (config/controller.yaml's
 /// keys), the experiment's way: its flow regulator in the model, `duration` the spiral's.
 class PyController {
  public:
   PyController(const config::Scene& scene, const std::string& options, std::optional<std::string> mode,
                std::optional<double> duration)
-      : options_(config::load_controller_options(options)) {
+      : options_(load_options(options)) {
     if (duration) set_duration(options_.controller.path, *duration, "duration");
     if (mode) options_.controller.mode = parse_mode(*mode);
     model_ = config::make_controller_model(scene, options_.flow_regulator);
@@ -103,7 +112,7 @@ RunSetup load_run(const std::string& scene_file, const std::string& plant_file, 
                   const std::string& mode, double duration, std::optional<std::string> path_file,
                   const std::string& start) {
   RunSetup r;
-  r.copt = config::load_controller_options(controller_file);
+  r.copt = load_options(controller_file);
   if (duration < 0.0 || !std::isfinite(duration))
     throw std::invalid_argument("duration: must be a finite number of seconds >= 0 (0: the controller file's)");
   if (duration > 0.0) set_duration(r.copt.controller.path, duration, "duration");
@@ -263,7 +272,7 @@ void bind_loop(nb::module_& m) {
   m.def(
       "_spiral_and_abort_angle",
       [](const std::string& options, double duration) {
-        config::ControllerNodeOptions o = config::load_controller_options(options);
+        config::ControllerNodeOptions o = load_options(options);
         set_duration(o.controller.path, duration, "duration");
         return std::make_tuple(std::shared_ptr<control::Path>(control::make_spiral(o.controller.path)),
                                o.controller.safety.max_oscillation);

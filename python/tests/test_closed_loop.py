@@ -67,3 +67,16 @@ def test_hand_written_loop_reproduces_experiment(scene, start, path, tmp_path):
     run = hydrojet.run_experiment(config(scene), duration=duration, start=start, path=config(path) if path else None)
     for key in ("rms_rad", "rms_true_rad", "water_ml_per_min", "approach_time_s", "completed", "tilt_deg"):
         assert run[key] == pytest.approx(ref[key], rel=1e-12), key
+
+
+def test_a_controller_file_with_a_moved_key_is_read_with_a_warning(tmp_path):
+    """A controller file from before the option groups: gains/kp is read as pd/kp, with a FutureWarning
+    naming both; given at both places it is refused, naming the old one."""
+    scene = hydrojet.load_scene(config("scenes/hydrojet_0deg.yaml"))
+    old = tmp_path / "old.yaml"
+    old.write_text("gains: {kp: 2.5}\n")
+    with pytest.warns(FutureWarning, match=r"gains/kp: deprecated, read as pd/kp"):
+        hydrojet.Controller(scene, old)
+    old.write_text("gains: {kp: 2.5}\npd: {kp: 3.0}\n")
+    with pytest.raises(ValueError, match=r"gains/kp: moved to pd/kp"):
+        hydrojet.Controller(scene, old)
