@@ -76,27 +76,19 @@ Vec3 modal_shaping(const ReferenceMotion& r, const Vec3& estimated_rate, double 
 }
 
 ModalLaw::ModalLaw(const PdOptions& pd, const ModalLawOptions& options, double sample_period)
-    : options_(options), sample_period_(sample_period) {
+    : DirectionLaw(pd), options_(options), sample_period_(sample_period) {
   if (std::string err = options.validate(); !err.empty()) throw std::invalid_argument("modal/" + err);
   if (!(std::isfinite(sample_period) && sample_period > 0.0))
     throw std::invalid_argument(util::bad("sample_period", sample_period, "must be finite and > 0"));
-  set_pd(pd);
-}
-
-void ModalLaw::set_pd(const PdOptions& pd) {
-  if (std::string err = pd.validate(); !err.empty()) throw std::invalid_argument("pd/" + err);
-  pd_options_ = pd;
 }
 
 void ModalLaw::reset() {
-  pd_.reset();
+  DirectionLaw::reset();
   estimator_.reset();
   drives_ = false;
   shaping_primed_ = false;
   omega_ = 0.0;
 }
-
-double ModalLaw::fast_path_weight() const { return control::fast_path_weight(pd_.speed(), pd_options_.fast_path_rate); }
 
 // The PD's gains move from pd/* toward modal/* with this weight of the reference's speed
 // (modal/gain_speed) while the law drives; 0 otherwise.

@@ -35,23 +35,30 @@ struct LawCycle {
   const Reference* reference = nullptr;                         ///< the reference, advanced to x_des
 };
 
+/// A law: eq. (17)'s PD (DirectionPd, each law's own gains from the PD's) and what the law adds.
 class DirectionLaw {
  public:
   virtual ~DirectionLaw() = default;
   /// Starts afresh (controller start).
-  virtual void reset() = 0;
+  virtual void reset() { pd_.reset(); }
   /// A cycle without a correction (the controller held its inputs) of dt [s].
-  virtual void skip(double dt) = 0;
+  void skip(double dt) { pd_.skip(dt); }
   /// x_cntr [rad, base frame] for this cycle.
   virtual Vec3 correction(const LawCycle& cycle) = 0;
   /// The fast-path weight of the reference's speed over the last correction (PdOptions::fast_path_rate).
-  virtual double fast_path_weight() const = 0;
+  double fast_path_weight() const;
   /// [N] the allocation's rounding acts as if the tip force were at least this (0: as it is).
   virtual double rounding_force() const { return 0.0; }
   /// The PD's gains (the live ones dynamic_reconfigure sets), validated (std::invalid_argument).
-  virtual void set_pd(const PdOptions& pd) = 0;
-  virtual const PdOptions& pd() const = 0;
+  void set_pd(const PdOptions& pd);
+  const PdOptions& pd() const { return pd_options_; }
   virtual ControlLaw kind() const = 0;
+
+ protected:
+  /// std::invalid_argument naming the field when `pd` is not valid.
+  explicit DirectionLaw(const PdOptions& pd) { set_pd(pd); }
+  PdOptions pd_options_;
+  DirectionPd pd_;
 };
 
 struct ModalLawOptions;

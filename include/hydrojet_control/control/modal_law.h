@@ -102,13 +102,9 @@ class ModalLaw : public DirectionLaw {
   /// preview's step. std::invalid_argument naming the field when either is not valid.
   ModalLaw(const PdOptions& pd, const ModalLawOptions& options, double sample_period);
   void reset() override;
-  void skip(double dt) override { pd_.skip(dt); }
   Vec3 correction(const LawCycle& c) override;
-  double fast_path_weight() const override;
   /// modal/rounding_force with the gain schedule's weight.
   double rounding_force() const override { return gain_weight() * options_.rounding_force; }
-  void set_pd(const PdOptions& pd) override;
-  const PdOptions& pd() const override { return pd_options_; }
   ControlLaw kind() const override { return ControlLaw::kModal; }
   const ModalLawOptions& options() const { return options_; }
   const ModalEstimator& estimator() const { return estimator_; }
@@ -119,10 +115,8 @@ class ModalLaw : public DirectionLaw {
   double gain_weight() const;
   Vec3 shaping_step(const LawCycle& c);
 
-  PdOptions pd_options_;
   ModalLawOptions options_;
   double sample_period_;
-  DirectionPd pd_;
   ModalEstimator estimator_;
   bool drives_ = false;                   ///< this cycle: closed loop, on a running path, estimator started
   Vec3 input_ = Vec3::UnitZ();            ///< s: the model's direction at the last measured inputs

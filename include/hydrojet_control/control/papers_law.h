@@ -10,18 +10,9 @@ namespace control {
 class PapersLaw : public DirectionLaw {
  public:
   /// std::invalid_argument naming the field when `pd` is not valid.
-  explicit PapersLaw(const PdOptions& pd);
-  void reset() override { pd_.reset(); }
-  void skip(double dt) override { pd_.skip(dt); }
-  Vec3 correction(const LawCycle& c) override { return pd_.correction(c.observed, c.desired, c.dt, options_); }
-  double fast_path_weight() const override;
-  void set_pd(const PdOptions& pd) override;
-  const PdOptions& pd() const override { return options_; }
+  explicit PapersLaw(const PdOptions& pd) : DirectionLaw(pd) {}
+  Vec3 correction(const LawCycle& c) override { return pd_.correction(c.observed, c.desired, c.dt, pd_options_); }
   ControlLaw kind() const override { return ControlLaw::kPapers; }
-
- private:
-  PdOptions options_;
-  DirectionPd pd_;
 };
 
 }  // namespace control
