@@ -114,6 +114,7 @@ struct OperatorRig {
           [] {
             control::ControllerOptions p = tuned_gains();
             p.path.type = control::PathType::kNone;
+            p.identification.probe = false;  // a static plant has no mode to probe
             return p;
           }()),
         plant(sc, test::bare(sc)) {}
@@ -461,6 +462,10 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
       {"modal/tracker_sigma", f.modal.tracker_sigma, d.modal.tracker_sigma},
       {"modal/velocity_noise", f.modal.velocity_noise, d.modal.velocity_noise},
       {"modal/disturbance_noise", f.modal.disturbance_noise, d.modal.disturbance_noise},
+      {"modal/ring_amplitude", f.modal.ring_amplitude, d.modal.ring_amplitude},
+      {"modal/recover_time", f.modal.recover_time, d.modal.recover_time},
+      {"identification/probe", double(f.identification.probe), double(d.identification.probe)},
+      {"identification/probe_amplitude", f.identification.probe_amplitude, d.identification.probe_amplitude},
       {"approach/tolerance", f.approach.tolerance, d.approach.tolerance},
       {"approach/settle_time", f.approach.settle_time, d.approach.settle_time},
       {"approach/timeout", f.approach.timeout, d.approach.timeout},
@@ -597,6 +602,7 @@ TEST(Controller, TheSpeedWeightedIntegralRemovesTheRampErrorOfAGainMismatch) {
     p.pd.ki = law == 0 ? 0.0 : 6.0;
     p.pd.fast_path_rate = law == 2 ? 0.0 : 0.1;
     p.path.type = control::PathType::kNone;
+    p.identification.probe = false;  // a static plant has no mode to probe
     Controller c(config::make_controller_model(sc, flow_gains()), p);
     StaticPlant plant(sc, truth);
     c.follow(std::make_shared<ArcPath>(0.3, 3.0), 0.0);  // joined from the rest direction at ≤ 0.25 rad/s
@@ -662,6 +668,7 @@ TEST(Controller, TheRoundedAllocationSmoothsTheJetsAndLeavesTheTip) {
   double second[2], rms[2];
   for (int round : {0, 1}) {
     control::ControllerOptions p;
+    p.identification.probe = false;  // a static plant has no mode to probe
     p.path.type = control::PathType::kNone;
     p.control_law = control::ControlLaw::kPapers;  // the allocation alone
     p.pd.ki = 0.0;

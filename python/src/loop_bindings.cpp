@@ -4,6 +4,7 @@
 #include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/tuple.h>
+#include <nanobind/stl/vector.h>
 
 #include <memory>
 #include <optional>
@@ -128,6 +129,7 @@ RunSetup load_run(const std::string& scene_file, const std::string& plant_file, 
 
 /// One run of the experiment tool (its JSON fields): scene, plant and controller files, seed,
 /// loop mode, the spiral's duration (or a path file) and how the run starts.
+nb::dict identity_dict(const control::PlantIdentity& id, bool identified);
 nb::dict run_experiment(const std::string& scene_file, const std::string& plant_file,
                         const std::string& controller_file, unsigned seed, const std::string& mode, double duration,
                         std::optional<std::string> path_file, const std::string& start) {
@@ -155,6 +157,25 @@ nb::dict run_experiment(const std::string& scene_file, const std::string& plant_
   d["rms_pitch_yaw_rad"] = r.rms_pitch_yaw;
   d["simulated_s"] = r.simulated_seconds;
   d["wall_s"] = r.wall_seconds;
+  d["supervisor_fallbacks"] = r.supervisor_fallbacks;
+  d["supervised_s"] = r.supervised_s;
+  d["identified"] = identity_dict(r.identified, true);
+  d["plant_truth"] = identity_dict(r.truth, false);
+  return d;
+}
+
+/// The experiment's `identified` and `plant_truth` (as its JSON: the mode None when not known).
+nb::dict identity_dict(const control::PlantIdentity& id, bool identified) {
+  nb::dict d;
+  d["mode_hz"] = id.mode_hz > 0.0 ? nb::cast(id.mode_hz) : nb::none();
+  d["damping_ratio"] = id.mode_hz > 0.0 ? nb::cast(id.damping_ratio) : nb::none();
+  d["valve_time_constants_s"] = id.valve_time_constants_s;
+  d["tracker_latency_s"] = id.tracker_latency_s;
+  if (identified) {
+    d["mode_identified"] = id.mode_identified;
+    d["valves_identified"] = id.valves_identified;
+    if (!id.mode_error.empty()) d["mode_error"] = id.mode_error;
+  }
   return d;
 }
 

@@ -117,6 +117,9 @@ void read_controller_options(Tree& p, control::ControllerOptions& c, std::vector
       {"modal/tracker_sigma", &c.modal.tracker_sigma},
       {"modal/velocity_noise", &c.modal.velocity_noise},
       {"modal/disturbance_noise", &c.modal.disturbance_noise},
+      {"modal/ring_amplitude", &c.modal.ring_amplitude},
+      {"modal/recover_time", &c.modal.recover_time},
+      {"identification/probe_amplitude", &c.identification.probe_amplitude},
   };
   std::map<std::string, std::string> read_from;  // key -> where its value was read (a moved key's old place)
   for (const auto& n : numbers) {
@@ -126,6 +129,7 @@ void read_controller_options(Tree& p, control::ControllerOptions& c, std::vector
   }
   c.safety.stale_periods = p.integer("safety/stale_periods", c.safety.stale_periods);
   c.safety.max_solver_failures = p.integer("safety/max_solver_failures", c.safety.max_solver_failures);
+  c.identification.probe = p.boolean("identification/probe", c.identification.probe);
   read_removed(p, warnings);
   c.control_law =
       read_choice(p, "control_law", c.control_law, control::ControlLaw::kPapers, control::ControlLaw::kModal);

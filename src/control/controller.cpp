@@ -65,9 +65,19 @@ Controller::Controller(const RobotModel& model, const ControllerOptions& options
                      ? path_reachable_
                      : sweep_reachable_set(model, options, options.limits.reachable_force_fraction)),
       reference_(options.limits.max_angular_rate, reachable_, path_reachable_),
-      approach_(options.approach) {
+      approach_(options.approach),
+      lead_time_(model.flow.lead_time),
+      previous_duty_(jets_.zeros()),
+      previous_flows_(jets_.zeros()),
+      last_inputs_(jets_.zeros()) {
   if (!law_) throw std::invalid_argument("control_law: no law given");
   law_->set_pd(options.pd);
+  const InputVector top_flows = jets_.flows_for_forces(model_.upper());
+  for (int i = 0; i < jets_.input_count(); ++i)
+    valve_lags_.emplace_back(options.modal.actuator_lag + lead_time_, std::max(top_flows[i], 1e-9));
+  identity_.valve_time_constants_s.assign(jets_.input_count(), 0.0);
+  identity_.tip_mass_scale = options.modal.tip_mass_scale;
+  identity_.damping_time = options.modal.damping_time;
 }
 
 void Controller::start(double t) {
@@ -79,6 +89,8 @@ void Controller::start(double t) {
   monitor_.reset();
   law_->reset();
   reset_actuation();
+  probe_.cancel();
+  probe_pending_ = false;
   if (!commands_pending_) start_configured_path(t);
   commands_pending_ = false;
 }
@@ -158,6 +170,7 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   // its command, stops the jets.
   if (std::string why = monitor_.check_sensors(in); !why.empty()) return abort(out, why);
   if (std::string why = monitor_.check_flow_faults(in.flows, dt); !why.empty()) return abort(out, why);
+  observe_plant(in, dt);
 
   if (std::string why = observe_jets(in, out); !why.empty()) return abort(out, why);  // Algorithm 1, line 4
   const rod::RodSolution sol = solve_model(out.jet_force_observed);                   // line 6
@@ -170,9 +183,18 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
 
   track_reference(in, sol, dt, out);
   if (std::string why = monitor_.check_oscillation(out.error_geodesic); !why.empty()) return abort(out, why);
+  last_compliance_ = lin.body_compliance;
+  last_inputs_ = out.jet_force_observed;
 
-  if (std::string why = command_inputs(in, sol, lin, dt, out); !why.empty()) return abort(out, why);
+  if (probe_pending_) begin_probe(in.t, sol, lin);
+  if (probe_.active())
+    probe(in, sol, out);
+  else if (std::string why = command_inputs(in, sol, lin, dt, out); !why.empty())
+    return abort(out, why);
   if (std::string why = actuate(in.flows, dt, out); !why.empty()) return abort(out, why);
+  previous_duty_ = out.valve_command;
+  previous_flows_ = in.flows;
+  duty_known_ = true;
   return finish_cycle(out);
 }
 
@@ -213,6 +235,9 @@ ControllerOutput Controller::hold(ControllerOutput out, const InputVector& flows
   out.jet_force_command.setZero();
   out.flow_command = jets_.flows_for_forces(out.jet_force_observed);
   out.valve_command = jets_.regulate(out.jet_force_observed, out.flow_command, flows, dt);
+  previous_duty_ = out.valve_command;
+  previous_flows_ = flows;
+  duty_known_ = true;
   last_output_ = out;
   return out;
 }
@@ -254,10 +279,15 @@ void Controller::track_reference(const ControllerInputs& in, const rod::RodSolut
 // that does not settle is a failure, and the reference holds where it is.
 void Controller::approach(double t, ControllerOutput& out) {
   out.approaching = reference_.approaching();
-  if (out.approaching) {
+  if (out.approaching && (probe_.active() || probe_pending_)) {  // the probe holds the path's clock
+  } else if (out.approaching) {
     const double loop_error = geodesic_error(out.desired_direction, out.observed_direction);
     switch (approach_.update(t, reference_.at_path_start(), loop_error, out.measured_direction)) {
       case ApproachMonitor::Verdict::kSettled:
+        if (options_.identification.probe && !probed_ && options_.mode == LoopMode::kClosed) {
+          probe_pending_ = true;  // the probe first (update), then the path
+          break;
+        }
         reference_.begin_path(t);
         out.approaching = false;
         break;
@@ -287,12 +317,15 @@ std::string Controller::command_inputs(const ControllerInputs& in, const rod::Ro
   cycle.observed = out.observed_direction;
   cycle.desired = out.desired_direction;
   cycle.measured = out.measured_direction;
+  cycle.measured_stamp = std::min(in.tip_stamp, in.t);
   cycle.model = &model_;
   cycle.solution = &sol;
   cycle.linearisation = &lin;
   cycle.observed_inputs = &out.jet_force_observed;
   cycle.reference = &reference_;
   const Vec3 x_cntr = law_->correction(cycle);
+  out.law_weight = law_->supervisor_weight();
+  out.mode_swing = law_->swing();
   if (first_cycle_) previous_command_ = out.jet_force_observed;
   InputStepOptions o;
   o.damping = options_.allocation.damping;
@@ -338,9 +371,101 @@ ControllerOutput Controller::finish_cycle(ControllerOutput out) {
 // The actuation as at rest: no previous command; flow regulators and rounding at zero
 // (start, stop, abort).
 void Controller::reset_actuation() {
+  duty_known_ = false;
   rounding_.reset();
   previous_command_ = jets_.zeros();
   jets_.reset();
+}
+
+// What the plant shows every cycle: the tracker's latency (a new sample's stamp) and each jet's lag
+// (the duty held since the last cycle against the flows then and now). The modal law takes them.
+void Controller::observe_plant(const ControllerInputs& in, double dt) {
+  if (in.tip_valid && in.tip_stamp != last_stamp_) {
+    latency_.add(in.t, in.tip_stamp);
+    last_stamp_ = in.tip_stamp;
+  }
+  identity_.tracker_latency_s = latency_.latency();
+  bool identified = true;
+  for (int i = 0; i < jets_.input_count(); ++i) {
+    if (!jets_.is_jet(i)) continue;
+    if (duty_known_) valve_lags_[i].add(previous_flows_[i], previous_duty_[i], in.flows[i], dt);
+    identity_.valve_time_constants_s[i] = valve_lags_[i].time_constant();
+    identified = identified && valve_lags_[i].identified();
+  }
+  identity_.valves_identified = identified;
+  law_->adopt(identity_, lead_time_);
+}
+
+// The modes' options: the modal law's, with the fill identified (or its first guess).
+ModalOptions Controller::mode_options() const {
+  ModalOptions o = options_.modal;
+  o.tip_mass_scale = identity_.tip_mass_scale;
+  return o;
+}
+
+// The probe starts at the settled inputs (mode_probe.h); a probe that cannot start says why and the
+// path begins.
+void Controller::begin_probe(double t, const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin) {
+  probe_pending_ = false;
+  probed_ = true;
+  const ModalModel modes = !lin.ok || has_body_mass(model_.rod())
+                               ? lateral_modes(model_.solver(), last_inputs_, rod::TipWrench(), mode_options())
+                               : lateral_modes(model_.rod(), lin.body_compliance, mode_options());
+  InputStepOptions o;
+  o.damping = options_.allocation.damping;
+  o.allocation_weight = options_.allocation.weight;
+  o.max_force_step = options_.limits.max_force;
+  o.max_force = options_.limits.max_force;
+  o.length = model_.rod().length();
+  const double a = options_.identification.probe_amplitude;
+  const Vec3 axis = sol.tip_rotation.col(0);
+  const InputStep plus =
+      input_step(sol.tip_rotation, lin, a * axis, previous_command_, model_.lower(), model_.upper(), o);
+  const InputStep minus =
+      input_step(sol.tip_rotation, lin, -a * axis, previous_command_, model_.lower(), model_.upper(), o);
+  if (!modes.ok || !plus.ok || !minus.ok) {
+    identity_.mode_error = "probe: " + (!modes.ok ? modes.error : !plus.ok ? plus.message : minus.message);
+    reference_.begin_path(t);
+    return;
+  }
+  probe_.begin(t, previous_command_, plus.q, minus.q, sol.tip_rotation, modes.frequency(0));
+}
+
+// A cycle of the probe: its inputs, the record; at its end the fit, the law told, and the path's clock.
+void Controller::probe(const ControllerInputs& in, const rod::RodSolution& sol, ControllerOutput& out) {
+  probe_.record(sol.tip_rotation.col(2), out.measured_direction);
+  out.approaching = true;
+  if (probe_.done(in.t)) {
+    const identification::ModeFit fit = probe_.fit(options_.safety.sample_period, latency_.latency());
+    identity_.mode_identified = fit.ok;
+    identity_.mode_error = fit.ok ? "" : "probe: " + fit.error;
+    if (fit.ok) {
+      const double scale = fit.omega / probe_.omega_guess();
+      identity_.tip_mass_scale /= scale * scale;
+      identity_.damping_time = 2.0 * fit.zeta / fit.omega;
+    }
+    law_->adopt(identity_, lead_time_);
+    law_->reset();
+    reference_.begin_path(in.t);
+    out.approaching = false;
+  }
+  out.jet_force_command = probe_.active() ? probe_.inputs(in.t) : previous_command_;
+  previous_command_ = out.jet_force_command;
+  out.wrench_command = model_.tip_wrench(out.jet_force_command);
+}
+
+// The mode about the present equilibrium: the model's with the identified fill (the probe's
+// frequency scale carried to here), its damping ratio the identified Kelvin–Voigt time's.
+PlantIdentity Controller::identity() const {
+  PlantIdentity id = identity_;
+  const ModalModel modes = has_body_mass(model_.rod())
+                               ? lateral_modes(model_.solver(), last_inputs_, rod::TipWrench(), mode_options())
+                               : lateral_modes(model_.rod(), last_compliance_, mode_options());
+  if (modes.ok) {
+    id.mode_hz = modes.frequency(0) / (2.0 * M_PI);
+    id.damping_ratio = 0.5 * modes.frequency(0) * id.damping_time;
+  }
+  return id;
 }
 
 // Stops the jets and latches the reason until the next start().

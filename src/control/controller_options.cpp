@@ -34,7 +34,7 @@ std::string ControllerOptions::validate() const {
       {"pd", pd.validate()},         {"modal", modal.validate()},
       {"limits", limits.validate()}, {"allocation", allocation.validate()},
       {"safety", safety.validate()}, {"approach", approach.validate()},
-      {"path", path.validate()}};
+      {"path", path.validate()},     {"identification", identification.validate()}};
   for (const auto& [group, err] : groups)
     if (!err.empty()) return util::in_group(group, err);
   return "";

@@ -1,5 +1,6 @@
 #include "hydrojet_control/control/modal_law.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <unsupported/Eigen/MatrixFunctions>
@@ -25,6 +26,8 @@ std::string ModalLawOptions::validate() const {
       {"tracker_sigma", tracker_sigma, 1e-6, 1.0},
       {"velocity_noise", velocity_noise, 1e-6, 1e3},
       {"disturbance_noise", disturbance_noise, 1e-6, 1e3},
+      {"ring_amplitude", ring_amplitude, 1e-3, 1.0},
+      {"recover_time", recover_time, 0.0, 60.0},
   };
   for (const auto& r : ranges)
     if (std::string err = util::check_range(r.field, r.value, r.lo, r.hi); !err.empty()) return err;
@@ -85,15 +88,34 @@ ModalLaw::ModalLaw(const PdOptions& pd, const ModalLawOptions& options, double s
 void ModalLaw::reset() {
   DirectionLaw::reset();
   estimator_.reset();
+  inputs_.clear();
   drives_ = false;
   shaping_primed_ = false;
   omega_ = 0.0;
+  swing_ = band_power_ = 0.0;
+  band_x_[0] = band_x_[1] = band_y_[0] = band_y_[1] = Vec3::Zero();
+  supervisor_weight_ = 1.0;
+  calm_for_ = 0.0;
+}
+
+void ModalLaw::adopt(const PlantIdentity& identity, double lead_time) {
+  if (identity.mode_identified) {
+    options_.tip_mass_scale = identity.tip_mass_scale;
+    options_.damping_time = identity.damping_time;
+  }
+  if (identity.valves_identified) {
+    double sum = 0.0;
+    int jets = 0;
+    for (const double tau : identity.valve_time_constants_s)
+      if (tau > 0.0) sum += tau, ++jets;
+    if (jets > 0) options_.actuator_lag = std::max(0.0, sum / jets - lead_time);
+  }
 }
 
 // The PD's gains move from pd/* toward modal/* with this weight of the reference's speed
 // (modal/gain_speed) while the law drives; 0 otherwise.
 double ModalLaw::gain_weight() const {
-  return drives_ ? control::fast_path_weight(pd_.speed(), options_.gain_speed) : 0.0;
+  return drives_ ? supervisor_weight_ * control::fast_path_weight(pd_.speed(), options_.gain_speed) : 0.0;
 }
 
 // ζ of the first mode: Kelvin–Voigt damping of time τ gives 2ζω = τω².
@@ -117,6 +139,7 @@ void ModalLaw::estimate(const LawCycle& c) {
   drives_ = false;
   if (!c.closed_loop) {
     estimator_.reset();
+    inputs_.clear();
     return;
   }
   const ActuatedModel& model = *c.model;
@@ -128,14 +151,62 @@ void ModalLaw::estimate(const LawCycle& c) {
                                : lateral_modes(model.rod(), lin.body_compliance, options_);
   if (modes.ok) omega_ = modes.frequency(0);
   if (!(omega_ > 0.0)) return;  // none yet: the paper's law drives
+  // The tracker's sample was measured at its stamp: the filter runs at the stamps (the model's
+  // directions held between the cycles that computed them), and is predicted to now for the law.
   const Vec3 s = c.solution->tip_rotation.col(2);
-  if (!estimator_.initialised())
+  inputs_.emplace_back(c.t, s);
+  if (!estimator_.initialised()) {
     estimator_.start(c.measured, s, omega_, options_);
-  else  // over the time since its last step (a held cycle, a solve that failed, is skipped)
-    estimator_.step(input_, c.measured, omega_, damping_ratio(), c.t - time_, options_);
-  input_ = s;
-  time_ = c.t;
+    time_ = c.measured_stamp;
+  } else if (c.measured_stamp > time_) {  // a new sample (a held cycle, a solve that failed, is skipped)
+    advance(estimator_, time_, c.measured_stamp, c.measured);
+    time_ = c.measured_stamp;
+  }
+  while (inputs_.size() > 1 && inputs_[1].first <= time_) inputs_.pop_front();
+  now_ = estimator_;
+  advance(now_, time_, c.t, Vec3::Constant(std::nan("")));
   drives_ = c.reference->on_path();
+  supervise(c);
+}
+
+// The supervisor: the tracking error's swing at the mode's frequency (a band-pass about ω, Q = 1:
+// the path's slow error and most of the tracker's noise fall outside), its amplitude over ~0.1 s.
+// Past ring_amplitude (the law rings the rod, or the plant is not what the law takes it for) the
+// paper's law takes the cycle at once; after recover_time of calm the modal law takes it back over
+// recover_time. Before the 0.5 rad abort (safety/max_oscillation).
+void ModalLaw::supervise(const LawCycle& c) {
+  const double dt = c.dt;
+  if (!(dt > 0.0)) return;
+  const double w0 = std::min(omega_ * dt, 2.5), alpha = 0.5 * std::sin(w0), a0 = 1.0 + alpha;
+  const Vec3 x = c.measured - c.desired;
+  const Vec3 y = (alpha * x - alpha * band_x_[1] + 2.0 * std::cos(w0) * band_y_[0] - (1.0 - alpha) * band_y_[1]) / a0;
+  band_x_[1] = band_x_[0], band_x_[0] = x;
+  band_y_[1] = band_y_[0], band_y_[0] = y;
+  const double keep = std::exp(-dt / 0.1);
+  band_power_ = keep * band_power_ + (1.0 - keep) * y.squaredNorm();
+  swing_ = std::sqrt(2.0 * band_power_);
+  if (swing_ > options_.ring_amplitude) {
+    supervisor_weight_ = 0.0;
+    calm_for_ = 0.0;
+    return;
+  }
+  calm_for_ = swing_ < 0.5 * options_.ring_amplitude ? calm_for_ + dt : 0.0;
+  if (calm_for_ >= options_.recover_time)
+    supervisor_weight_ =
+        options_.recover_time > 0.0 ? std::min(1.0, supervisor_weight_ + dt / options_.recover_time) : 1.0;
+}
+
+// Steps `e` from time `from` to `to` [s] through the model's directions held since the cycles that
+// computed them, then takes the tracker's z (not finite: none).
+void ModalLaw::advance(ModalEstimator& e, double from, double to, const Vec3& z) const {
+  const Vec3 none = Vec3::Constant(std::nan(""));
+  for (size_t k = 0; k < inputs_.size() && from < to; ++k) {
+    if (k + 1 < inputs_.size() && inputs_[k + 1].first <= from) continue;
+    const double end = k + 1 < inputs_.size() ? std::min(to, inputs_[k + 1].first) : to;
+    if (end < to && end - from < 1e-9) continue;
+    e.step(inputs_[k].second, end < to ? none : z, omega_, damping_ratio(), end - from, options_);
+    from = end;
+  }
 }
 
 // The shaping (modal_shaping) as the change since the last step: x_cntr moves the forces by
@@ -153,9 +224,11 @@ Vec3 ModalLaw::shaping_step(const LawCycle& c) {
   r.rate = (d - a) / (2 * h);
   r.accel = (d - 2 * b + a) / (h * h);
   r.rate_now = (a - c.desired) / h;
-  const Vec3 m = fast_path_weight() * modal_shaping(r, estimator_.rate(), omega_, damping_ratio(), options_);
-  const Vec3 step =
-      shaping_primed_ ? Vec3(Vec3(c.solution->tip_rotation.col(2)).cross(m - previous_shaping_)) : Vec3::Zero();
+  const Vec3 m = fast_path_weight() * modal_shaping(r, now_.rate(), omega_, damping_ratio(), options_);
+  // The supervisor weighs the increments, not m: its fall-back must not kick the forces by −m.
+  const Vec3 step = shaping_primed_
+                        ? Vec3(supervisor_weight_ * Vec3(c.solution->tip_rotation.col(2)).cross(m - previous_shaping_))
+                        : Vec3::Zero();
   previous_shaping_ = m;
   shaping_primed_ = true;
   return step;

@@ -38,6 +38,7 @@
 #include "hydrojet_control/ros/params.h"
 #include "hydrojet_control/ros/names.h"
 #include "hydrojet_control/ros/shutdown.h"
+#include "hydrojet_control/util/format.h"
 #include "hydrojet_control/util/text.h"
 #include "background.h"
 #include "reconfigure_server.h"
@@ -558,6 +559,12 @@ class ControllerNode {
     if (out.state == control::ControllerState::kAborted && last_state_ != control::ControllerState::kAborted)
       ROS_ERROR("controller: ABORT, jets off: %s", out.reason.c_str());
     last_state_ = out.state;
+    if (out.law_weight == 0.0 && last_.law_weight > 0.0) {
+      message_ = "supervisor: the mode rang (swing " + util::num(out.mode_swing) + " rad): the paper's law acts";
+      ROS_WARN("controller: %s", message_.c_str());
+    } else if (out.law_weight == 1.0 && last_.law_weight < 1.0 && out.state == control::ControllerState::kRunning) {
+      message_ = "supervisor: calm again, the modal law acts";
+    }
     running_.store(out.state == control::ControllerState::kRunning);
     last_ = out;
     follow_path_->cycle(now, out);
@@ -634,6 +641,8 @@ class ControllerNode {
     st.clipped = out.clipped;
     st.clip_angle = out.clip_angle;
     st.rejected_targets = rejected_targets_;
+    st.law_weight = out.law_weight;
+    st.mode_swing = out.mode_swing;
     status_pub_.publish(st);
     return st;
   }

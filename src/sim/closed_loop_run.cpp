@@ -1,5 +1,7 @@
 #include "hydrojet_control/sim/closed_loop_run.h"
 
+#include "hydrojet_control/identification/mode_fit.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -134,6 +136,7 @@ RunResult run_path(const control::RobotModel& model, const control::ControllerOp
   const long last_step = std::lround(plan.settle / plan.control_period) +
                          std::lround((approach_bound + path->duration()) / plan.control_period);
   double path_start = -1.0;  // [s] simulated time of the path clock's start
+  double weight = 1.0;       // the law's supervisor weight at the last sample
   bool ok = episode.settle(plan.settle);
   if (ok) {
     controller.follow(path, episode.t(),
@@ -152,6 +155,9 @@ RunResult run_path(const control::RobotModel& model, const control::ControllerOp
     if (!out.approaching) {
       if (path_start < 0) path_start = t, r.approach_time = out.approach_time;
       r.samples.push_back(record(episode.plant(), out, t - path_start));
+      if (out.law_weight < 1.0) r.supervised_s += plan.control_period;
+      if (out.law_weight == 0.0 && weight > 0.0) ++r.supervisor_fallbacks;
+      weight = out.law_weight;
       if (out.state == control::ControllerState::kFinished) {
         r.completed = true;
         break;
@@ -166,10 +172,55 @@ RunResult run_path(const control::RobotModel& model, const control::ControllerOp
   }
   if (!r.completed && r.reason.empty()) r.reason = "the run's time bound passed before the path ended";
   summarise(r);
+  r.identified = controller.identity();
+  r.truth = plant_truth(episode.plant());
   r.water_flow = water_flow(model, r.samples);
   r.simulated_seconds = r.samples.empty() ? 0.0 : r.samples.back().t + (path_start >= 0 ? path_start : 0.0);
   r.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   return r;
+}
+
+control::PlantIdentity plant_truth(const plant::Plant& plant) {
+  const plant::PlantModel& m = plant.model();
+  control::PlantIdentity truth;
+  truth.tracker_latency_s = m.sensor_noise ? m.tracker.latency : 0.0;
+  truth.valve_time_constants_s.assign(plant.input_count(), 0.0);
+  for (int i = 0; i < plant.input_count(); ++i)
+    if (plant.is_jet(i)) truth.valve_time_constants_s[i] = m.valves[plant.valve_of(i) % m.valves.size()].time_constant;
+  // The free vibration: the rod at rest at the jets' forces, pushed for 20 ms by 2 mN along its tip's
+  // x axis, then free for 1.2 s, its tip direction in that frame every 4 ms.
+  plant::DynamicRod rod(m.rod);
+  rod.set_inputs(plant.jet_forces());
+  rod::TipWrench w;
+  w.force = m.external_tip_force;
+  w.moment = m.external_tip_moment;
+  if (!rod.reset_to_static(w)) return truth;
+  const Eigen::Matrix3d frame = rod.tip_rotation();
+  rod::TipWrench push = w;
+  push.force.x() += 0.002;
+  for (int k = 0; k < 10; ++k)
+    if (!rod.step(push, 0.002)) return truth;
+  identification::ModeRecord record;
+  record.dt = 0.004;
+  for (int k = 0; k < 300; ++k) {
+    record.output.push_back((frame.transpose() * rod.tip_rotation().col(2)).head<2>());
+    if (!rod.step(w, 0.002) || !rod.step(w, 0.002)) return truth;
+  }
+  // The guess from the crossings of its mean by the larger component.
+  const Eigen::Vector2d swing = (record.output[10] - record.output.back()).cwiseAbs();
+  const int c = swing(0) >= swing(1) ? 0 : 1;
+  int crossings = 0;
+  for (size_t k = 1; k < record.output.size(); ++k)
+    crossings +=
+        (record.output[k](c) - record.output.back()(c)) * (record.output[k - 1](c) - record.output.back()(c)) < 0;
+  const double guess = M_PI * std::max(crossings, 2) / (record.dt * record.output.size());
+  const identification::ModeFit fit = identification::fit_mode(record, guess);
+
+  if (!fit.ok) return truth;
+  truth.mode_identified = true;
+  truth.mode_hz = fit.hz();
+  truth.damping_ratio = fit.zeta;
+  return truth;
 }
 
 RunResult run_path(const control::RobotModel& model, const control::ControllerOptions& params,

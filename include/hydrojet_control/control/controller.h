@@ -22,6 +22,8 @@
 #include "hydrojet_control/control/controller_options.h"
 #include "hydrojet_control/control/direction_law.h"
 #include "hydrojet_control/control/jet_actuation.h"
+#include "hydrojet_control/control/mode_probe.h"
+#include "hydrojet_control/control/plant_identification.h"
 #include "hydrojet_control/control/reachable_set.h"
 #include "hydrojet_control/control/reference.h"
 #include "hydrojet_control/control/resolved_rates.h"
@@ -84,6 +86,8 @@ class Controller {
   ControllerState state() const { return state_; }
   /// Why it aborted (empty unless aborted).
   const std::string& abort_reason() const { return abort_reason_; }
+  /// What the controller has measured of the plant (the mode at the last cycle's equilibrium).
+  PlantIdentity identity() const;
   /// Number of jets (entries of every InputVector in and out).
   int input_count() const { return jets_.input_count(); }
 
@@ -107,6 +111,10 @@ class Controller {
   void commanded();
   void track_reference(const ControllerInputs& in, const rod::RodSolution& sol, double dt, ControllerOutput& out);
   void approach(double t, ControllerOutput& out);
+  void observe_plant(const ControllerInputs& in, double dt);
+  void begin_probe(double t, const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin);
+  void probe(const ControllerInputs& in, const rod::RodSolution& sol, ControllerOutput& out);
+  ModalOptions mode_options() const;
   std::string command_inputs(const ControllerInputs& in, const rod::RodSolution& sol,
                              const ActuatedModel::Linearisation& lin, double dt, ControllerOutput& out);
   std::string actuate(const InputVector& flows, double dt, ControllerOutput& out);
@@ -132,6 +140,20 @@ class Controller {
   double t_last_ = 0.0;
   bool first_cycle_ = true;       ///< no complete cycle since start(): dt = sample_period, the step's base from q_obs
   ControllerOutput last_output_;  ///< returned again for a repeated tick at the same time
+
+  // Identification of the plant present (plant_identification.h, mode_probe.h).
+  PlantIdentity identity_;
+  LatencyEstimator latency_;
+  std::vector<ValveLagEstimator> valve_lags_;   ///< per actuator (used by the jets)
+  double lead_time_ = 0.0;                      ///< flow_regulator/lead_time [s]
+  InputVector previous_duty_, previous_flows_;  ///< the last cycle's valve command and measured flows
+  bool duty_known_ = false;                     ///< previous_duty_ was commanded and held since
+  double last_stamp_ = -1e300;                  ///< the tracker stamp last seen [s]
+  ModeProbe probe_;
+  bool probe_pending_ = false;                     ///< an approached path settled: the probe starts this cycle
+  bool probed_ = false;                            ///< the probe has run (once per controller)
+  rod::Mat6 last_compliance_ = rod::Mat6::Zero();  ///< C^b at the last cycle's equilibrium
+  InputVector last_inputs_;                        ///< q_obs there [N]
 };
 
 }  // namespace control

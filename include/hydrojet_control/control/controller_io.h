@@ -58,6 +58,10 @@ struct ControllerOutput {
   double stability_margin = 0.0;   ///< σ_c [N/m]
   double stability_eig_min = 0.0;  ///< min Re eig(S) [N/m]
   bool force_reachable = true;
+  /// The law's supervisor (DirectionLaw::supervisor_weight): 1 the law acts whole, 0 it fell back to the
+  /// paper's law because the mode rang (mode_swing [rad]).
+  double law_weight = 1.0;
+  double mode_swing = 0.0;
 };
 
 }  // namespace control

@@ -8,6 +8,7 @@
 #include "hydrojet_control/control/approach.h"
 #include "hydrojet_control/control/direction_law.h"
 #include "hydrojet_control/control/modal_law.h"
+#include "hydrojet_control/control/plant_identification.h"
 #include "hydrojet_control/control/resolved_rates.h"
 #include "hydrojet_control/control/safety_monitor.h"
 #include "hydrojet_control/control/task_space.h"
@@ -51,6 +52,7 @@ struct ControllerOptions {
   SafetyOptions safety;          ///< SafetyMonitor's thresholds
   ApproachOptions approach;      ///< when an approached path's clock starts (ApproachMonitor)
   PathOptions path;
+  IdentificationOptions identification;  ///< what is measured of the plant present (PlantIdentity)
 
   /// Empty when valid, else "<group>/<field>: <what is wrong>" (the YAML key).
   std::string validate() const;

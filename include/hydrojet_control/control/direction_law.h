@@ -8,6 +8,7 @@
 #include <string>
 
 #include "hydrojet_control/control/controller_io.h"
+#include "hydrojet_control/control/plant_identification.h"
 #include "hydrojet_control/control/reference.h"
 #include "hydrojet_control/control/resolved_rates.h"
 #include "hydrojet_control/control/robot_model.h"
@@ -22,14 +23,15 @@ const char* to_string(ControlLaw l);
 
 /// What a law sees of one cycle (every reference valid for the call only).
 struct LawCycle {
-  double t = 0.0;                                               ///< [s]
-  double dt = 0.0;                                              ///< since the last cycle [s]
-  bool closed_loop = true;                                      ///< x_obs is the tracker's (else the model's, §7.3)
-  Vec3 observed = Vec3::UnitZ();                                ///< x_obs (unit, base frame)
-  Vec3 desired = Vec3::UnitZ();                                 ///< x_des
-  Vec3 measured = Vec3::UnitZ();                                ///< the tracker's tip direction (unit, base frame)
-  const ActuatedModel* model = nullptr;                         ///< solved at q_obs this cycle (line 6)
-  const rod::RodSolution* solution = nullptr;                   ///< that solve
+  double t = 0.0;                              ///< [s]
+  double dt = 0.0;                             ///< since the last cycle [s]
+  bool closed_loop = true;                     ///< x_obs is the tracker's (else the model's, §7.3)
+  Vec3 observed = Vec3::UnitZ();               ///< x_obs (unit, base frame)
+  Vec3 desired = Vec3::UnitZ();                ///< x_des
+  Vec3 measured = Vec3::UnitZ();               ///< the tracker's tip direction (unit, base frame)
+  double measured_stamp = 0.0;                 ///< [s] when the tracker measured it (t minus its latency)
+  const ActuatedModel* model = nullptr;        ///< solved at q_obs this cycle (line 6)
+  const rod::RodSolution* solution = nullptr;  ///< that solve
   const ActuatedModel::Linearisation* linearisation = nullptr;  ///< its C^b and J_q
   const InputVector* observed_inputs = nullptr;                 ///< q_obs [N]
   const Reference* reference = nullptr;                         ///< the reference, advanced to x_des
@@ -53,6 +55,13 @@ class DirectionLaw {
   void set_pd(const PdOptions& pd);
   const PdOptions& pd() const { return pd_options_; }
   virtual ControlLaw kind() const = 0;
+  /// What has been measured of the plant (the controller, every cycle); lead_time [s]: the flow
+  /// regulators' (flow_regulator/lead_time). The paper's law assumes nothing of it.
+  virtual void adopt(const PlantIdentity& /*identity*/, double /*lead_time*/) {}
+  /// The supervisor's share of the law's own terms in [0, 1] (0: the paper's law acts), and the mode's
+  /// swing it watches [rad]; the paper's law has neither.
+  virtual double supervisor_weight() const { return 1.0; }
+  virtual double swing() const { return 0.0; }
 
  protected:
   /// std::invalid_argument naming the field when `pd` is not valid.

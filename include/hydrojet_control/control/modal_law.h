@@ -21,6 +21,9 @@
 // (Eigen).
 #pragma once
 
+#include <deque>
+#include <utility>
+
 #include <Eigen/Core>
 
 #include "hydrojet_control/control/direction_law.h"
@@ -49,6 +52,11 @@ struct ModalLawOptions : ModalOptions {
   double tracker_sigma = 0.0075;   ///< tracker noise per direction component [-]
   double velocity_noise = 0.5;     ///< process noise on v̇ [1/s^1.5] (unmodelled forces)
   double disturbance_noise = 0.1;  ///< random walk of d [1/√s] (the model error moves with the path)
+  /// [rad] the supervisor: the tracking error's swing at the mode's frequency (ModalLaw::swing) above
+  /// this falls back to the paper's law at once ...
+  double ring_amplitude = 0.1;
+  /// [s] ... which hands back over this time once the swing has stayed below half of it this long.
+  double recover_time = 2.0;
   /// Empty when valid, else "<field>: <what is wrong>".
   std::string validate() const;
 };
@@ -106,11 +114,20 @@ class ModalLaw : public DirectionLaw {
   /// modal/rounding_force with the gain schedule's weight.
   double rounding_force() const override { return gain_weight() * options_.rounding_force; }
   ControlLaw kind() const override { return ControlLaw::kModal; }
+  /// The identified fill and damping time replace modal/tip_mass_scale and modal/damping_time (their
+  /// first guesses); the jets' mean lag less the regulators' lead replaces modal/actuator_lag.
+  void adopt(const PlantIdentity& identity, double lead_time) override;
   const ModalLawOptions& options() const { return options_; }
   const ModalEstimator& estimator() const { return estimator_; }
+  /// The tracking error's swing at the mode's frequency [rad] (the supervisor's measure).
+  double swing() const override { return swing_; }
+  /// The supervisor's share of the modal law in [0, 1]: 0 fell back to the paper's law.
+  double supervisor_weight() const override { return supervisor_weight_; }
 
  private:
   void estimate(const LawCycle& c);
+  void supervise(const LawCycle& c);
+  void advance(ModalEstimator& e, double from, double to, const Vec3& z) const;
   double damping_ratio() const;
   double gain_weight() const;
   Vec3 shaping_step(const LawCycle& c);
@@ -118,12 +135,19 @@ class ModalLaw : public DirectionLaw {
   ModalLawOptions options_;
   double sample_period_;
   ModalEstimator estimator_;
-  bool drives_ = false;                   ///< this cycle: closed loop, on a running path, estimator started
-  Vec3 input_ = Vec3::UnitZ();            ///< s: the model's direction at the last measured inputs
-  double time_ = 0.0;                     ///< [s] of the estimator's last step
-  bool shaping_primed_ = false;           ///< previous_shaping_ holds the last step's m
+  bool drives_ = false;  ///< this cycle: closed loop, on a running path, estimator started
+  /// s, the model's direction at the measured inputs, from each cycle's time [s] on (the recent ones)
+  std::deque<std::pair<double, Vec3>> inputs_;
+  double time_ = 0.0;            ///< [s] of the estimator's last step: the stamp of the last tracker sample it took
+  ModalEstimator now_;           ///< the estimator predicted from time_ to the cycle's time (the tracker's latency)
+  bool shaping_primed_ = false;  ///< previous_shaping_ holds the last step's m
   Vec3 previous_shaping_ = Vec3::Zero();  ///< m at the last step
   double omega_ = 0.0;                    ///< the first mode at the current equilibrium [rad/s] (0: none yet)
+  double swing_ = 0.0;                    ///< [rad] (swing())
+  double band_power_ = 0.0;               ///< the band-passed error's mean square over ~0.1 s
+  Vec3 band_x_[2], band_y_[2];            ///< the band-pass's last two inputs and outputs
+  double supervisor_weight_ = 1.0;        ///< (supervisor_weight())
+  double calm_for_ = 0.0;                 ///< [s] the swing has stayed below half of ring_amplitude
 };
 
 }  // namespace control

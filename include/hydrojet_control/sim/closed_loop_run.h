@@ -64,7 +64,17 @@ struct RunResult {
   double wall_seconds = 0.0;
   double simulated_seconds = 0.0;
   std::vector<RunSample> samples;
+  int supervisor_fallbacks = 0;       ///< times the law's supervisor fell back to the paper's law
+  double supervised_s = 0.0;          ///< [s] of the path with the law's weight below 1
+  control::PlantIdentity identified;  ///< what the controller ended with (Controller::identity)
+  control::PlantIdentity truth;       ///< the plant's (plant_truth) at the run's end
 };
+
+/// The plant's truth, to compare with what a controller identified: the first lateral mode about the
+/// equilibrium at the plant's present jet forces (its dynamic rod's own free vibration after a small
+/// push at the tip, fitted as the controller's probe is: identification::fit_mode), each jet's
+/// valve lag and the tracker's latency. mode_hz stays 0 when the rod's vibration could not be fitted.
+control::PlantIdentity plant_truth(const plant::Plant& plant);
 
 /// The base tilt of a scene [deg, rounded] from its gravity in the base frame (0° hangs the rod
 /// along +z): the experiment's tilt_deg.
