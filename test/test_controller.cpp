@@ -439,6 +439,7 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
       {"limits/max_force_rate", f.limits.max_force_rate, d.limits.max_force_rate},
       {"limits/max_angular_rate", f.limits.max_angular_rate, d.limits.max_angular_rate},
       {"limits/reachable_force_fraction", f.limits.reachable_force_fraction, d.limits.reachable_force_fraction},
+      {"limits/max_path_rate", f.limits.max_path_rate, d.limits.max_path_rate},
       {"allocation/damping", f.allocation.damping, d.allocation.damping},
       {"allocation/weight", f.allocation.weight, d.allocation.weight},
       {"allocation/smoothing", f.allocation.smoothing, d.allocation.smoothing},

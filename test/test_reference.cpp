@@ -127,3 +127,91 @@ TEST(Reference, APathIsApproachedThenItsClockStarts) {
   EXPECT_NEAR(control::geodesic_error(d, path->direction_at(1.0)), 0.0, 1e-12);
   EXPECT_TRUE(ref.path_finished(13.0));
 }
+
+// Time scaling: a path that turns faster than max_path_rate is followed as written, later. A lissajous
+// of known peak speed (about 2.5 rad/s) under a 0.4 rad/s bound: no step of the reference turns faster
+// than the bound, the path's end is reached, and the clock took the time the bound allows (the
+// path's length over the bound where it is faster, its own time elsewhere).
+TEST(Reference, APathFasterThanTheRateBoundIsSlowedAndNeverExceedsIt) {
+  std::vector<control::Waypoint> w;
+  for (int k = 0; k <= 40; ++k) w.push_back({0.1 * k, control::direction(0.3 + 0.2 * std::sin(0.9 * k), 0.25 * k)});
+  const std::shared_ptr<const control::Path> path = control::make_waypoints(w);
+  const double bound = 0.4;
+  control::Reference ref(10.0, nullptr, nullptr);
+  ref.set_max_path_rate(bound);
+  ref.follow(path, 0.0, control::Reference::PathStart::kJump);
+  ref.start(Vec3::UnitZ(), 0.0);
+  Vec3 prev = ref.advance(0.0, kDt, control::Mat3::Identity());
+  double length = 0.0, fast = 0.0;  // the path's length, and the time it spends faster than the bound
+  for (double t = 0.0; t < path->duration(); t += 0.001) {
+    const double step = control::geodesic_error(path->direction_at(t), path->direction_at(t + 0.001));
+    length += step;
+    if (step / 0.001 > bound) fast += 0.001;
+  }
+  int k = 0;
+  while (++k < 100000) {
+    const Vec3 d = ref.advance(k * kDt, kDt, control::Mat3::Identity());
+    EXPECT_LE(control::geodesic_error(prev, d), bound * kDt * (1 + 1e-9)) << k;
+    prev = d;
+    if (ref.path_finished(k * kDt)) break;
+  }
+  ASSERT_TRUE(ref.path_finished(k * kDt));
+  EXPECT_LT(control::geodesic_error(ref.direction(), path->direction_at(path->duration())), 1e-6);
+  EXPECT_GT(ref.time_scale(), 2.0);
+  // At least the length at the bound; at most that plus the path's own time where it is slow.
+  EXPECT_GE(k * kDt, length / bound * 0.98);
+  EXPECT_LE(k * kDt, length / bound + (path->duration() - fast) + 0.05);
+}
+
+// Without a bound (or under it) the clock is the path's own: bit for bit the time since its start.
+TEST(Reference, APathWithinTheRateBoundRunsAsWritten) {
+  auto path = std::make_shared<ArcPath>(0.3, 3.0);
+  control::Reference ref(10.0, nullptr, nullptr);
+  ref.set_max_path_rate(1.5);
+  ref.follow(path, 0.0, control::Reference::PathStart::kJump);
+  ref.start(Vec3::UnitZ(), 0.0);
+  for (int k = 0; k <= 300; ++k) {
+    const Vec3 d = ref.advance(k * kDt, kDt, control::Mat3::Identity());
+    EXPECT_EQ(d, Vec3(path->direction_at(k * kDt - 0.0))) << k;
+    EXPECT_EQ(ref.path_time(k * kDt), k * kDt - 0.0);
+  }
+  EXPECT_EQ(ref.time_scale(), 1.0);
+}
+
+// The learned reach: a jet saturated with the error staying outward for 0.2 s limits that azimuth to
+// where the tip got, taking effect from where the target was at 0.1 rad/s (no jump); beyond the bin
+// the limit widens by 1 rad per rad of azimuth; a target beyond it is pulled in radially and
+// reported; the limit relaxes outward at 0.02 rad/s once no jet saturates.
+TEST(LearnedReach, LimitsWhereTheJetsSaturateGraduallyAndRelaxesWhenTheyDoNot) {
+  control::LearnedReach reach(Vec3::UnitZ(), 72);
+  const Vec3 measured = control::direction(0.5, 0.3), desired = control::direction(0.6, 0.3);
+  for (int k = 0; k < 19; ++k) reach.update(true, measured, desired, 0.01);
+  EXPECT_FALSE(reach.learned());  // 0.19 s: not yet
+  reach.update(false, measured, desired, 0.01);
+  for (int k = 0; k < 20; ++k) reach.update(true, measured, desired, 0.01);
+  ASSERT_TRUE(reach.learned());
+  EXPECT_NEAR(reach.learned_limit(desired), 0.5, 1e-9);
+  EXPECT_NEAR(reach.limit(desired), 0.6, 0.0011);  // from where the target was (one step tightened)
+  for (int k = 0; k < 50; ++k) reach.update(true, measured, desired, 0.01);
+  EXPECT_NEAR(reach.limit(desired), 0.55, 0.0011);  // 0.1 rad/s for 0.5 s
+  for (int k = 0; k < 60; ++k) reach.update(true, measured, desired, 0.01);
+  EXPECT_NEAR(reach.limit(desired), 0.5, 1e-9);  // there, and no further
+  double moved = 0.0;
+  const Vec3 clipped = reach.clip(control::direction(0.8, 0.3), &moved);
+  EXPECT_NEAR(control::bend_angle(clipped), 0.5, 1e-9);
+  EXPECT_NEAR(moved, 0.3, 1e-9);
+  // Continuous in azimuth: 0.2 rad of azimuth beyond the bin's edge, 0.2 rad wider.
+  const double edge = M_PI / 72;
+  EXPECT_NEAR(reach.limit(control::direction(0.8, 0.3 + 0.2 + 2 * edge)), 0.7, 2 * edge + 1e-9);
+  EXPECT_EQ(reach.clip(control::direction(0.8, 0.3 + M_PI)), control::direction(0.8, 0.3 + M_PI));  // far: free
+  EXPECT_EQ(reach.clip(control::direction(0.4, 0.3), &moved), control::direction(0.4, 0.3));
+  EXPECT_EQ(moved, 0.0);
+  // Saturated but the error inward, or small: nothing learned there.
+  control::LearnedReach other(Vec3::UnitZ(), 72);
+  for (int k = 0; k < 100; ++k) other.update(true, desired, measured, 0.01);
+  for (int k = 0; k < 100; ++k) other.update(true, measured, control::direction(0.51, 0.3), 0.01);
+  EXPECT_FALSE(other.learned());
+  // Relaxes: 1 s without saturation gives back 0.02 rad.
+  for (int k = 0; k < 100; ++k) reach.update(false, measured, measured, 0.01);
+  EXPECT_NEAR(reach.limit(desired), 0.52, 1e-9);
+}

@@ -157,6 +157,8 @@ nb::dict run_experiment(const std::string& scene_file, const std::string& plant_
   d["rms_pitch_yaw_rad"] = r.rms_pitch_yaw;
   d["simulated_s"] = r.simulated_seconds;
   d["wall_s"] = r.wall_seconds;
+  d["time_scale"] = r.time_scale;
+  d["reach_limited_s"] = r.reach_limited_s;
   d["supervisor_fallbacks"] = r.supervisor_fallbacks;
   d["supervised_s"] = r.supervised_s;
   d["identified"] = identity_dict(r.identified, true);

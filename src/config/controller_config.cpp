@@ -88,6 +88,7 @@ void read_controller_options(Tree& p, control::ControllerOptions& c, std::vector
       {"limits/max_force_rate", &c.limits.max_force_rate},
       {"limits/max_angular_rate", &c.limits.max_angular_rate},
       {"limits/reachable_force_fraction", &c.limits.reachable_force_fraction},
+      {"limits/max_path_rate", &c.limits.max_path_rate},
       {"allocation/damping", &c.allocation.damping},
       {"allocation/weight", &c.allocation.weight},
       {"allocation/smoothing", &c.allocation.smoothing},
@@ -130,6 +131,7 @@ void read_controller_options(Tree& p, control::ControllerOptions& c, std::vector
   c.safety.stale_periods = p.integer("safety/stale_periods", c.safety.stale_periods);
   c.safety.max_solver_failures = p.integer("safety/max_solver_failures", c.safety.max_solver_failures);
   c.identification.probe = p.boolean("identification/probe", c.identification.probe);
+  c.identification.file = p.text("identification/file", c.identification.file);
   read_removed(p, warnings);
   c.control_law =
       read_choice(p, "control_law", c.control_law, control::ControlLaw::kPapers, control::ControlLaw::kModal);
@@ -202,7 +204,50 @@ ControllerNodeOptions load_controller_options(const std::string& path) {
   } catch (const YAML::Exception& e) {
     throw ParamError(std::string("controller options: malformed YAML: ") + e.what());
   }
-  return parse_controller_options(root);
+  ControllerNodeOptions o = parse_controller_options(root);
+  if (std::string& file = o.controller.identification.file; !file.empty()) {
+    const size_t slash = path.rfind('/');
+    if (file[0] != '/' && slash != std::string::npos) file = path.substr(0, slash + 1) + file;
+    o.controller.identification.known = load_identification(file);
+  }
+  return o;
+}
+
+control::PlantIdentity load_identification(const std::string& path) {
+  std::string text;
+  if (const std::string err = util::read_regular_file(path, &text); !err.empty())
+    throw ParamError("identification/file", "cannot read '" + path + "': " + err);
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw ParamError("identification/file", "'" + path + "': malformed YAML: " + e.what());
+  }
+  if (!root.IsMap() || !root["identification"].IsMap())
+    throw ParamError("identification/file", "'" + path + "': must hold a mapping `identification`");
+  Tree p(root);
+  control::PlantIdentity id;
+  const struct {
+    const char* key;
+    double* value;
+    double lo, hi;
+  } numbers[] = {{"identification/tip_mass_scale", &id.tip_mass_scale, 0.1, 100.0},
+                 {"identification/damping_time", &id.damping_time, 0.0, 1.0},
+                 {"identification/tracker_latency_s", &id.tracker_latency_s, 0.0, 1.0},
+                 {"identification/mode_hz", &id.mode_hz, 0.0, 1e3},
+                 {"identification/damping_ratio", &id.damping_ratio, 0.0, 10.0}};
+  for (const auto& n : numbers) {
+    *n.value = p.number(n.key);
+    if (!(*n.value >= n.lo && *n.value <= n.hi))
+      p.fail(n.key, "must lie in [" + util::num(n.lo) + ", " + util::num(n.hi) + "], got " + util::num(*n.value));
+  }
+  id.valve_time_constants_s = p.number_list("identification/valve_time_constants_s", 1, 8);
+  for (const double tau : id.valve_time_constants_s)
+    if (!(tau >= 0.0 && tau <= 1.0)) p.fail("identification/valve_time_constants_s", "each must lie in [0, 1] s");
+  id.valves_identified = p.boolean("identification/valves_identified", true);
+  p.reject_unknown();
+  id.mode_identified = true;
+  return id;
 }
 
 }  // namespace config

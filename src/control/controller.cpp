@@ -72,12 +72,27 @@ Controller::Controller(const RobotModel& model, const ControllerOptions& options
       last_inputs_(jets_.zeros()) {
   if (!law_) throw std::invalid_argument("control_law: no law given");
   law_->set_pd(options.pd);
+  // What the rig's identification file says (identification/file), else the first guesses.
+  const PlantIdentity& known = options.identification.known;
+  const bool known_valves =
+      known.mode_identified && static_cast<int>(known.valve_time_constants_s.size()) == jets_.input_count();
   const InputVector top_flows = jets_.flows_for_forces(model_.upper());
   for (int i = 0; i < jets_.input_count(); ++i)
-    valve_lags_.emplace_back(options.modal.actuator_lag + lead_time_, std::max(top_flows[i], 1e-9));
+    valve_lags_.emplace_back(known_valves && known.valve_time_constants_s[i] > 0.0
+                                 ? known.valve_time_constants_s[i]
+                                 : options.modal.actuator_lag + lead_time_,
+                             std::max(top_flows[i], 1e-9));
   identity_.valve_time_constants_s.assign(jets_.input_count(), 0.0);
   identity_.tip_mass_scale = options.modal.tip_mass_scale;
   identity_.damping_time = options.modal.damping_time;
+  if (known.mode_identified) {  // measured on this rig already: not probed again
+    identity_.mode_identified = true;
+    identity_.tip_mass_scale = known.tip_mass_scale;
+    identity_.damping_time = known.damping_time;
+    probed_ = true;
+  }
+  known_valves_ = known_valves && known.valves_identified;
+  reference_.set_max_path_rate(options.limits.max_path_rate);
 }
 
 void Controller::start(double t) {
@@ -91,6 +106,8 @@ void Controller::start(double t) {
   reset_actuation();
   probe_.cancel();
   probe_pending_ = false;
+  if (fit_waiting_) probed_ = false;  // a start before the fit came back: probe again
+  fit_waiting_ = record_ready_ = fit_delivered_ = false;
   if (!commands_pending_) start_configured_path(t);
   commands_pending_ = false;
 }
@@ -112,6 +129,7 @@ void Controller::set_options(const ControllerOptions& options) {
   options_ = options;
   monitor_.set_options(options.safety);
   reference_.set_max_angular_rate(options.limits.max_angular_rate);
+  reference_.set_max_path_rate(options.limits.max_path_rate);
   approach_.set_options(options.approach);
 }
 
@@ -187,11 +205,12 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   last_inputs_ = out.jet_force_observed;
 
   if (probe_pending_) begin_probe(in.t, sol, lin);
-  if (probe_.active())
+  if (probe_.active() || fit_waiting_)
     probe(in, sol, out);
   else if (std::string why = command_inputs(in, sol, lin, dt, out); !why.empty())
     return abort(out, why);
   if (std::string why = actuate(in.flows, dt, out); !why.empty()) return abort(out, why);
+  learn_reach(dt, out);
   previous_duty_ = out.valve_command;
   previous_flows_ = in.flows;
   duty_known_ = true;
@@ -270,6 +289,8 @@ void Controller::track_reference(const ControllerInputs& in, const rod::RodSolut
   out.source = reference_.source();
   out.clipped = reference_.clipped();
   out.clip_angle = reference_.clip_angle();
+  out.reach_limited = reference_.reach_limited();
+  out.time_scale = reference_.time_scale();
   out.error_geodesic = geodesic_error(out.desired_direction, out.measured_direction);
   out.error_pitch_yaw = pitch_yaw_error(out.desired_direction, out.measured_direction);
   approach(in.t, out);
@@ -392,8 +413,18 @@ void Controller::observe_plant(const ControllerInputs& in, double dt) {
     identity_.valve_time_constants_s[i] = valve_lags_[i].time_constant();
     identified = identified && valve_lags_[i].identified();
   }
-  identity_.valves_identified = identified;
+  identity_.valves_identified = identified || known_valves_;
   law_->adopt(identity_, lead_time_);
+}
+
+// The reach the jets show (closed loop, not while probing): a jet at its top with the error staying
+// outward limits the reference there (learned_reach.h).
+void Controller::learn_reach(double dt, const ControllerOutput& out) {
+  if (options_.mode != LoopMode::kClosed || probe_.active()) return;
+  bool saturated = false;
+  for (int i = 0; i < jets_.input_count(); ++i)
+    saturated = saturated || (model_.upper()[i] > 0.0 && out.jet_force_command[i] >= 0.97 * model_.upper()[i]);
+  reference_.learned_reach().update(saturated, out.measured_direction, out.desired_direction, dt);
 }
 
 // The modes' options: the modal law's, with the fill identified (or its first guess).
@@ -418,40 +449,78 @@ void Controller::begin_probe(double t, const rod::RodSolution& sol, const Actuat
   o.max_force = options_.limits.max_force;
   o.length = model_.rod().length();
   const double a = options_.identification.probe_amplitude;
-  const Vec3 axis = sol.tip_rotation.col(0);
-  const InputStep plus =
-      input_step(sol.tip_rotation, lin, a * axis, previous_command_, model_.lower(), model_.upper(), o);
-  const InputStep minus =
-      input_step(sol.tip_rotation, lin, -a * axis, previous_command_, model_.lower(), model_.upper(), o);
-  if (!modes.ok || !plus.ok || !minus.ok) {
-    identity_.mode_error = "probe: " + (!modes.ok ? modes.error : !plus.ok ? plus.message : minus.message);
+  const Vec3 axes[4] = {a * sol.tip_rotation.col(0), -a * sol.tip_rotation.col(0), a * sol.tip_rotation.col(1),
+                        -a * sol.tip_rotation.col(1)};
+  InputVector turns[4];
+  std::string error = modes.ok ? "" : modes.error;
+  for (int k = 0; k < 4 && error.empty(); ++k) {
+    const InputStep s =
+        input_step(sol.tip_rotation, lin, axes[k], previous_command_, model_.lower(), model_.upper(), o);
+    if (!s.ok) error = s.message;
+    turns[k] = s.q;
+  }
+  if (!error.empty()) {
+    identity_.mode_error = "probe: " + error;
     reference_.begin_path(t);
     return;
   }
-  probe_.begin(t, previous_command_, plus.q, minus.q, sol.tip_rotation, modes.frequency(0));
+  probe_.begin(t, previous_command_, turns, model_.lower(), model_.upper(), sol.tip_rotation, modes.frequency(0));
 }
 
 // A cycle of the probe: its inputs, the record; at its end the fit, the law told, and the path's clock.
 void Controller::probe(const ControllerInputs& in, const rod::RodSolution& sol, ControllerOutput& out) {
-  probe_.record(sol.tip_rotation.col(2), out.measured_direction);
   out.approaching = true;
-  if (probe_.done(in.t)) {
-    const identification::ModeFit fit = probe_.fit(options_.safety.sample_period, latency_.latency());
-    identity_.mode_identified = fit.ok;
-    identity_.mode_error = fit.ok ? "" : "probe: " + fit.error;
-    if (fit.ok) {
-      const double scale = fit.omega / probe_.omega_guess();
-      identity_.tip_mass_scale /= scale * scale;
-      identity_.damping_time = 2.0 * fit.zeta / fit.omega;
+  if (probe_.active()) {
+    probe_.record(sol.tip_rotation.col(2), out.measured_direction);
+    if (probe_.done(in.t)) {
+      identification::ModeRecord r = probe_.finish(options_.safety.sample_period, latency_.latency());
+      if (fit_inline_) {
+        adopt_mode_fit(identification::fit_mode(r, probe_.omega_guess()), in.t);
+        out.approaching = false;
+      } else {
+        record_ = std::move(r);
+        record_ready_ = fit_waiting_ = true;
+        fit_wait_start_ = in.t;
+      }
     }
-    law_->adopt(identity_, lead_time_);
-    law_->reset();
-    reference_.begin_path(in.t);
+  } else if (fit_delivered_ || in.t - fit_wait_start_ > 2.0) {  // waiting for the owner's fit
+    identification::ModeFit fit = delivered_fit_;
+    if (!fit_delivered_) fit.ok = false, fit.error = "no fit came back within 2 s";
+    adopt_mode_fit(fit, in.t);
     out.approaching = false;
   }
   out.jet_force_command = probe_.active() ? probe_.inputs(in.t) : previous_command_;
   previous_command_ = out.jet_force_command;
   out.wrench_command = model_.tip_wrench(out.jet_force_command);
+}
+
+bool Controller::take_mode_record(identification::ModeRecord* record, double* omega_guess) {
+  if (!record_ready_) return false;
+  *record = std::move(record_);
+  *omega_guess = probe_.omega_guess();
+  record_ready_ = false;
+  return true;
+}
+
+void Controller::deliver_mode_fit(const identification::ModeFit& fit) {
+  if (!fit_waiting_) return;  // a restart since: the fit is of nothing now
+  delivered_fit_ = fit;
+  fit_delivered_ = true;
+}
+
+// The probe's fit: the capsule's fill and the damping time the law takes (or why not), then the path.
+void Controller::adopt_mode_fit(const identification::ModeFit& fit, double t) {
+  fit_waiting_ = record_ready_ = fit_delivered_ = false;
+  identity_.mode_identified = fit.ok;
+  identity_.mode_error = fit.ok ? "" : "probe: " + fit.error;
+  if (fit.ok) {
+    const double scale = fit.omega / probe_.omega_guess();
+    identity_.tip_mass_scale /= scale * scale;
+    identity_.damping_time = 2.0 * fit.zeta / fit.omega;
+  }
+  law_->adopt(identity_, lead_time_);
+  law_->reset();
+  reference_.begin_path(t);
 }
 
 // The mode about the present equilibrium: the model's with the identified fill (the probe's

@@ -15,6 +15,7 @@ std::string LimitOptions::validate() const {
   if (std::string err = util::check_range("max_force_rate", max_force_rate, 0.01, 20.0); !err.empty()) return err;
   if (!(std::isfinite(max_angular_rate) && max_angular_rate > 0.0))
     return util::bad("max_angular_rate", max_angular_rate, "must be finite and > 0");
+  if (std::string err = util::check_range("max_path_rate", max_path_rate, 0.01, 10.0); !err.empty()) return err;
   if (!(reachable_force_fraction > 0.0 && reachable_force_fraction <= 1.0))
     return util::bad("reachable_force_fraction", reachable_force_fraction, "must lie in (0, 1]");
   return "";

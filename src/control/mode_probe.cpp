@@ -5,20 +5,28 @@
 namespace hydrojet {
 namespace control {
 
-void ModeProbe::begin(double t, const rod::InputVector& base, const rod::InputVector& plus,
-                      const rod::InputVector& minus, const Mat3& tip_rotation, double omega_guess) {
+void ModeProbe::begin(double t, const rod::InputVector& base, const rod::InputVector turns[4],
+                      const rod::InputVector& lower, const rod::InputVector& upper, const Mat3& tip_rotation,
+                      double omega_guess) {
   active_ = true;
   start_ = t;
-  base_ = base, plus_ = plus, minus_ = minus;
+  base_ = base, lower_ = lower, upper_ = upper;
+  for (int a = 0; a < 4; ++a) turns_[a] = turns[a];
   frame_ = tip_rotation;
   omega_guess_ = omega_guess;
   model_.clear();
   measured_.clear();
 }
 
+// The chirp along an axis that turns once over it: the turns about x and y superposed (each with the
+// inputs of its sign), within the bounds.
 rod::InputVector ModeProbe::inputs(double t) const {
   const double c = identification::chirp(t - start_, omega_guess_ / (2.0 * M_PI));
-  return c >= 0.0 ? rod::InputVector(base_ + c * (plus_ - base_)) : rod::InputVector(base_ - c * (minus_ - base_));
+  const double psi = 2.0 * M_PI * (t - start_) / identification::kChirpSeconds;
+  const double x = c * std::cos(psi), y = c * std::sin(psi);
+  rod::InputVector q =
+      base_ + std::abs(x) * (turns_[x >= 0.0 ? 0 : 1] - base_) + std::abs(y) * (turns_[y >= 0.0 ? 2 : 3] - base_);
+  return q.cwiseMax(lower_).cwiseMin(upper_);
 }
 
 void ModeProbe::record(const Vec3& model_direction, const Vec3& measured_direction) {
@@ -26,14 +34,14 @@ void ModeProbe::record(const Vec3& model_direction, const Vec3& measured_directi
   measured_.push_back((frame_.transpose() * measured_direction).head<2>());
 }
 
-identification::ModeFit ModeProbe::fit(double dt, double latency) {
+identification::ModeRecord ModeProbe::finish(double dt, double latency) {
   active_ = false;
   identification::ModeRecord r;
   r.dt = dt;
   r.input = model_;
   r.output = measured_;
   r.delay_samples = static_cast<int>(std::lround(latency / dt));
-  return identification::fit_mode(r, omega_guess_);
+  return r;
 }
 
 }  // namespace control

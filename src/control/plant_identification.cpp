@@ -42,7 +42,7 @@ void ValveLagEstimator::reset() {
   const double a = std::exp(-dt_ / prior_lag_);
   for (Fit& f : fits_) {
     f.theta(0) = a;
-    for (int j = 0; j < kKnots; ++j) f.theta(j + 1) = (1.0 - a) * std::pow(j / double(kKnots - 1), 0.8);
+    for (int j = 0; j < kKnots; ++j) f.theta(j + 1) = (1.0 - a) * std::pow(kKnotDuty[j], 0.8);
     f.P = Mat::Identity() * kPrior;
     f.effective = 0.0;
     f.error = 0.0;
@@ -66,10 +66,10 @@ void ValveLagEstimator::add(double previous_flow, double duty, double flow, doub
     if (d < f.effective - half) f.effective = d + half;
     Vec phi = Vec::Zero();
     phi(0) = previous_flow / scale_;
-    const double x = f.effective * (kKnots - 1);
-    const int j = std::min(static_cast<int>(x), kKnots - 2);
-    phi(j + 1) = 1.0 - (x - j);
-    phi(j + 2) = x - j;
+    const int j = static_cast<int>(std::upper_bound(kKnotDuty, kKnotDuty + kKnots - 1, f.effective) - kKnotDuty) - 1;
+    const double x = (f.effective - kKnotDuty[j]) / (kKnotDuty[j + 1] - kKnotDuty[j]);
+    phi(j + 1) = 1.0 - x;
+    phi(j + 2) = x;
     // Instrumental variables: the regressor f[k] carries the sensor's noise, which the equation's
     // error f[k+1] − a f[k] shares (least squares would bias a low, τ short); the fit's own
     // noise-free simulation of the flow does not, and follows f[k] closely.

@@ -21,7 +21,10 @@ const char* to_string(Source s) {
 
 Reference::Reference(double max_angular_rate, std::shared_ptr<const ReachableSet> target_set,
                      std::shared_ptr<const ReachableSet> path_set)
-    : max_rate_(max_angular_rate), target_set_(std::move(target_set)), path_set_(std::move(path_set)) {}
+    : max_rate_(max_angular_rate),
+      learned_(path_set ? path_set->center() : Vec3::UnitZ()),
+      target_set_(std::move(target_set)),
+      path_set_(std::move(path_set)) {}
 
 void Reference::follow(std::shared_ptr<const Path> path, double t, PathStart start, PathClip clip) {
   source_ = Source::kPath;
@@ -32,6 +35,7 @@ void Reference::follow(std::shared_ptr<const Path> path, double t, PathStart sta
   on_path_ = false;
   path_advanced_ = false;
   approach_time_ = 0.0;
+  path_clock_ = slowed_ = 0.0;
 }
 
 void Reference::begin_path(double t) {
@@ -39,6 +43,7 @@ void Reference::begin_path(double t) {
   approach_time_ = t - path_start_;
   path_start_ = t;
   on_path_ = true;
+  path_clock_ = slowed_ = 0.0;
 }
 
 bool Reference::aim(const Vec3& target, Source source) {
@@ -69,6 +74,7 @@ void Reference::hold() {
 void Reference::start(const Vec3& direction, double t) {
   if (source_ == Source::kPath) {
     path_start_ = t, approach_time_ = 0.0;
+    path_clock_ = slowed_ = 0.0;
     if (jump_to_path_) return;          // advance() puts the reference on the path
     on_path_ = path_advanced_ = false;  // the approach starts again from here
   }
@@ -80,8 +86,10 @@ const Vec3& Reference::advance(double t, double dt, const Mat3& tip_frame) {
   if (source_ == Source::kPath) {
     if (jump_to_path_) on_path_ = true;  // the paper's start: on the path, its clock running
     jump_to_path_ = false;
-    // On the path: followed as written, whatever its speed. Approaching: its first direction.
-    set_target(path_->direction_at(on_path_ ? t - path_start_ : 0.0), path_clip_);
+    // On the path: followed as written, its clock slowed where the path is faster than
+    // max_path_rate. Approaching: its first direction.
+    if (on_path_) advance_clock(t, dt);
+    set_target(path_->direction_at(on_path_ ? path_clock_ : 0.0), path_clip_);
     if (on_path_) reference_ = target_;
     if (!on_path_) approach_time_ = t - path_start_;
     path_advanced_ = true;
@@ -100,14 +108,56 @@ const Vec3& Reference::advance(double t, double dt, const Mat3& tip_frame) {
 
 Vec3 Reference::preview(double t, double lead) const {
   if (source_ != Source::kPath || !on_path_ || !(lead > 0.0)) return reference_;
-  const Vec3 ahead = path_->direction_at(t - path_start_ + lead);
-  return path_clip_ ? path_clip_->clip(ahead) : ahead.normalized();
+  (void)t;
+  const Vec3 ahead = path_->direction_at(path_clock_ + lead / time_scale_now_);
+  const Vec3 in_set = path_clip_ ? path_clip_->clip(ahead) : Vec3(ahead.normalized());
+  return path_clip_ ? learned_.clip(in_set) : in_set;
 }
 
-// The commanded direction (unit) clipped to `set` (none: not clipped).
+// The path's clock over dt [s]: at the path's own pace, or slower where the path would turn the
+// reference by more than max_path_rate·dt this step (the step's own turn, so a corner of the path
+// inside it counts). The first advance on a path that was jumped onto starts the clock at t.
+void Reference::advance_clock(double t, double dt) {
+  const double as_written = t - path_start_ - slowed_;  // the clock's next time at the path's own pace
+  time_scale_now_ = 1.0;
+  const double limit = max_path_rate_ * dt;
+  const Vec3 from = path_->direction_at(path_clock_);
+  double step = as_written - path_clock_;
+  double turn = geodesic_error(from, path_->direction_at(path_clock_ + step));
+  if (!(step > 0.0) || !(turn > limit)) {
+    path_clock_ = as_written;
+    return;
+  }
+  // The longest step of the path that turns by at most the limit: bisection between 0 (no turn) and
+  // the step as written (too far), started at the proportional guess.
+  double lo = 0.0, hi = step;
+  double guess = step * limit / turn;
+  for (int k = 0; k < 40 && hi - lo > 1e-9 * step; ++k) {
+    const double mid = k == 0 ? guess : 0.5 * (lo + hi);
+    (geodesic_error(from, path_->direction_at(path_clock_ + mid)) <= limit ? lo : hi) = mid;
+  }
+  step = lo;
+  if (!(step > 0.0)) {  // the path jumps here: its clock waits (the reference's own rate limit moves it)
+    slowed_ = t - path_start_ - path_clock_;
+    return;
+  }
+  time_scale_now_ = dt / step;
+  path_clock_ += step;
+  slowed_ = t - path_start_ - path_clock_;
+}
+
+// The commanded direction (unit) clipped to `set` (none: not clipped), then to the learned reach.
 void Reference::set_target(const Vec3& target, const ReachableSet* set) {
   clip_angle_ = 0.0;
+  reach_limited_ = false;
   target_ = set ? set->clip(target, &clip_angle_) : target;
+  if (!set) return;
+  double pulled = 0.0;
+  target_ = learned_.clip(target_, &pulled);
+  if (pulled > 0.0) {
+    reach_limited_ = true;
+    clip_angle_ = geodesic_error(target, target_);
+  }
 }
 
 // Along the great circle toward the target, at most max_angular_rate·dt; exactly onto it when closer.

@@ -58,6 +58,25 @@ double chirp(double t, double guess_hz) {
   return fade * std::sin(phase);
 }
 
+bool warm_up() {
+  const double omega = 2.0 * M_PI * 3.5, zeta = 0.2, dt = 0.01;
+  ModeRecord r;
+  r.dt = dt;
+  Eigen::Vector2d y = Eigen::Vector2d::Zero(), v = Eigen::Vector2d::Zero();
+  for (int k = 0; k * dt < kChirpSeconds + 0.3; ++k) {
+    const double c = 0.02 * chirp(k * dt, 3.5);
+    const Eigen::Vector2d s(c, 0.5 * c);
+    r.input.push_back(s);
+    r.output.push_back(y);
+    for (int i = 0; i < 20; ++i) {  // semi-implicit Euler, fine enough for a warm-up
+      v += dt / 20 * (omega * omega * (s - y) - 2.0 * zeta * omega * v);
+      y += dt / 20 * v;
+    }
+  }
+  const ModeFit fit = fit_mode(r, omega);
+  return fit.ok && std::abs(fit.omega / omega - 1.0) < 0.01;
+}
+
 ModeFit fit_mode(const ModeRecord& record, double omega_guess, double zeta_guess) {
   ModeFit best;
   const int n = static_cast<int>(record.output.size()), d = record.delay_samples;

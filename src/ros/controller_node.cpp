@@ -129,6 +129,8 @@ class FollowPathServer {
       return finish(false, std::string("superseded by the source '") + control::to_string(ref.source()) + "'");
     approach_time_ = out.approach_time;
     max_clip_ = std::max(max_clip_, out.clip_angle);
+    time_scale_ = out.time_scale;
+    if (out.reach_limited && !out.approaching) reach_limited_s_ += controller_.options().safety.sample_period;
     if (!out.approaching) {  // the error of a path counts from its clock's start
       sum_sq_ += out.error_geodesic * out.error_geodesic;
       max_error_ = std::max(max_error_, out.error_geodesic);
@@ -159,7 +161,8 @@ class FollowPathServer {
   void on_goal() {
     const auto goal = server_.acceptNewGoal();
     path_.reset();
-    sum_sq_ = max_error_ = max_clip_ = approach_time_ = 0.0;
+    sum_sq_ = max_error_ = max_clip_ = approach_time_ = reach_limited_s_ = 0.0;
+    time_scale_ = 1.0;
     samples_ = 0;
     building_ = ++goals_;
     if (controller_.state() == control::ControllerState::kAborted)
@@ -219,6 +222,8 @@ class FollowPathServer {
     r.clipped = max_clip_ > 0.0;
     r.max_clip_angle = max_clip_;
     r.approach_time = approach_time_;
+    r.time_scale = time_scale_;
+    r.reach_limited_s = reach_limited_s_;
     return r;
   }
 
@@ -233,6 +238,8 @@ class FollowPathServer {
   double sum_sq_ = 0.0, max_error_ = 0.0;  ///< [rad^2], [rad] over the goal's cycles
   double max_clip_ = 0.0;                  ///< [rad] the most a point of the path was clipped
   double approach_time_ = 0.0;             ///< [s] the path's approach (so far)
+  double time_scale_ = 1.0;                ///< the path's time scaling so far
+  double reach_limited_s_ = 0.0;           ///< [s] of the path clipped to the learned reach
   int samples_ = 0;
   ros::Time last_feedback_;
 };
@@ -245,6 +252,8 @@ class ControllerNode {
     const config::Scene scene = config::load_scene(opts_.scene);
     const control::RobotModel model = config::make_controller_model(scene, opts_.flow_regulator);
     controller_.reset(new control::Controller(model, opts_.controller));
+    controller_->set_fit_inline(false);                   // the probe's fit runs on the background thread (tick)
+    background_.post([] { identification::warm_up(); });  // Ceres paged in now, not at the first probe
     look_at_.reset(new control::LookAtSolver(model));
     follow_path_.reset(new FollowPathServer(nh, *controller_, message_, background_));
     initial_params_ = opts_.controller;
@@ -534,6 +543,7 @@ class ControllerNode {
     }
     swap->controller->set_options(controller_->options());  // the gains in force
     *controller_ = std::move(*swap->controller);
+    controller_->set_fit_inline(false);
     look_at_ = std::move(swap->look_at);
     sweep_time_ = controller_->reachable_set().compute_time();
     publish_reachable_set();
@@ -553,9 +563,15 @@ class ControllerNode {
       autostarted_ = true;
     }
     follow_path_->before_cycle(now);
+    if (std::optional<identification::ModeFit> fit = mode_fits_.take()) controller_->deliver_mode_fit(*fit);
     const auto t0 = std::chrono::steady_clock::now();
     const control::ControllerOutput out = controller_->update(in);
     const double cycle_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    identification::ModeRecord record;
+    double guess = 0.0;
+    if (controller_->take_mode_record(&record, &guess))  // the probe's fit, off the loop
+      background_.post(
+          [this, record = std::move(record), guess] { mode_fits_.put(identification::fit_mode(record, guess)); });
     if (out.state == control::ControllerState::kAborted && last_state_ != control::ControllerState::kAborted)
       ROS_ERROR("controller: ABORT, jets off: %s", out.reason.c_str());
     last_state_ = out.state;
@@ -730,6 +746,8 @@ class ControllerNode {
   std::atomic<bool> running_{false};
   ros_bridge::Mailbox<SceneSwap> scene_box_;
   // Last: destroyed first, so that no background job outlives what it uses.
+  /// The probe's fit, from the background thread (declared before it: the thread stops first).
+  ros_bridge::Mailbox<identification::ModeFit> mode_fits_;
   ros_bridge::Background background_;
 };
 

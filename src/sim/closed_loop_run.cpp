@@ -133,8 +133,15 @@ RunResult run_path(const control::RobotModel& model, const control::ControllerOp
   // The approach is bounded by the controller (the reference's way there at max_angular_rate, then
   // approach.timeout); this only bounds the loop.
   const double approach_bound = approach ? M_PI / params.limits.max_angular_rate + params.approach.timeout + 1.0 : 0.0;
-  const long last_step = std::lround(plan.settle / plan.control_period) +
-                         std::lround((approach_bound + path->duration()) / plan.control_period);
+  // The path's own time, or its length at limits/max_path_rate where time scaling slows it, and the
+  // probe of the first mode (mode_probe.h).
+  double length = 0.0;
+  for (double s = 0.0; s < path->duration(); s += 0.01)
+    length += control::geodesic_error(path->direction_at(s), path->direction_at(s + 0.01));
+  const double path_bound = std::max(path->duration(), length / params.limits.max_path_rate) + path->duration() +
+                            control::ModeProbe::kSeconds;
+  const long last_step =
+      std::lround(plan.settle / plan.control_period) + std::lround((approach_bound + path_bound) / plan.control_period);
   double path_start = -1.0;  // [s] simulated time of the path clock's start
   double weight = 1.0;       // the law's supervisor weight at the last sample
   bool ok = episode.settle(plan.settle);
@@ -156,6 +163,8 @@ RunResult run_path(const control::RobotModel& model, const control::ControllerOp
       if (path_start < 0) path_start = t, r.approach_time = out.approach_time;
       r.samples.push_back(record(episode.plant(), out, t - path_start));
       if (out.law_weight < 1.0) r.supervised_s += plan.control_period;
+      if (out.reach_limited) r.reach_limited_s += plan.control_period;
+      r.time_scale = out.time_scale;
       if (out.law_weight == 0.0 && weight > 0.0) ++r.supervisor_fallbacks;
       weight = out.law_weight;
       if (out.state == control::ControllerState::kFinished) {

@@ -73,6 +73,9 @@ void read_flow_regulator(YamlTree<ParamError>& tree, actuation::FlowRegulatorOpt
 ControllerNodeOptions parse_controller_options(const YAML::Node& root);
 /// Reads a YAML file of controller options.
 ControllerNodeOptions load_controller_options(const std::string& path);
+/// The rig's identification file (what `identify` writes; identification/file of the controller
+/// file): ParamError naming the key when unreadable or out of range.
+control::PlantIdentity load_identification(const std::string& path);
 
 }  // namespace config
 }  // namespace hydrojet

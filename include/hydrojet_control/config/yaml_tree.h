@@ -145,6 +145,17 @@ class YamlTree {
     for (size_t i = 0; i < count; ++i) out.push_back(to_number(n[i], path + "[" + std::to_string(i) + "]"));
     return out;
   }
+  /// A required list of min_count to max_count finite numbers.
+  std::vector<double> number_list(const std::string& path, size_t min_count, size_t max_count) {
+    read_.insert(path);
+    const YAML::Node n = find(path);
+    if (!n.IsDefined()) fail(path, "missing");
+    if (!n.IsSequence() || n.size() < min_count || n.size() > max_count)
+      fail(path, "must be a list of " + std::to_string(min_count) + " to " + std::to_string(max_count) + " numbers");
+    std::vector<double> out;
+    for (size_t i = 0; i < n.size(); ++i) out.push_back(to_number(n[i], path + "[" + std::to_string(i) + "]"));
+    return out;
+  }
   /// A required or optional 3-vector (any type constructible from three doubles, e.g. Eigen's).
   template <class V>
   V vec3(const std::string& path) {

@@ -22,6 +22,7 @@
 #include "hydrojet_control/control/controller_options.h"
 #include "hydrojet_control/control/direction_law.h"
 #include "hydrojet_control/control/jet_actuation.h"
+#include "hydrojet_control/control/learned_reach.h"
 #include "hydrojet_control/control/mode_probe.h"
 #include "hydrojet_control/control/plant_identification.h"
 #include "hydrojet_control/control/reachable_set.h"
@@ -73,6 +74,8 @@ class Controller {
   const ReachableSet& reachable_set() const { return *reachable_; }
   /// The set path points are clipped to (full q_max).
   const ReachableSet& path_reachable_set() const { return *path_reachable_; }
+  /// The reach the jets have shown on this plant (it clips both sets' targets).
+  const LearnedReach& learned_reach() const { return reference_.learned_reach(); }
 
   /// Switches between closed and open loop (takes effect on the next update).
   void set_mode(LoopMode mode) { options_.mode = mode; }
@@ -88,6 +91,16 @@ class Controller {
   const std::string& abort_reason() const { return abort_reason_; }
   /// What the controller has measured of the plant (the mode at the last cycle's equilibrium).
   PlantIdentity identity() const;
+
+  // The probe's fit (a Ceres solve of some 30 ms) off the control loop: an owner with a thread of its
+  // own (the node) calls set_fit_inline(false), takes each record the probe leaves and hands its fit
+  // back; meanwhile the jets hold and the path waits (2 s at most, then it starts with the first
+  // guesses). By default the controller fits in the cycle the probe ends (the experiment, tests).
+  void set_fit_inline(bool inline_fit) { fit_inline_ = inline_fit; }
+  /// A record waits for its fit: moved into *record with the mode it was guessed at [rad/s].
+  bool take_mode_record(identification::ModeRecord* record, double* omega_guess);
+  /// The fit of the record taken last (identification::fit_mode); used on the next cycle.
+  void deliver_mode_fit(const identification::ModeFit& fit);
   /// Number of jets (entries of every InputVector in and out).
   int input_count() const { return jets_.input_count(); }
 
@@ -112,8 +125,10 @@ class Controller {
   void track_reference(const ControllerInputs& in, const rod::RodSolution& sol, double dt, ControllerOutput& out);
   void approach(double t, ControllerOutput& out);
   void observe_plant(const ControllerInputs& in, double dt);
+  void learn_reach(double dt, const ControllerOutput& out);
   void begin_probe(double t, const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin);
   void probe(const ControllerInputs& in, const rod::RodSolution& sol, ControllerOutput& out);
+  void adopt_mode_fit(const identification::ModeFit& fit, double t);
   ModalOptions mode_options() const;
   std::string command_inputs(const ControllerInputs& in, const rod::RodSolution& sol,
                              const ActuatedModel::Linearisation& lin, double dt, ControllerOutput& out);
@@ -150,8 +165,16 @@ class Controller {
   bool duty_known_ = false;                     ///< previous_duty_ was commanded and held since
   double last_stamp_ = -1e300;                  ///< the tracker stamp last seen [s]
   ModeProbe probe_;
-  bool probe_pending_ = false;                     ///< an approached path settled: the probe starts this cycle
-  bool probed_ = false;                            ///< the probe has run (once per controller)
+  bool probe_pending_ = false;  ///< an approached path settled: the probe starts this cycle
+  bool probed_ = false;         ///< the probe has run (once per controller), or the file gave the mode
+  bool known_valves_ = false;   ///< the identification file gave every jet's lag
+  bool fit_inline_ = true;      ///< set_fit_inline
+  bool fit_waiting_ = false;    ///< the probe is over, its fit not yet adopted
+  double fit_wait_start_ = 0.0;
+  bool record_ready_ = false;  ///< record_ waits for take_mode_record
+  identification::ModeRecord record_;
+  bool fit_delivered_ = false;
+  identification::ModeFit delivered_fit_;
   rod::Mat6 last_compliance_ = rod::Mat6::Zero();  ///< C^b at the last cycle's equilibrium
   InputVector last_inputs_;                        ///< q_obs there [N]
 };

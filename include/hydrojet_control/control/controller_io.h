@@ -62,6 +62,10 @@ struct ControllerOutput {
   /// paper's law because the mode rang (mode_swing [rad]).
   double law_weight = 1.0;
   double mode_swing = 0.0;
+  /// The target lay beyond the reach the jets have shown (LearnedReach) and was clipped to it
+  /// (clipped, clip_angle say by how much).
+  bool reach_limited = false;
+  double time_scale = 1.0;  ///< how much longer than written the path has taken so far (Reference::time_scale)
 };
 
 }  // namespace control

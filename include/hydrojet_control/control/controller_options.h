@@ -28,6 +28,9 @@ struct LimitOptions {
   double max_force = 0.30;         ///< magnitude limit of the commanded tip force [N]
   double max_force_rate = 1.0;     ///< rate limit of the commanded tip force [N/s]
   double max_angular_rate = 0.25;  ///< the reference moves toward a new target at most this fast [rad/s]
+  /// A path's clock slows where the path would turn the reference faster than this [rad/s] (time
+  /// scaling: the path as written, later; Reference::time_scale).
+  double max_path_rate = 1.5;
   /// Operator targets are clipped to the set that this fraction of each jet's q_max reaches (authority
   /// kept for the closed loop); paths to the set of q_max [-], in (0, 1].
   double reachable_force_fraction = 0.8;

@@ -115,7 +115,7 @@ class ModalLaw : public DirectionLaw {
   double rounding_force() const override { return gain_weight() * options_.rounding_force; }
   ControlLaw kind() const override { return ControlLaw::kModal; }
   /// The identified fill and damping time replace modal/tip_mass_scale and modal/damping_time (their
-  /// first guesses); the jets' mean lag less the regulators' lead replaces modal/actuator_lag.
+  /// first guesses).
   void adopt(const PlantIdentity& identity, double lead_time) override;
   const ModalLawOptions& options() const { return options_; }
   const ModalEstimator& estimator() const { return estimator_; }

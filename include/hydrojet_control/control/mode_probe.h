@@ -1,10 +1,12 @@
 // The probe that measures the first lateral mode on the robot present: once the tip has settled on
 // an approached path's first direction (approach.h), and before the path's clock starts, the jets
 // add a chirp (identification::chirp, from half to twice the model's mode) that would turn the tip by
-// about `amplitude` quasi-statically, for 2.3 s; the tip's motion against the model's direction at
-// the measured inputs is then fitted (identification::fit_mode, the tracker's latency known). The
-// mode's frequency over the model's gives the capsule's effective fill (tip_mass_scale), its damping
-// ratio the Kelvin–Voigt time. ROS-free (Eigen, the identification library).
+// about `amplitude` quasi-statically, along an axis that turns once about the tip's (so that every
+// jet takes part), for 2.3 s; the tip's motion against the model's direction at the measured inputs
+// is then fitted (identification::fit_mode, the tracker's latency known). The mode's frequency over
+// the model's gives the capsule's effective fill (tip_mass_scale), its damping ratio the
+// Kelvin–Voigt time; the valves' lags learn from the chirp too (plant_identification.h).
+// ROS-free (Eigen, the identification library).
 #pragma once
 
 #include <string>
@@ -20,11 +22,11 @@ namespace control {
 class ModeProbe {
  public:
   static constexpr double kSeconds = identification::kChirpSeconds + 0.3;  ///< the chirp, then the tip settles
-  /// Starts at time t [s] at the held inputs `base` [N], with the inputs `plus` and `minus` that turn
-  /// the tip by ±amplitude about the tip frame's x axis, the tip frame `tip_rotation` (base frame)
-  /// and the model's mode there, omega_guess [rad/s].
-  void begin(double t, const rod::InputVector& base, const rod::InputVector& plus, const rod::InputVector& minus,
-             const Mat3& tip_rotation, double omega_guess);
+  /// Starts at time t [s] at the held inputs `base` [N], with turns[a] (a = 0..3) the inputs that turn
+  /// the tip by amplitude about +x, −x, +y, −y of the tip frame, the tip frame `tip_rotation` (base
+  /// frame) and the model's mode there, omega_guess [rad/s]; inputs within [lower, upper] [N].
+  void begin(double t, const rod::InputVector& base, const rod::InputVector turns[4], const rod::InputVector& lower,
+             const rod::InputVector& upper, const Mat3& tip_rotation, double omega_guess);
   bool active() const { return active_; }
   void cancel() { active_ = false; }
   /// The inputs at time t [s] [N].
@@ -33,14 +35,15 @@ class ModeProbe {
   void record(const Vec3& model_direction, const Vec3& measured_direction);
   /// The chirp and its settling are over at time t.
   bool done(double t) const { return t - start_ >= kSeconds; }
-  /// The fit of the record, sampled every dt [s], the tracker `latency` [s] late.
-  identification::ModeFit fit(double dt, double latency);
+  /// The record to fit (identification::fit_mode), sampled every dt [s], the tracker `latency` [s]
+  /// late; the probe is over.
+  identification::ModeRecord finish(double dt, double latency);
   double omega_guess() const { return omega_guess_; }
 
  private:
   bool active_ = false;
   double start_ = 0.0, omega_guess_ = 0.0;
-  rod::InputVector base_, plus_, minus_;
+  rod::InputVector base_, turns_[4], lower_, upper_;
   Mat3 frame_ = Mat3::Identity();
   std::vector<Eigen::Vector2d> model_, measured_;
 };

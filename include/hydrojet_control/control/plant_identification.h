@@ -38,6 +38,11 @@ struct IdentificationOptions {
   /// (mode_probe.h), before its clock starts.
   bool probe = true;
   double probe_amplitude = 0.02;  ///< [rad] the probe turns the tip by about this, quasi-statically
+  /// The rig's identification file (`identify`; empty: none), relative to the controller file.
+  std::string file;
+  /// What that file holds (config::load_controller_options reads it): a mode identified there is
+  /// not probed again.
+  PlantIdentity known;
   /// Empty when valid, else "<field>: <what is wrong>".
   std::string validate() const;
 };
@@ -65,7 +70,9 @@ class LatencyEstimator {
 /// Instrumental variables (the fit's simulated flow for f[k]) keep the flow sensor's noise from biasing τ.
 class ValveLagEstimator {
  public:
-  static constexpr int kKnots = 11;  ///< g on duties 0, 0.1, ..., 1
+  /// g on these duties: closer at small openings, where dead zones put the curve's kink.
+  static constexpr int kKnots = 14;
+  static constexpr double kKnotDuty[kKnots] = {0.0, 0.02, 0.04, 0.06, 0.08, 0.1, 0.13, 0.17, 0.22, 0.3, 0.4, 0.55, 0.75, 1.0};
   static constexpr int kPlays = 5;   ///< play widths 0, 0.01, ..., 0.04 [duty]
   /// prior_lag [s]: the estimate until the data say otherwise; max_flow [m^3/s]: the flows' scale.
   ValveLagEstimator(double prior_lag = 0.04, double max_flow = 1.6e-5);

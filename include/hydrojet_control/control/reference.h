@@ -23,8 +23,10 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <limits>
 #include <memory>
 
+#include "hydrojet_control/control/learned_reach.h"
 #include "hydrojet_control/control/path.h"
 #include "hydrojet_control/control/reachable_set.h"
 #include "hydrojet_control/control/task_space.h"
@@ -44,6 +46,13 @@ class Reference {
             std::shared_ptr<const ReachableSet> path_set);
 
   void set_max_angular_rate(double rate) { max_rate_ = rate; }
+  /// A path's clock runs slower where the path would turn the reference faster than `rate` [rad/s]
+  /// (time scaling: the path as written, later). Infinity: as written.
+  void set_max_path_rate(double rate) { max_path_rate_ = rate; }
+  /// The reach the jets have shown (it clips every target that a set clips, after the set); the
+  /// controller teaches it (LearnedReach::update).
+  LearnedReach& learned_reach() { return learned_; }
+  const LearnedReach& learned_reach() const { return learned_; }
 
   // Commands: each replaces the one before (the latest wins).
   /// Which set a path's points are clipped to: a designed path (the configured §7 spiral) only to
@@ -99,16 +108,28 @@ class Reference {
   /// The direction the reference will have `lead` [s] after t [s] on a path it is on (clipped as the
   /// path's points); the reference itself for any other source, or while the path is approached.
   Vec3 preview(double t, double lead) const;
-  /// Time along the path at t [s] (0 when no path drives or while it is approached).
-  double path_time(double t) const { return on_path() ? t - path_start_ : 0.0; }
+  /// Time along the path at t [s] (0 when no path drives or while it is approached): its clock,
+  /// which time scaling may have slowed.
+  double path_time(double t) const { return on_path() ? t - path_start_ - slowed_ : 0.0; }
   /// A path drives, its clock runs and it has reached its end.
   bool path_finished(double t) const { return on_path() && path_time(t) >= path_->duration(); }
+  /// How much longer than written the path has taken so far: (elapsed) / (path time) ≥ 1 [-].
+  double time_scale() const { return path_clock_ > 0.0 ? (path_clock_ + slowed_) / path_clock_ : 1.0; }
+  /// The last target was clipped by the learned reach (LearnedReach), not by the set alone.
+  bool reach_limited() const { return reach_limited_; }
 
  private:
   void set_target(const Vec3& target, const ReachableSet* set);
+  void advance_clock(double t, double dt);
   void move_toward_target(double dt);
 
   double max_rate_;
+  double max_path_rate_ = std::numeric_limits<double>::infinity();
+  LearnedReach learned_;
+  double path_clock_ = 0.0;  ///< [s] along the path (its clock, time-scaled)
+  double slowed_ = 0.0;      ///< [s] the clock has lost to time scaling
+  bool reach_limited_ = false;
+  double time_scale_now_ = 1.0;                     ///< the clock's slowing at the last advance (1: as written)
   std::shared_ptr<const ReachableSet> target_set_;  ///< with reserve: fixed and rate targets
   std::shared_ptr<const ReachableSet> path_set_;    ///< full force: path points
   Source source_ = Source::kHold;

@@ -43,5 +43,9 @@ double chirp(double t, double guess_hz);
 /// record's motion (variance). Samples ≥ 20.
 ModeFit fit_mode(const ModeRecord& record, double omega_guess, double zeta_guess = 0.2);
 
+/// One fit of a probe's size on a known mode (3.5 Hz, ζ 0.2), for a process to page Ceres in before
+/// its loop needs it; true when the fit recovers that mode within 1 %.
+bool warm_up();
+
 }  // namespace identification
 }  // namespace hydrojet

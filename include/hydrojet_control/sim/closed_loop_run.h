@@ -64,6 +64,8 @@ struct RunResult {
   double wall_seconds = 0.0;
   double simulated_seconds = 0.0;
   std::vector<RunSample> samples;
+  double time_scale = 1.0;            ///< how much longer than written the path took (its clock's time scaling)
+  double reach_limited_s = 0.0;       ///< [s] of the path clipped to the reach the jets showed (LearnedReach)
   int supervisor_fallbacks = 0;       ///< times the law's supervisor fell back to the paper's law
   double supervised_s = 0.0;          ///< [s] of the path with the law's weight below 1
   control::PlantIdentity identified;  ///< what the controller ended with (Controller::identity)
