@@ -40,6 +40,7 @@ hydrojet_gtest(test_operator_core LIBS hydrojet_config)
 foreach(t test_plant test_hydraulics test_closed_loop_run)
   hydrojet_gtest(${t} LIBS hydrojet_sim hydrojet_config)
 endforeach()
+add_dependencies(test_closed_loop_run identify)
 hydrojet_gtest(test_devices LIBS hydrojet_devices hydrojet_config)
 # Rig core (line splitter, serial port on a pty pair, gate, aggregator, valve loop, rig.yaml) and the
 # drivers against the PTY emulators in test/emulators/ (Python, standard library only).

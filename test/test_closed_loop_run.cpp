@@ -4,12 +4,16 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iterator>
 #include <string>
 
 #include "hydrojet_control/config/controller_config.h"
 #include "hydrojet_control/config/plant_config.h"
 #include "hydrojet_control/control/path.h"
 #include "hydrojet_control/sim/closed_loop_run.h"
+#include "cli_helpers.h"
 #include "test_helpers.h"
 
 using namespace hydrojet;
@@ -207,4 +211,89 @@ TEST(ClosedLoopRun, IdentifiesThePlantPresent) {
   ASSERT_GT(r.truth.mode_hz, 0.0);
   EXPECT_NEAR(r.identified.mode_hz / r.truth.mode_hz, 1.0, 0.05);
   EXPECT_NEAR(r.identified.damping_ratio / r.truth.damping_ratio, 1.0, 0.3);
+}
+
+// The rig's first day: identify on the shipped plant writes the identification file, its mode within
+// 5 % of the plant's truth (at rest, where the run ends); the controller file's identification/file
+// loads it (relative to the controller file), and a controller so configured starts with that mode
+// and does not probe again (its path's approach is not the longer by the probe's 2.3 s).
+TEST(Identify, WritesTheFileThatTheControllerLoads) {
+  const std::string dir = ::testing::TempDir() + "identify_" + std::to_string(getpid());
+  ASSERT_EQ(std::system(("mkdir -p " + dir).c_str()), 0);
+  const std::string src = HYDROJET_SOURCE_DIR;
+  const test::CliRun run = test::run_cli(std::string(HYDROJET_BIN_DIR) + "/identify",
+                                         "--scene " + src + "/config/scenes/hydrojet_0deg.yaml --plant " + src +
+                                             "/config/plant.yaml --controller " + src +
+                                             "/config/controller.yaml --out " + dir + "/identified.yaml");
+  ASSERT_EQ(run.status, 0) << run.err;
+  const std::string json = run.last_line();
+  const double mode = test::number_field(test::object_field(json, "identified"), "mode_hz");
+  const double truth = test::number_field(test::object_field(json, "plant_truth"), "mode_hz");
+  EXPECT_NEAR(mode / truth, 1.0, 0.05) << json;
+  const control::PlantIdentity id = config::load_identification(dir + "/identified.yaml");
+  EXPECT_TRUE(id.mode_identified);
+  EXPECT_NEAR(id.mode_hz, mode, 1e-4 * mode);
+  EXPECT_EQ(id.valve_time_constants_s.size(), 3u);
+  // A controller file next to it that names it relatively.
+  std::ifstream shipped_file(src + "/config/controller.yaml");
+  std::string text((std::istreambuf_iterator<char>(shipped_file)), std::istreambuf_iterator<char>());
+  const size_t group = text.find("\nidentification:");
+  ASSERT_NE(group, std::string::npos);
+  text.insert(text.find('\n', group + 1) + 1, "  file: identified.yaml\n");
+  std::ofstream(dir + "/controller.yaml") << text;
+  const config::ControllerNodeOptions o = config::load_controller_options(dir + "/controller.yaml");
+  ASSERT_TRUE(o.controller.identification.known.mode_identified);
+  EXPECT_NEAR(o.controller.identification.known.tip_mass_scale, id.tip_mass_scale, 1e-5 * id.tip_mass_scale);
+  const ShippedSetup setup = shipped("hydrojet_0deg");
+  control::ControllerOptions c = o.controller;
+  c.path.duration = 20.0;
+  sim::RunPlan on;
+  on.start = sim::RunStart::kOnPath;
+  const sim::RunResult known = sim::run_path(setup.model, c, setup.plant, 1, on);
+  c.identification = setup.controller.identification;  // no file: the probe runs
+  const sim::RunResult probed = sim::run_path(setup.model, c, setup.plant, 1, on);
+  ASSERT_TRUE(known.completed) << known.reason;
+  ASSERT_TRUE(probed.completed) << probed.reason;
+  EXPECT_TRUE(known.identified.mode_identified);
+  EXPECT_NEAR(known.identified.tip_mass_scale, id.tip_mass_scale, 1e-9);
+  EXPECT_LT(known.approach_time, probed.approach_time - 2.0);
+}
+
+// A broken identification file is refused naming the key, and nothing is loaded.
+TEST(Identify, ABrokenFileIsRefusedNamingTheKey) {
+  const std::string path = ::testing::TempDir() + "identification_" + std::to_string(getpid()) + ".yaml";
+  const std::string good =
+      "identification: {tip_mass_scale: 2.5, damping_time: 0.02, valve_time_constants_s: [0.04, 0.05, 0.035], "
+      "tracker_latency_s: 0.01, mode_hz: 3.2, damping_ratio: 0.2}\n";
+  std::ofstream(path) << good;
+  EXPECT_NEAR(config::load_identification(path).tip_mass_scale, 2.5, 1e-12);
+  const std::pair<std::string, std::string> bad[] = {
+      {"identification: {tip_mass_scale: 2.5}\n", "identification/damping_time"},
+      {"identification: {tip_mass_scale: .nan, damping_time: 0.02, valve_time_constants_s: [0.04], "
+       "tracker_latency_s: 0, mode_hz: 3, damping_ratio: 0.2}\n",
+       "identification/tip_mass_scale"},
+      {"identification: {tip_mass_scale: 2.5, damping_time: 0.02, valve_time_constants_s: [-0.04], "
+       "tracker_latency_s: 0, mode_hz: 3, damping_ratio: 0.2}\n",
+       "identification/valve_time_constants_s"},
+      {"identification: {tip_mass_scale: 2.5, damping_time: 0.02, valve_time_constants_s: [0.04], "
+       "tracker_latency_s: 0, mode_hz: 3, damping_ratio: 0.2, extra: 1}\n",
+       "identification/extra"},
+      {"[1, 2\n", "identification/file"},
+  };
+  for (const auto& [text, key] : bad) {
+    std::ofstream(path) << text;
+    try {
+      config::load_identification(path);
+      ADD_FAILURE() << "accepted: " << text;
+    } catch (const config::ParamError& e) {
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+    }
+  }
+  try {
+    config::load_identification(path + ".missing");
+    ADD_FAILURE() << "a missing file was accepted";
+  } catch (const config::ParamError& e) {
+    EXPECT_NE(std::string(e.what()).find("identification/file"), std::string::npos) << e.what();
+  }
+  std::remove(path.c_str());
 }

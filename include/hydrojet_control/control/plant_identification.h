@@ -72,8 +72,9 @@ class ValveLagEstimator {
  public:
   /// g on these duties: closer at small openings, where dead zones put the curve's kink.
   static constexpr int kKnots = 14;
-  static constexpr double kKnotDuty[kKnots] = {0.0, 0.02, 0.04, 0.06, 0.08, 0.1, 0.13, 0.17, 0.22, 0.3, 0.4, 0.55, 0.75, 1.0};
-  static constexpr int kPlays = 5;   ///< play widths 0, 0.01, ..., 0.04 [duty]
+  static constexpr double kKnotDuty[kKnots] = {0.0,  0.02, 0.04, 0.06, 0.08, 0.1,  0.13,
+                                               0.17, 0.22, 0.3,  0.4,  0.55, 0.75, 1.0};
+  static constexpr int kPlays = 5;  ///< play widths 0, 0.01, ..., 0.04 [duty]
   /// prior_lag [s]: the estimate until the data say otherwise; max_flow [m^3/s]: the flows' scale.
   ValveLagEstimator(double prior_lag = 0.04, double max_flow = 1.6e-5);
   void reset();
