@@ -154,7 +154,8 @@ TEST(ClosedLoopRun, TheRoundingForceHelpsAPathThroughTheCentre) {
 }
 
 // The supervisor on a plant set to ring: a light capsule (×1.5), little damping (Kelvin–Voigt 8 ms)
-// and a tracker 30 ms late, under modal gains the rod cannot take (K_p 12, K_i 40). Without the
+// and a tracker 30 ms late, under modal gains the rod cannot take (K_p 12, K_i 33 after the latency's
+// scaling, modal_gains: 21 and 100 before it). Without the
 // supervisor the run aborts on the 0.5 rad oscillation limit; with it the law falls back to the
 // paper's before that, and the run completes.
 TEST(ClosedLoopRun, TheSupervisorActsBeforeTheAbort) {
@@ -164,8 +165,8 @@ TEST(ClosedLoopRun, TheSupervisorActsBeforeTheAbort) {
       "plant: {mismatch: {tip_mass_scale: 1.5}, dynamics: {kelvin_voigt_time: 0.008}, tracker: {latency: 0.03}}");
   control::ControllerOptions c = setup.controller;
   c.path.duration = 20.0;
-  c.modal.kp = 12.0;
-  c.modal.ki = 40.0;
+  c.modal.kp = 21.0;
+  c.modal.ki = 100.0;
   sim::RunPlan on;
   on.start = sim::RunStart::kOnPath;
   c.modal.ring_amplitude = 1.0;  // no supervisor: the swing never reaches it before the abort

@@ -195,6 +195,23 @@ TEST(ModalLaw, TheShapingInvertsTheModeAndTheActuatorLagOnASinusoid) {
   }
 }
 
+// A latency keeps the crossover's phase lag (k_p times the loop's delay) and the PI zero's place
+// under the crossover (k_i / k_p²) of the latency-free tuning; none leaves the gains as they are.
+TEST(ModalLaw, TheGainsKeepTheCrossoversPhaseLagUnderLatency) {
+  ModalLawOptions o;
+  const double T = 0.01, own = T + o.actuator_lag;
+  const auto none = hydrojet::control::modal_gains(o, T, 0.0);
+  EXPECT_DOUBLE_EQ(none.kp, o.kp);
+  EXPECT_DOUBLE_EQ(none.ki, o.ki);
+  for (double latency : {0.01, 0.02, 0.03, 0.1}) {
+    const auto g = hydrojet::control::modal_gains(o, T, latency);
+    EXPECT_NEAR(g.kp * (own + latency), o.kp * own, 1e-12) << latency;
+    EXPECT_NEAR(g.ki / (g.kp * g.kp), o.ki / (o.kp * o.kp), 1e-12) << latency;
+    EXPECT_LT(g.kp, none.kp);
+  }
+  EXPECT_DOUBLE_EQ(hydrojet::control::modal_gains(o, T, -1.0).kp, o.kp);  // no latency below zero
+}
+
 TEST(ModalLaw, TheDampingGainOpposesTheEstimatedRateRelativeToThePath) {
   ModalLawOptions o;
   o.damping_gain = 0.5;

@@ -344,6 +344,7 @@ std::string Controller::command_inputs(const ControllerInputs& in, const rod::Ro
   cycle.linearisation = &lin;
   cycle.observed_inputs = &out.jet_force_observed;
   cycle.reference = &reference_;
+  cycle.saturated = !first_cycle_ && at_bound(previous_command_);
   const Vec3 x_cntr = law_->correction(cycle);
   out.law_weight = law_->supervisor_weight();
   out.mode_swing = law_->swing();
@@ -421,10 +422,14 @@ void Controller::observe_plant(const ControllerInputs& in, double dt) {
 // outward limits the reference there (learned_reach.h).
 void Controller::learn_reach(double dt, const ControllerOutput& out) {
   if (options_.mode != LoopMode::kClosed || probe_.active()) return;
-  bool saturated = false;
-  for (int i = 0; i < jets_.input_count(); ++i)
-    saturated = saturated || (model_.upper()[i] > 0.0 && out.jet_force_command[i] >= 0.97 * model_.upper()[i]);
-  reference_.learned_reach().update(saturated, out.measured_direction, out.desired_direction, dt);
+  reference_.learned_reach().update(at_bound(out.jet_force_command), out.measured_direction, out.desired_direction, dt);
+}
+
+// A jet commanded to 97 % of its q_max or more: the forces have no authority left that way.
+bool Controller::at_bound(const InputVector& command) const {
+  for (int i = 0; i < jets_.input_count() && i < command.size(); ++i)
+    if (model_.upper()[i] > 0.0 && command[i] >= 0.97 * model_.upper()[i]) return true;
+  return false;
 }
 
 // The modes' options: the modal law's, with the fill identified (or its first guess).

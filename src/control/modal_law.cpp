@@ -9,6 +9,10 @@
 
 namespace hydrojet {
 namespace control {
+namespace {
+constexpr double kSaturationHold = 0.2;     ///< [s] a jet at its bound this long: the law has no authority
+constexpr double kAuthorityRecovery = 0.5;  ///< [s] ... and takes it back over this once none is
+}  // namespace
 
 std::string ModalLawOptions::validate() const {
   const struct {
@@ -94,11 +98,13 @@ void ModalLaw::reset() {
   omega_ = 0.0;
   swing_ = band_power_ = 0.0;
   band_x_[0] = band_x_[1] = band_y_[0] = band_y_[1] = Vec3::Zero();
-  supervisor_weight_ = 1.0;
-  calm_for_ = 0.0;
+  supervisor_weight_ = authority_ = 1.0;
+  calm_for_ = saturated_for_ = 0.0;
 }
 
 void ModalLaw::adopt(const PlantIdentity& identity, double /*lead_time*/) {
+  if (std::isfinite(identity.tracker_latency_s) && identity.tracker_latency_s >= 0.0)
+    latency_ = identity.tracker_latency_s;
   // The valves' lags are measured and reported but not yet taken: in closed loop their estimates
   // scatter (±30-50 %), and the shaping's τ_a from them cost plant A at 30° 0.0321 -> 0.0417 rad
   // (docs/controller.md); modal/actuator_lag stays until they hold.
@@ -111,18 +117,27 @@ void ModalLaw::adopt(const PlantIdentity& identity, double /*lead_time*/) {
 // The PD's gains move from pd/* toward modal/* with this weight of the reference's speed
 // (modal/gain_speed) while the law drives; 0 otherwise.
 double ModalLaw::gain_weight() const {
-  return drives_ ? supervisor_weight_ * control::fast_path_weight(pd_.speed(), options_.gain_speed) : 0.0;
+  return drives_ ? supervisor_weight() * control::fast_path_weight(pd_.speed(), options_.gain_speed) : 0.0;
 }
 
 // ζ of the first mode: Kelvin–Voigt damping of time τ gives 2ζω = τω².
 double ModalLaw::damping_ratio() const { return 0.5 * omega_ * options_.damping_time; }
 
+PdOptions modal_gains(const ModalLawOptions& o, double sample_period, double latency) {
+  const double own = sample_period + o.actuator_lag, r = own / (own + std::max(latency, 0.0));
+  PdOptions g;
+  g.kp = r * o.kp;
+  g.ki = r * r * o.ki;
+  return g;
+}
+
 Vec3 ModalLaw::correction(const LawCycle& c) {
   estimate(c);
   PdOptions gains = pd_options_;
   if (const double w = gain_weight(); w > 0.0) {
-    gains.kp = pd_options_.kp + w * (options_.kp - pd_options_.kp);
-    gains.ki = pd_options_.ki + w * (options_.ki - pd_options_.ki);
+    const PdOptions top = modal_gains(options_, sample_period_, latency_);
+    gains.kp = pd_options_.kp + w * (top.kp - pd_options_.kp);
+    gains.ki = pd_options_.ki + w * (top.ki - pd_options_.ki);
   }
   const Vec3 shaping = shaping_step(c);  // weighted by the speed over the last step, before this one's
   return pd_.correction(c.observed, c.desired, c.dt, gains) + shaping;
@@ -169,10 +184,17 @@ void ModalLaw::estimate(const LawCycle& c) {
 // the path's slow error and most of the tracker's noise fall outside), its amplitude over ~0.1 s.
 // Past ring_amplitude (the law rings the rod, or the plant is not what the law takes it for) the
 // paper's law takes the cycle at once; after recover_time of calm the modal law takes it back over
-// recover_time. Before the 0.5 rad abort (safety/max_oscillation).
+// recover_time. Before the 0.5 rad abort (safety/max_oscillation). A jet held at its bound leaves
+// the law no authority to shape or damp with (its gains and shaping wind up against the bound): the
+// paper's law takes the cycle until no jet is, then hands back within half a second.
 void ModalLaw::supervise(const LawCycle& c) {
   const double dt = c.dt;
   if (!(dt > 0.0)) return;
+  saturated_for_ = c.saturated ? saturated_for_ + dt : 0.0;
+  if (saturated_for_ >= kSaturationHold)
+    authority_ = 0.0;
+  else if (!c.saturated)
+    authority_ = std::min(1.0, authority_ + dt / kAuthorityRecovery);
   const double w0 = std::min(omega_ * dt, 2.5), alpha = 0.5 * std::sin(w0), a0 = 1.0 + alpha;
   const Vec3 x = c.measured - c.desired;
   const Vec3 y = (alpha * x - alpha * band_x_[1] + 2.0 * std::cos(w0) * band_y_[0] - (1.0 - alpha) * band_y_[1]) / a0;
@@ -220,12 +242,17 @@ Vec3 ModalLaw::shaping_step(const LawCycle& c) {
   r.rate = (d - a) / (2 * h);
   r.accel = (d - 2 * b + a) / (h * h);
   r.rate_now = (a - c.desired) / h;
-  const Vec3 m = fast_path_weight() * modal_shaping(r, now_.rate(), omega_, damping_ratio(), options_);
-  // The supervisor weighs the increments, not m: its fall-back must not kick the forces by −m.
-  const Vec3 step = shaping_primed_
-                        ? Vec3(supervisor_weight_ * Vec3(c.solution->tip_rotation.col(2)).cross(m - previous_shaping_))
-                        : Vec3::Zero();
-  previous_shaping_ = m;
+  // Its feedforward (the path's own motion) apart from its damping (v̂ − ṙ: zero in the first).
+  const double w = fast_path_weight();
+  const Vec3 feedforward = w * modal_shaping(r, r.rate_now, omega_, damping_ratio(), options_);
+  const Vec3 damping = w * modal_shaping(r, now_.rate(), omega_, damping_ratio(), options_) - feedforward;
+  // The supervisor weighs the increments, not m: its fall-back must not kick the forces by −m. A jet
+  // held at its bound stops the feedforward (it winds up there), not the damping.
+  const Vec3 change = authority_ * (feedforward - previous_feedforward_) + (damping - previous_shaping_);
+  const Vec3 step =
+      shaping_primed_ ? Vec3(supervisor_weight_ * Vec3(c.solution->tip_rotation.col(2)).cross(change)) : Vec3::Zero();
+  previous_feedforward_ = feedforward;
+  previous_shaping_ = damping;
   shaping_primed_ = true;
   return step;
 }

@@ -1,6 +1,7 @@
 #include "hydrojet_control/sim/closed_loop_run.h"
 
 #include "hydrojet_control/identification/mode_fit.h"
+#include "hydrojet_control/util/json_writer.h"
 
 #include <algorithm>
 #include <chrono>
@@ -230,6 +231,22 @@ control::PlantIdentity plant_truth(const plant::Plant& plant) {
   truth.mode_hz = fit.hz();
   truth.damping_ratio = fit.zeta;
   return truth;
+}
+
+std::string identity_json(const control::PlantIdentity& id, bool identified) {
+  util::JsonObject o;
+  if (id.mode_hz > 0.0)
+    o.add("mode_hz", id.mode_hz).add("damping_ratio", id.damping_ratio);
+  else
+    o.add_null("mode_hz").add_null("damping_ratio");
+  o.add("valve_time_constants_s",
+        Eigen::Map<const Eigen::VectorXd>(id.valve_time_constants_s.data(), id.valve_time_constants_s.size()));
+  o.add("tracker_latency_s", id.tracker_latency_s);
+  if (identified) {  // what was measured, and what is still the controller file's first guess
+    o.add("mode_identified", id.mode_identified).add("valves_identified", id.valves_identified);
+    if (!id.mode_error.empty()) o.add("mode_error", id.mode_error);
+  }
+  return o.str();
 }
 
 RunResult run_path(const control::RobotModel& model, const control::ControllerOptions& params,

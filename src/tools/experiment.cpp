@@ -223,24 +223,6 @@ void run_jobs(std::vector<Job>& jobs, const Setup& setup, int threads, sim::RunS
   for (auto& t : pool) t.join();
 }
 
-/// The experiment's `identified` and `plant_truth`: the mode (null when not known), the valves' lags
-/// (one per actuator, 0 for a force actuator) and the tracker's latency.
-std::string identity_json(const control::PlantIdentity& id, bool identified) {
-  util::JsonObject o;
-  if (id.mode_hz > 0.0)
-    o.add("mode_hz", id.mode_hz).add("damping_ratio", id.damping_ratio);
-  else
-    o.add_null("mode_hz").add_null("damping_ratio");
-  o.add("valve_time_constants_s",
-        Eigen::Map<const Eigen::VectorXd>(id.valve_time_constants_s.data(), id.valve_time_constants_s.size()));
-  o.add("tracker_latency_s", id.tracker_latency_s);
-  if (identified) {  // what was measured, and what is still the controller file's first guess
-    o.add("mode_identified", id.mode_identified).add("valves_identified", id.valves_identified);
-    if (!id.mode_error.empty()) o.add("mode_error", id.mode_error);
-  }
-  return o.str();
-}
-
 /// Writes a CSV per run and summary.csv into out; returns the JSON array of the runs and the
 /// realtime factor (simulated / wall seconds over all runs).
 std::string write_results(const std::vector<Job>& jobs, const std::string& out, double* realtime_factor) {
@@ -273,7 +255,7 @@ std::string write_results(const std::vector<Job>& jobs, const std::string& out, 
       o.add_null("aborted_at_s");
     o.add("time_scale", r.time_scale).add("reach_limited_s", r.reach_limited_s);
     o.add("supervisor_fallbacks", r.supervisor_fallbacks).add("supervised_s", r.supervised_s);
-    o.raw("identified", identity_json(r.identified, true)).raw("plant_truth", identity_json(r.truth, false));
+    o.raw("identified", sim::identity_json(r.identified, true)).raw("plant_truth", sim::identity_json(r.truth, false));
     runs += (j ? ", " : "") + o.str();
   }
   *realtime_factor = wall_s > 0 ? sim_s / wall_s : 0.0;

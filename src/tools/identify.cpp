@@ -41,18 +41,6 @@ std::string list(const std::vector<double>& v) {
   return s + "]";
 }
 
-std::string json(const control::PlantIdentity& id) {
-  util::JsonObject o;
-  if (id.mode_hz > 0.0)
-    o.add("mode_hz", id.mode_hz).add("damping_ratio", id.damping_ratio);
-  else
-    o.add_null("mode_hz").add_null("damping_ratio");
-  o.add("valve_time_constants_s",
-        Eigen::Map<const Eigen::VectorXd>(id.valve_time_constants_s.data(), id.valve_time_constants_s.size()));
-  o.add("tracker_latency_s", id.tracker_latency_s);
-  return o.str();
-}
-
 /// The command line into the arguments; false (after saying why) on a usage error.
 bool parse_args(int argc, char** argv, std::string* scene, std::string* plant, std::string* controller,
                 std::string* out, unsigned* seed) {
@@ -167,7 +155,9 @@ int main(int argc, char** argv) {
   std::printf("identified: mode %.3f Hz, damping ratio %.3f, tracker %.3f s late, valves %s s -> %s\n", id.mode_hz,
               id.damping_ratio, id.tracker_latency_s, list(id.valve_time_constants_s).c_str(), out.c_str());
   util::JsonObject o;
-  o.raw("identified", json(id)).raw("plant_truth", json(r.truth)).add("out", out);
+  o.raw("identified", sim::identity_json(id, true))
+      .raw("plant_truth", sim::identity_json(r.truth, false))
+      .add("out", out);
   std::printf("%s\n", o.str().c_str());
   return 0;
 }

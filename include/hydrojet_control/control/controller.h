@@ -126,6 +126,7 @@ class Controller {
   void approach(double t, ControllerOutput& out);
   void observe_plant(const ControllerInputs& in, double dt);
   void learn_reach(double dt, const ControllerOutput& out);
+  bool at_bound(const InputVector& command) const;
   void begin_probe(double t, const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin);
   void probe(const ControllerInputs& in, const rod::RodSolution& sol, ControllerOutput& out);
   void adopt_mode_fit(const identification::ModeFit& fit, double t);

@@ -35,6 +35,7 @@ struct LawCycle {
   const ActuatedModel::Linearisation* linearisation = nullptr;  ///< its C^b and J_q
   const InputVector* observed_inputs = nullptr;                 ///< q_obs [N]
   const Reference* reference = nullptr;                         ///< the reference, advanced to x_des
+  bool saturated = false;  ///< a jet's last command was at its bound (Controller::at_bound)
 };
 
 /// A law: eq. (17)'s PD (DirectionPd, each law's own gains from the PD's) and what the law adds.

@@ -37,8 +37,10 @@ namespace control {
 /// tip_mass_scale, its inertia, the probes) and the law's own.
 struct ModalLawOptions : ModalOptions {
   ModalLawOptions() { tip_mass_scale = 3.0; }  ///< water fills the capsule (the plants: ×1.5–4)
-  double kp = 5.0;                             ///< K_p of the PD under the modal law [1/s]
-  double ki = 12.0;                            ///< K_i of the PD under the modal law [1/s²]
+  /// K_p of the PD under the modal law on a plant whose tracker has no latency [1/s]; a latency L
+  /// (identified) scales it by (T + τ_a)/(T + τ_a + L) (T the sample period, τ_a actuator_lag) ...
+  double kp = 5.0;
+  double ki = 12.0;  ///< ... and K_i, by that ratio squared [1/s²]
   /// v_s [rad/s]: the PD's gains move from the paper's law's (gains/*) to kp, ki with the weight
   /// v²/(v² + v_s²) of the reference's speed v (fast_path_weight); 0: kp, ki at every speed.
   double gain_speed = 0.25;
@@ -86,6 +88,12 @@ class ModalEstimator {
   Eigen::Matrix3d P_ = Eigen::Matrix3d::Zero();
 };
 
+/// The PD's gains at full speed (kp, ki; the rest default) on a loop whose tracker lags by `latency`
+/// [s]: the loop's own delay D₀ = T + τ_a (sample_period, actuator_lag) over D₀ + latency scales kp,
+/// so the crossover's phase lag k_p·D stays that of the latency-free tuning, and ki by its square, so
+/// the PI's zero keeps its place under the crossover.
+PdOptions modal_gains(const ModalLawOptions& o, double sample_period, double latency);
+
 /// The (A, B) of one component's (y, v, d) over dt [s] with s held (exact: the exponential of the
 /// augmented generator).
 void modal_transition(double omega, double zeta, double dt, Eigen::Matrix3d* A, Eigen::Vector3d* B);
@@ -121,8 +129,9 @@ class ModalLaw : public DirectionLaw {
   const ModalEstimator& estimator() const { return estimator_; }
   /// The tracking error's swing at the mode's frequency [rad] (the supervisor's measure).
   double swing() const override { return swing_; }
-  /// The supervisor's share of the modal law in [0, 1]: 0 fell back to the paper's law.
-  double supervisor_weight() const override { return supervisor_weight_; }
+  /// The supervisor's share of the modal law in [0, 1]: 0 fell back to the paper's law (the mode
+  /// rang, or a jet is at its bound).
+  double supervisor_weight() const override { return supervisor_weight_ * authority_; }
 
  private:
   void estimate(const LawCycle& c);
@@ -141,13 +150,17 @@ class ModalLaw : public DirectionLaw {
   double time_ = 0.0;            ///< [s] of the estimator's last step: the stamp of the last tracker sample it took
   ModalEstimator now_;           ///< the estimator predicted from time_ to the cycle's time (the tracker's latency)
   bool shaping_primed_ = false;  ///< previous_shaping_ holds the last step's m
-  Vec3 previous_shaping_ = Vec3::Zero();  ///< m at the last step
-  double omega_ = 0.0;                    ///< the first mode at the current equilibrium [rad/s] (0: none yet)
-  double swing_ = 0.0;                    ///< [rad] (swing())
-  double band_power_ = 0.0;               ///< the band-passed error's mean square over ~0.1 s
-  Vec3 band_x_[2], band_y_[2];            ///< the band-pass's last two inputs and outputs
-  double supervisor_weight_ = 1.0;        ///< (supervisor_weight())
-  double calm_for_ = 0.0;                 ///< [s] the swing has stayed below half of ring_amplitude
+  Vec3 previous_shaping_ = Vec3::Zero();      ///< m's damping at the last step
+  Vec3 previous_feedforward_ = Vec3::Zero();  ///< m's feedforward at the last step
+  double latency_ = 0.0;                      ///< the tracker's latency identified [s] (adopt)
+  double omega_ = 0.0;                        ///< the first mode at the current equilibrium [rad/s] (0: none yet)
+  double swing_ = 0.0;                        ///< [rad] (swing())
+  double band_power_ = 0.0;                   ///< the band-passed error's mean square over ~0.1 s
+  Vec3 band_x_[2], band_y_[2];                ///< the band-pass's last two inputs and outputs
+  double supervisor_weight_ = 1.0;            ///< (supervisor_weight())
+  double authority_ = 1.0;                    ///< 0 while a jet is held at its bound (supervise)
+  double saturated_for_ = 0.0;                ///< [s] a jet has been at its bound
+  double calm_for_ = 0.0;                     ///< [s] the swing has stayed below half of ring_amplitude
 };
 
 }  // namespace control

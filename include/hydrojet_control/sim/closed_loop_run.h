@@ -64,10 +64,10 @@ struct RunResult {
   double wall_seconds = 0.0;
   double simulated_seconds = 0.0;
   std::vector<RunSample> samples;
-  double time_scale = 1.0;            ///< how much longer than written the path took (its clock's time scaling)
-  double reach_limited_s = 0.0;       ///< [s] of the path clipped to the reach the jets showed (LearnedReach)
-  int supervisor_fallbacks = 0;       ///< times the law's supervisor fell back to the paper's law
-  double supervised_s = 0.0;          ///< [s] of the path with the law's weight below 1
+  double time_scale = 1.0;       ///< how much longer than written the path took (its clock's time scaling)
+  double reach_limited_s = 0.0;  ///< [s] of the path clipped to the reach the jets showed (LearnedReach)
+  int supervisor_fallbacks = 0;  ///< times the law fell back to the paper's (the mode rang, a jet held at its bound)
+  double supervised_s = 0.0;     ///< [s] of the path with the law's weight below 1
   control::PlantIdentity identified;  ///< what the controller ended with (Controller::identity)
   control::PlantIdentity truth;       ///< the plant's (plant_truth) at the run's end
 };
@@ -77,6 +77,11 @@ struct RunResult {
 /// push at the tip, fitted as the controller's probe is: identification::fit_mode), each jet's
 /// valve lag and the tracker's latency. mode_hz stays 0 when the rod's vibration could not be fitted.
 control::PlantIdentity plant_truth(const plant::Plant& plant);
+
+/// An identity as the experiment's and identify's JSON carry it (`identified`, `plant_truth`): mode_hz
+/// and damping_ratio (null when not known), valve_time_constants_s (one per actuator, 0 for a force
+/// actuator), tracker_latency_s; `identified` adds what was measured and what is still a first guess.
+std::string identity_json(const control::PlantIdentity& id, bool identified);
 
 /// The base tilt of a scene [deg, rounded] from its gravity in the base frame (0° hangs the rod
 /// along +z): the experiment's tilt_deg.
