@@ -37,7 +37,7 @@ add_dependencies(test_rod_fk_cli rod_fk)
 # Operator control's core pieces: paths, reachable set, look-at solver.
 hydrojet_gtest(test_operator_core LIBS hydrojet_config)
 # The simulated plant's parts, its valve model, and closed-loop runs.
-foreach(t test_plant test_hydraulics test_closed_loop_run)
+foreach(t test_plant test_hydraulics test_environment test_closed_loop_run)
   hydrojet_gtest(${t} LIBS hydrojet_sim hydrojet_config)
 endforeach()
 add_dependencies(test_closed_loop_run identify)

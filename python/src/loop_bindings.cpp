@@ -6,6 +6,7 @@
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
+#include <cmath>
 #include <memory>
 #include <optional>
 #include <tuple>
@@ -163,6 +164,16 @@ nb::dict run_experiment(const std::string& scene_file, const std::string& plant_
   d["supervised_s"] = r.supervised_s;
   d["identified"] = identity_dict(r.identified, true);
   d["plant_truth"] = identity_dict(r.truth, false);
+  auto or_none = [](double v) { return std::isfinite(v) ? nb::cast(v) : nb::none(); };
+  const sim::ContactSummary& c = r.contact;  // as the experiment's JSON
+  d["contact_onsets"] = c.onsets;
+  d["detection_delay_s"] = or_none(c.detection_delay_s);
+  d["missed_contact_s"] = c.missed_contact_s;
+  d["false_contact_s"] = c.false_contact_s;
+  d["max_contact_force_n"] = c.max_contact_force_n;
+  d["max_contact_force_after_detection_n"] = or_none(c.max_contact_force_after_detection_n);
+  d["external_force_rms_error_n"] = c.external_force_rms_error_n;
+  d["min_clearance_m"] = or_none(c.min_clearance_m);
   return d;
 }
 

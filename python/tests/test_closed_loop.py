@@ -80,3 +80,21 @@ def test_a_controller_file_with_a_moved_key_is_read_with_a_warning(tmp_path):
     old.write_text("gains: {kp: 2.5}\npd: {kp: 3.0}\n")
     with pytest.raises(ValueError, match=r"gains/kp: moved to pd/kp"):
         hydrojet.Controller(scene, old)
+
+
+def test_run_experiment_carries_the_experiments_contact_figures(tmp_path):
+    """On the plant with a wall, run_experiment's contact fields are the experiment tool's."""
+    args = [tool("experiment"), "--scene", config("scenes/hydrojet_0deg.yaml"), "--plant", config("plants/wall.yaml"),
+            "--controller", config("controller.yaml"), "--seeds", "1", "--threads", "1", "--start", "on-path",
+            "--duration", "20", "--out", str(tmp_path)]
+    out = subprocess.run(args, capture_output=True, text=True, check=True)
+    ref = next(r for r in json.loads(out.stdout.strip().splitlines()[-1])["runs"] if r["mode"] == "closed")
+    run = hydrojet.run_experiment(config("scenes/hydrojet_0deg.yaml"), plant=config("plants/wall.yaml"), duration=20.0,
+                                  start="on-path")
+    assert ref["contact_onsets"] >= 1 and ref["max_contact_force_n"] > 0.02  # the spiral meets the wall
+    for key in ("contact_onsets", "detection_delay_s", "missed_contact_s", "false_contact_s", "max_contact_force_n",
+                "max_contact_force_after_detection_n", "external_force_rms_error_n", "min_clearance_m"):
+        if ref[key] is None:
+            assert run[key] is None, key
+        else:
+            assert run[key] == pytest.approx(ref[key], rel=1e-9, abs=1e-12), key

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 namespace hydrojet {
@@ -28,6 +29,77 @@ void parse_valve(const YAML::Node& n, const std::string& path, plant::ValveModel
   v->saturation = t.number("saturation", v->saturation);
   const std::string e = v->validate();
   if (!e.empty()) t.fail(e.substr(0, e.find(':')), e.substr(e.find(':') + 2));
+}
+
+/// One surface of plant.environment.surfaces (its path names it in errors).
+plant::Surface parse_surface(const YAML::Node& n, const std::string& path) {
+  if (!n.IsMap()) throw SceneError(path, "must be a mapping");
+  Tree t(n, '.', path + ".");
+  plant::Surface s;
+  const std::string type = t.text("type", "");
+  if (type == "plane") {
+    t.keys("", {"type", "point", "normal", "stiffness", "damping", "friction"});
+    s.type = plant::SurfaceType::kPlane;
+    s.point = t.vec3<Eigen::Vector3d>("point");
+    s.normal = t.vec3<Eigen::Vector3d>("normal");
+  } else if (type == "sphere") {
+    t.keys("", {"type", "centre", "radius", "inside", "stiffness", "damping", "friction"});
+    s.type = plant::SurfaceType::kSphere;
+    s.point = t.vec3<Eigen::Vector3d>("centre");
+    s.radii = Eigen::Vector3d::Constant(t.number("radius"));
+    s.inside = t.boolean("inside", false);
+  } else if (type == "ellipsoid") {
+    t.keys("", {"type", "centre", "radii", "inside", "stiffness", "damping", "friction"});
+    s.type = plant::SurfaceType::kEllipsoid;
+    s.point = t.vec3<Eigen::Vector3d>("centre");
+    s.radii = t.vec3<Eigen::Vector3d>("radii");
+    s.inside = t.boolean("inside", false);
+  } else {
+    t.fail("type", "must be plane, sphere or ellipsoid (got '" + type + "')");
+  }
+  s.stiffness = t.number("stiffness", s.stiffness);
+  s.damping = t.number("damping", s.damping);
+  s.friction = t.number("friction", s.friction);
+  const std::string e = s.validate();
+  if (!e.empty()) t.fail(e.substr(0, e.find(':')), e.substr(e.find(':') + 2));
+  return s;
+}
+
+/// One load of plant.external_loads.
+plant::ExternalLoad parse_load(const YAML::Node& n, const std::string& path) {
+  if (!n.IsMap()) throw SceneError(path, "must be a mapping");
+  Tree t(n, '.', path + ".");
+  t.keys("", {"start", "end", "force", "moment", "frame"});
+  plant::ExternalLoad l;
+  l.start = t.number("start", 0.0);
+  l.end = t.number("end", std::numeric_limits<double>::infinity());
+  if (!(l.end >= l.start)) t.fail("end", "must not be before start");
+  l.force = t.vec3<Eigen::Vector3d>("force", l.force);
+  l.moment = t.vec3<Eigen::Vector3d>("moment", l.moment);
+  const std::string frame = t.text("frame", "tip");
+  if (frame != "tip" && frame != "base") t.fail("frame", "must be tip or base (got '" + frame + "')");
+  l.tip_frame = frame == "tip";
+  return l;
+}
+
+/// plant.environment (tip_radius, surfaces) and plant.external_loads.
+void parse_environment(Tree& t, plant::PlantModel* p) {
+  plant::Environment& env = p->environment;
+  t.keys("plant.environment", {"tip_radius", "surfaces"});
+  env.tip_radius = t.nonnegative("plant.environment.tip_radius", env.tip_radius);
+  for (const char* list : {"plant.environment.surfaces", "plant.external_loads"}) {
+    if (!t.has(list)) continue;
+    t.allow(list);
+    const YAML::Node v = t.find(list);
+    if (!v.IsSequence()) t.fail(list, "must be a list of mappings");
+    for (size_t i = 0; i < v.size(); ++i) {
+      const std::string at = std::string(list) + "[" + std::to_string(i) + "]";
+      if (std::string(list) == "plant.environment.surfaces")
+        env.surfaces.push_back(parse_surface(v[i], at));
+      else
+        env.loads.push_back(parse_load(v[i], at));
+    }
+  }
 }
 
 /// The root of a plant file's text; SceneError("plant", ...) when it is not YAML.
@@ -114,8 +186,10 @@ void parse_plant_section(const YAML::Node& root, plant::ModelMismatch* m, plant:
   Tree t(root, '.');
   t.section("plant");
   t.keys("plant", {"mismatch", "dynamics", "valves", "tracker", "flow_sensors", "sensor_noise", "command_timeout",
-                   "thruster_time_constant", "external_tip_force", "external_tip_moment", "base_position"});
+                   "thruster_time_constant", "external_tip_force", "external_tip_moment", "base_position",
+                   "environment", "external_loads"});
   parse_mismatch(t, m);
+  parse_environment(t, p);
   parse_dynamics_and_sensors(t, p);
   parse_valves(t, p);
   p->sensor_noise = t.boolean("plant.sensor_noise", p->sensor_noise);

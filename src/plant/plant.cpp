@@ -39,6 +39,7 @@ std::string PlantModel::validate() const {
   if (!external_tip_force.allFinite()) return "external_tip_force: must be finite";
   if (!external_tip_moment.allFinite()) return "external_tip_moment: must be finite";
   if (rod.rod.actuators.empty()) return "dynamics.rod.actuators: the robot has none";
+  if (std::string env = environment.validate(); !env.empty()) return "environment." + env;
   return "";
 }
 
@@ -78,6 +79,8 @@ bool Plant::reset() {
   hydraulics_.reset();
   rod_->set_inputs(rod::InputVector::Zero(input_count()));
   error_.clear();
+  contact_ = Contact{};
+  external_force_.setZero();
   if (!rod_->reset_to_static(rod::TipWrench{})) {
     error_ = "rod: " + rod_->last_error();
     return false;
@@ -137,17 +140,49 @@ bool Plant::advance_to(double t) {
     // Command timeout: the valves close when the controller goes silent.
     timed_out_ = t_ - t_command_ > model_.command_timeout;
     step_actuators(timed_out_ ? rod::InputVector(rod::InputVector::Zero(input_count())) : duty_, dt);
-    rod::TipWrench tw;
-    tw.force = model_.external_tip_force;
-    tw.moment = model_.external_tip_moment;
     rod_->set_inputs(jet_forces());  // every actuator acts at its own node
-    if (!rod_->step(tw, dt)) {
-      error_ = "rod: " + rod_->last_error();
-      return false;
-    }
+    if (!step_rod(dt)) return false;
     t_ = i == n ? t : t0 + i * dt;
   }
   return true;
+}
+
+// Near a surface (within the capsule's travel this step and its own radius) the rod steps in
+// substeps of contact_step: the contact force is held over each, as the rod's own wrench is.
+bool Plant::step_rod(double dt) {
+  int substeps = 1;
+  if (!model_.environment.surfaces.empty()) {
+    const Contact near = plant::contact(model_.environment, rod_->tip_position(), rod_->tip_velocity());
+    if (near.clearance < rod_->tip_velocity().norm() * dt + model_.environment.tip_radius)
+      substeps = std::clamp(
+          static_cast<int>(std::ceil(dt / contact_step(model_.environment, model_.rod.rod.tip_mass) - 1e-9)), 1, 1000);
+  }
+  const double h = dt / substeps;
+  for (int k = 0; k < substeps; ++k) {
+    if (!rod_->step(tip_wrench(t_ + k * h), h)) {
+      error_ = "rod: " + rod_->last_error();
+      return false;
+    }
+  }
+  return true;
+}
+
+rod::TipWrench Plant::tip_wrench(double t) {
+  const Eigen::Matrix3d R = rod_->tip_rotation();
+  const Eigen::Vector3d p = rod_->tip_position();
+  Eigen::Vector3d force, moment;
+  loads_at(model_.environment, t, R, &force, &moment);
+  contact_ =
+      model_.environment.surfaces.empty() ? Contact{} : plant::contact(model_.environment, p, rod_->tip_velocity());
+  if (contact_.touching) {
+    force += contact_.force;
+    moment += (contact_.point - p).cross(contact_.force);  // the force acts where the capsule touches
+  }
+  rod::TipWrench w;
+  w.force = model_.external_tip_force + R.transpose() * force;
+  w.moment = model_.external_tip_moment + R.transpose() * moment;
+  external_force_ = R * w.force;
+  return w;
 }
 
 TrackerSample Plant::tracker_sample() {

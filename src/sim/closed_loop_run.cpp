@@ -33,6 +33,9 @@ RunSample record(const plant::Plant& plant, const control::ControllerOutput& out
   s.error_pitch_yaw = out.error_pitch_yaw;
   s.error_true = control::geodesic_error(out.desired_direction, s.truth);
   s.jet_force = plant.jet_forces();
+  s.contact_force = plant.contact().normal_force;
+  s.clearance = plant.contact().clearance;
+  s.external_force = plant.external_force();
   return s;
 }
 
@@ -68,6 +71,50 @@ double water_flow(const control::RobotModel& model, const std::vector<RunSample>
 }
 
 }  // namespace
+
+ContactSummary summarise_contact(const std::vector<RunSample>& samples, double dt) {
+  constexpr double kOnset = 0.02, kMissed = 0.03, kQuietBeforeOnset = 0.5, kQuietForFalse = 0.3, kAfterDetection = 0.3;
+  ContactSummary c;
+  double quiet = 0.0;      // [s] the true normal force has been zero
+  bool armed = false;      // this contact began after kQuietBeforeOnset of none: its first kOnset is an onset
+  double onset = -1.0;     // [s] of an onset not yet flagged (< 0: none)
+  double detected = -1.0;  // [s] of the flag's last rise while the contact lasts (< 0: none)
+  double err2 = 0.0;
+  bool flag_before = false;
+  for (const RunSample& s : samples) {
+    const bool touching = s.contact_force > 0.0;
+    if (touching && quiet > 0.0) armed = quiet >= kQuietBeforeOnset;
+    if (touching && armed && s.contact_force > kOnset) {
+      if (onset >= 0.0)  // the last one was never flagged: its delay is at least this long
+        c.detection_delay_s =
+            std::isnan(c.detection_delay_s) ? s.t - onset : std::max(c.detection_delay_s, s.t - onset);
+      ++c.onsets, onset = s.t, armed = false;
+    }
+    if (s.contact_flag && onset >= 0.0) {
+      c.detection_delay_s = std::isnan(c.detection_delay_s) ? s.t - onset : std::max(c.detection_delay_s, s.t - onset);
+      onset = -1.0;
+    }
+    if (s.contact_flag && !flag_before) detected = s.t;
+    if (!touching) detected = -1.0;
+    if (detected >= 0.0 && s.t - detected >= kAfterDetection)
+      c.max_contact_force_after_detection_n = std::isnan(c.max_contact_force_after_detection_n)
+                                                  ? s.contact_force
+                                                  : std::max(c.max_contact_force_after_detection_n, s.contact_force);
+    if (s.contact_force > kMissed && !s.contact_flag) c.missed_contact_s += dt;
+    quiet = touching ? 0.0 : quiet + dt;
+    if (s.contact_flag && quiet >= kQuietForFalse) c.false_contact_s += dt;
+    c.max_contact_force_n = std::max(c.max_contact_force_n, s.contact_force);
+    c.min_clearance_m = std::min(c.min_clearance_m, s.clearance);
+    err2 += (s.external_force_estimate - s.external_force).squaredNorm();
+    flag_before = s.contact_flag;
+  }
+  if (onset >= 0.0 && !samples.empty()) {  // never flagged: to the run's end
+    const double d = samples.back().t - onset;
+    c.detection_delay_s = std::isnan(c.detection_delay_s) ? d : std::max(c.detection_delay_s, d);
+  }
+  if (!samples.empty()) c.external_force_rms_error_n = std::sqrt(err2 / samples.size());
+  return c;
+}
 
 void read_sensors(plant::Plant& plant, double t, control::ControllerInputs& in) {
   const plant::TrackerSample ts = plant.tracker_sample();
@@ -182,6 +229,7 @@ RunResult run_path(const control::RobotModel& model, const control::ControllerOp
   }
   if (!r.completed && r.reason.empty()) r.reason = "the run's time bound passed before the path ended";
   summarise(r);
+  r.contact = summarise_contact(r.samples, plan.control_period);
   r.identified = controller.identity();
   r.truth = plant_truth(episode.plant());
   r.water_flow = water_flow(model, r.samples);

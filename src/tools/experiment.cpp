@@ -223,6 +223,23 @@ void run_jobs(std::vector<Job>& jobs, const Setup& setup, int threads, sim::RunS
   for (auto& t : pool) t.join();
 }
 
+/// The run's contact figures (sim::ContactSummary): a figure with nothing to measure is null.
+void add_contact(util::JsonObject& o, const sim::ContactSummary& c) {
+  auto number_or_null = [&o](const char* key, double v) {
+    if (std::isfinite(v))
+      o.add(key, v);
+    else
+      o.add_null(key);
+  };
+  o.add("contact_onsets", c.onsets);
+  number_or_null("detection_delay_s", c.detection_delay_s);
+  o.add("missed_contact_s", c.missed_contact_s).add("false_contact_s", c.false_contact_s);
+  o.add("max_contact_force_n", c.max_contact_force_n);
+  number_or_null("max_contact_force_after_detection_n", c.max_contact_force_after_detection_n);
+  o.add("external_force_rms_error_n", c.external_force_rms_error_n);
+  number_or_null("min_clearance_m", c.min_clearance_m);
+}
+
 /// Writes a CSV per run and summary.csv into out; returns the JSON array of the runs and the
 /// realtime factor (simulated / wall seconds over all runs).
 std::string write_results(const std::vector<Job>& jobs, const std::string& out, double* realtime_factor) {
@@ -256,6 +273,7 @@ std::string write_results(const std::vector<Job>& jobs, const std::string& out, 
     o.add("time_scale", r.time_scale).add("reach_limited_s", r.reach_limited_s);
     o.add("supervisor_fallbacks", r.supervisor_fallbacks).add("supervised_s", r.supervised_s);
     o.raw("identified", sim::identity_json(r.identified, true)).raw("plant_truth", sim::identity_json(r.truth, false));
+    add_contact(o, r.contact);
     runs += (j ? ", " : "") + o.str();
   }
   *realtime_factor = wall_s > 0 ? sim_s / wall_s : 0.0;

@@ -14,6 +14,7 @@
 #include "hydrojet_control/actuation/jet_map.h"
 #include "hydrojet_control/actuation/thrust.h"
 #include "hydrojet_control/plant/dynamic_rod.h"
+#include "hydrojet_control/plant/environment.h"
 #include "hydrojet_control/plant/hydraulics.h"
 #include "hydrojet_control/plant/sensors.h"
 
@@ -47,6 +48,8 @@ struct PlantModel {
   /// a tether). Zero by default.
   Eigen::Vector3d external_tip_force = Eigen::Vector3d::Zero();
   Eigen::Vector3d external_tip_moment = Eigen::Vector3d::Zero();
+  /// What the tip meets: surfaces it presses, loads that act for a while (none by default).
+  Environment environment;
   double base_tilt = 0.0;  ///< base turned about its own x-axis [rad] (§7: 0 or 30°)
   double gravity = 9.81;   ///< [m/s^2]
   Eigen::Vector3d base_position = Eigen::Vector3d(0.0, 0.0, 0.25);  ///< base origin in the tracker frame [m]
@@ -99,6 +102,11 @@ class Plant {
   rod::InputVector valve_command() const { return duty_; }
   bool valves_closed_by_timeout() const { return timed_out_; }
   const std::string& error() const { return error_; }
+  /// The capsule against the environment's surfaces at the last step (truth, base frame).
+  const Contact& contact() const { return contact_; }
+  /// The whole external force on the tip at the last step: contact, loads and the constant
+  /// external_tip_force (truth, base frame) [N].
+  const Eigen::Vector3d& external_force() const { return external_force_; }
   Hydraulics& hydraulics() { return hydraulics_; }
   TrackerModel& tracker() { return tracker_; }
   const PlantModel& model() const { return model_; }
@@ -106,6 +114,10 @@ class Plant {
  private:
   /// Advances the actuators by dt under the current command (or closed valves).
   void step_actuators(const rod::InputVector& duty, double dt);
+  /// Steps the rod by dt, in substeps short enough for the stiffest surface it is near.
+  bool step_rod(double dt);
+  /// The tip wrench (tip frame) at time t: the constant one, the loads, the contact at this state.
+  rod::TipWrench tip_wrench(double t);
 
   PlantModel model_;
   std::unique_ptr<DynamicRod> rod_;
@@ -121,6 +133,8 @@ class Plant {
   double t_ = 0.0, t_command_ = -1e300;
   bool timed_out_ = true;
   std::string error_;
+  Contact contact_;
+  Eigen::Vector3d external_force_ = Eigen::Vector3d::Zero();
 };
 
 }  // namespace plant

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -47,7 +48,32 @@ struct RunSample {
   double error_pitch_yaw = 0.0;  ///< [rad]
   double error_true = 0.0;       ///< ∠(x_des, truth) [rad]: tracking without the tracker's noise
   rod::InputVector jet_force;    ///< true actuator forces [N], one per actuator
+  double contact_force = 0.0;    ///< the true contact normal force on the capsule [N]
+  /// The capsule's true least signed distance to a surface [m] (infinite: no surfaces).
+  double clearance = std::numeric_limits<double>::infinity();
+  Eigen::Vector3d external_force = Eigen::Vector3d::Zero();  ///< true: contact, loads, constant [N], base frame
+  bool contact_flag = false;                                 ///< the controller's contact detector
+  Eigen::Vector3d external_force_estimate = Eigen::Vector3d::Zero();  ///< the controller's [N], base frame
 };
+
+/// A run's contact, the truth against what the controller detected and estimated (the experiment's
+/// contact fields). NaN where a figure has nothing to measure (written as null).
+struct ContactSummary {
+  int onsets = 0;  ///< the true normal force first above 0.02 N after ≥ 0.5 s with none
+  /// [s] the worst delay from an onset to the detector's flag (an onset never flagged: to the run's
+  /// end); NaN: no onset.
+  double detection_delay_s = std::nan("");
+  double missed_contact_s = 0.0;  ///< [s] true normal force > 0.03 N and no flag
+  double false_contact_s = 0.0;   ///< [s] flagged while the true normal force has been zero ≥ 0.3 s
+  double max_contact_force_n = 0.0;
+  /// The largest true normal force from 0.3 s after each detection to the contact's end; NaN: no detection.
+  double max_contact_force_after_detection_n = std::nan("");
+  double external_force_rms_error_n = 0.0;                           ///< RMS of |estimated − true external tip force|
+  double min_clearance_m = std::numeric_limits<double>::infinity();  ///< infinite: no surfaces
+};
+
+/// The contact figures of samples taken every dt [s].
+ContactSummary summarise_contact(const std::vector<RunSample>& samples, double dt);
 
 struct RunResult {
   bool completed = false;                                         ///< reached the end of the path without an abort
@@ -70,6 +96,7 @@ struct RunResult {
   double supervised_s = 0.0;     ///< [s] of the path with the law's weight below 1
   control::PlantIdentity identified;  ///< what the controller ended with (Controller::identity)
   control::PlantIdentity truth;       ///< the plant's (plant_truth) at the run's end
+  ContactSummary contact;             ///< (summarise_contact)
 };
 
 /// The plant's truth, to compare with what a controller identified: the first lateral mode about the
