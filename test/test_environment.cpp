@@ -108,16 +108,26 @@ TEST(Environment, AnEllipsoidFromInsideMeetsTheClosedFormOnItsAxis) {
   EXPECT_LT((c.point - (stomach.point + Vector3d(0.05, 0, 0))).norm(), 1e-9);
 }
 
-// Anywhere, inside or out, the nearest point against the least distance to 400 × 800 points of the
-// surface (the sampling's spacing, ~0.4 mm, bounds the error of the sampled distance).
+// Anywhere, inside or out (the centre and an axis too, with two semi-axes equal), the nearest point against the least
+// distance to 400 × 800 points of the surface (the sampling's spacing, ~0.4 mm, bounds the error of the sampled
+// distance).
 TEST(Environment, TheEllipsoidsNearestPointAgreesWithADenseSampling) {
   Surface e;
   e.type = SurfaceType::kEllipsoid;
-  e.radii = Vector3d(0.05, 0.035, 0.02);
-  const Vector3d points[] = {Vector3d(0.01, 0.005, 0.002), Vector3d(-0.03, 0.02, -0.01), Vector3d(0.06, 0.03, 0.02),
-                             Vector3d(0.0, 0.0, 0.0),      Vector3d(0.0, 0.03, 0.0),     Vector3d(-0.02, -0.04, 0.03),
-                             Vector3d(0.049, 0.0, 0.001)};
-  for (const Vector3d& p : points) {
+  const std::pair<Vector3d, Vector3d> cases[] = {
+      {Vector3d(0.05, 0.035, 0.02), Vector3d(0.01, 0.005, 0.002)},
+      {Vector3d(0.05, 0.035, 0.02), Vector3d(-0.03, 0.02, -0.01)},
+      {Vector3d(0.05, 0.035, 0.02), Vector3d(0.06, 0.03, 0.02)},
+      {Vector3d(0.05, 0.035, 0.02), Vector3d(0.0, 0.0, 0.0)},
+      {Vector3d(0.05, 0.035, 0.02), Vector3d(0.0, 0.03, 0.0)},
+      {Vector3d(0.05, 0.035, 0.02), Vector3d(-0.02, -0.04, 0.03)},
+      {Vector3d(0.05, 0.035, 0.02), Vector3d(0.049, 0.0, 0.001)},
+      {Vector3d(0.05, 0.02, 0.02), Vector3d(0.0, 0.0, 0.0)},
+      {Vector3d(0.05, 0.02, 0.02), Vector3d(0.01, 0.0, 0.0)},
+      {Vector3d(0.05, 0.02, 0.02), Vector3d(0.01, 1e-9, 2e-9)},
+  };
+  for (const auto& [radii, p] : cases) {
+    e.radii = radii;
     double best = 1e9;
     for (int i = 0; i <= 400; ++i) {
       const double th = M_PI * i / 400;
@@ -134,6 +144,7 @@ TEST(Environment, TheEllipsoidsNearestPointAgreesWithADenseSampling) {
     EXPECT_LE(std::abs(sp.distance), best + 1e-12) << p.transpose();  // no sampled point is nearer
     EXPECT_EQ(sp.distance > 0.0, outside) << p.transpose();
     EXPECT_NEAR(sp.point.cwiseQuotient(e.radii).squaredNorm(), 1.0, 1e-9) << p.transpose();  // on the surface
+    EXPECT_NEAR((sp.point - p).norm(), std::abs(sp.distance), 1e-12) << p.transpose();
   }
 }
 
@@ -249,6 +260,12 @@ TEST(Environment, TheContactFiguresOfAScriptedRun) {
   EXPECT_DOUBLE_EQ(c.max_contact_force_after_detection_n, 0.04);  // from 1.40 s
   EXPECT_NEAR(c.external_force_rms_error_n, 0.005, 1e-12);
   EXPECT_DOUBLE_EQ(c.min_clearance_m, -0.08 / 1000.0);
+  // The flag up before the contact (from 0.95 s): detected at once, the window from 1.30 s holds 0.08 N.
+  for (auto& s : run) s.contact_flag = s.contact_flag || (s.t + 1e-9 >= 0.95 && s.t + 1e-9 < 1.1);
+  const auto early = hydrojet::sim::summarise_contact(run, 0.01);
+  EXPECT_NEAR(early.detection_delay_s, 0.0, 1e-12);
+  EXPECT_DOUBLE_EQ(early.max_contact_force_after_detection_n, 0.08);
+  EXPECT_NEAR(early.missed_contact_s, 0.0, 1e-12);
   // No contact at all: no onset, nothing detected; the flag never up, nothing missed or false.
   for (auto& s : run) s.contact_force = 0.0, s.contact_flag = false;
   const auto none = hydrojet::sim::summarise_contact(run, 0.01);

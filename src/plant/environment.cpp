@@ -31,16 +31,20 @@ Vector3d ellipsoid_nearest(const Vector3d& a, Vector3d z) {
   }
   const double t = 0.5 * (lo + hi);
   Vector3d x = (a.array().square() * z.array() / (t + a.array().square())).matrix();
-  // With the smallest axis's component nudged, t sits so near −a_k² that x_k is lost to rounding:
-  // it is the rest of the way to the surface.
-  int k;
-  a.minCoeff(&k);
-  if (z[k] <= tiny) {
-    double rest = 1.0;
-    for (int j = 0; j < 3; ++j)
-      if (j != k) rest -= (x[j] / a[j]) * (x[j] / a[j]);
-    x[k] = a[k] * std::sqrt(std::max(0.0, rest));
+  // Components whose t + a_j² is lost to rounding (t next to −a_j²: a point near the centre or an
+  // axis) take the rest of the way to the surface, in the proportions computed.
+  auto lost = [&](int j) { return t + a[j] * a[j] < 1e-6 * a[j] * a[j]; };
+  double rest = 1.0, ill = 0.0;
+  for (int j = 0; j < 3; ++j) {
+    const double share = (x[j] / a[j]) * (x[j] / a[j]);
+    if (lost(j))
+      ill += share;
+    else
+      rest -= share;
   }
+  if (ill > 0.0)
+    for (int j = 0; j < 3; ++j)
+      if (lost(j)) x[j] *= std::sqrt(std::max(0.0, rest) / ill);
   return x;
 }
 

@@ -154,8 +154,8 @@ bool Plant::step_rod(double dt) {
   if (!model_.environment.surfaces.empty()) {
     const Contact near = plant::contact(model_.environment, rod_->tip_position(), rod_->tip_velocity());
     if (near.clearance < rod_->tip_velocity().norm() * dt + model_.environment.tip_radius)
-      substeps = std::clamp(
-          static_cast<int>(std::ceil(dt / contact_step(model_.environment, model_.rod.rod.tip_mass) - 1e-9)), 1, 1000);
+      substeps = std::clamp(static_cast<int>(std::ceil(dt / contact_step(model_.environment, contact_mass()) - 1e-9)),
+                            1, 1000);
   }
   const double h = dt / substeps;
   for (int k = 0; k < substeps; ++k) {
@@ -166,6 +166,9 @@ bool Plant::step_rod(double dt) {
   }
   return true;
 }
+
+// The mass the capsule meets a wall with: its own, or a gram when the tip carries none (the body's).
+double Plant::contact_mass() const { return model_.rod.rod.tip_mass > 0.0 ? model_.rod.rod.tip_mass : 1e-3; }
 
 rod::TipWrench Plant::tip_wrench(double t) {
   const Eigen::Matrix3d R = rod_->tip_rotation();

@@ -576,7 +576,9 @@ class ControllerNode {
       ROS_ERROR("controller: ABORT, jets off: %s", out.reason.c_str());
     last_state_ = out.state;
     if (out.law_weight == 0.0 && last_.law_weight > 0.0) {
-      message_ = "supervisor: the mode rang (swing " + util::num(out.mode_swing) + " rad): the paper's law acts";
+      message_ = out.mode_swing > controller_->options().modal.ring_amplitude
+                     ? "supervisor: the mode rang (swing " + util::num(out.mode_swing) + " rad): the paper's law acts"
+                     : std::string("supervisor: a jet is held at its bound: the paper's law acts");
       ROS_WARN("controller: %s", message_.c_str());
     } else if (out.law_weight == 1.0 && last_.law_weight < 1.0 && out.state == control::ControllerState::kRunning) {
       message_ = "supervisor: calm again, the modal law acts";

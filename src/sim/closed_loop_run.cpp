@@ -78,9 +78,8 @@ ContactSummary summarise_contact(const std::vector<RunSample>& samples, double d
   double quiet = 0.0;      // [s] the true normal force has been zero
   bool armed = false;      // this contact began after kQuietBeforeOnset of none: its first kOnset is an onset
   double onset = -1.0;     // [s] of an onset not yet flagged (< 0: none)
-  double detected = -1.0;  // [s] of the flag's last rise while the contact lasts (< 0: none)
+  double detected = -1.0;  // [s] the flag was first up on this contact (< 0: not yet, or no contact)
   double err2 = 0.0;
-  bool flag_before = false;
   for (const RunSample& s : samples) {
     const bool touching = s.contact_force > 0.0;
     if (touching && quiet > 0.0) armed = quiet >= kQuietBeforeOnset;
@@ -94,8 +93,8 @@ ContactSummary summarise_contact(const std::vector<RunSample>& samples, double d
       c.detection_delay_s = std::isnan(c.detection_delay_s) ? s.t - onset : std::max(c.detection_delay_s, s.t - onset);
       onset = -1.0;
     }
-    if (s.contact_flag && !flag_before) detected = s.t;
     if (!touching) detected = -1.0;
+    if (touching && s.contact_flag && detected < 0.0) detected = s.t;  // the flag is up on this contact
     if (detected >= 0.0 && s.t - detected >= kAfterDetection)
       c.max_contact_force_after_detection_n = std::isnan(c.max_contact_force_after_detection_n)
                                                   ? s.contact_force
@@ -106,7 +105,6 @@ ContactSummary summarise_contact(const std::vector<RunSample>& samples, double d
     c.max_contact_force_n = std::max(c.max_contact_force_n, s.contact_force);
     c.min_clearance_m = std::min(c.min_clearance_m, s.clearance);
     err2 += (s.external_force_estimate - s.external_force).squaredNorm();
-    flag_before = s.contact_flag;
   }
   if (onset >= 0.0 && !samples.empty()) {  // never flagged: to the run's end
     const double d = samples.back().t - onset;

@@ -118,6 +118,7 @@ class Plant {
   bool step_rod(double dt);
   /// The tip wrench (tip frame) at time t: the constant one, the loads, the contact at this state.
   rod::TipWrench tip_wrench(double t);
+  double contact_mass() const;
 
   PlantModel model_;
   std::unique_ptr<DynamicRod> rod_;
