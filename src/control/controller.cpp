@@ -425,10 +425,12 @@ void Controller::learn_reach(double dt, const ControllerOutput& out) {
   reference_.learned_reach().update(at_bound(out.jet_force_command), out.measured_direction, out.desired_direction, dt);
 }
 
-// A jet commanded to 97 % of its q_max or more: the forces have no authority left that way.
+// A jet commanded to the learned reach's saturation (97 % of its q_max) or more: the forces have no
+// authority left that way.
 bool Controller::at_bound(const InputVector& command) const {
+  const double saturation = reference_.learned_reach().options().saturation;
   for (int i = 0; i < jets_.input_count() && i < command.size(); ++i)
-    if (model_.upper()[i] > 0.0 && command[i] >= 0.97 * model_.upper()[i]) return true;
+    if (model_.upper()[i] > 0.0 && command[i] >= saturation * model_.upper()[i]) return true;
   return false;
 }
 

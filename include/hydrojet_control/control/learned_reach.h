@@ -29,6 +29,7 @@ class LearnedReach {
  public:
   /// `center`: the reachable set's (unit, base frame); `bins` azimuth bins about it.
   explicit LearnedReach(const Vec3& center = Vec3::UnitZ(), int bins = 72, const LearnedReachOptions& o = {});
+  const LearnedReachOptions& options() const { return options_; }
   /// Forgets every limit (a new plant, a restart).
   void reset();
   /// One cycle of dt [s]: whether a jet is saturated, the measured and the desired tip directions.

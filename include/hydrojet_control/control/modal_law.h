@@ -149,8 +149,8 @@ class ModalLaw : public DirectionLaw {
   std::deque<std::pair<double, Vec3>> inputs_;
   double time_ = 0.0;            ///< [s] of the estimator's last step: the stamp of the last tracker sample it took
   ModalEstimator now_;           ///< the estimator predicted from time_ to the cycle's time (the tracker's latency)
-  bool shaping_primed_ = false;  ///< previous_shaping_ holds the last step's m
-  Vec3 previous_shaping_ = Vec3::Zero();      ///< m's damping at the last step
+  bool shaping_primed_ = false;  ///< previous_damping_, previous_feedforward_ hold the last step's m
+  Vec3 previous_damping_ = Vec3::Zero();      ///< m's damping at the last step
   Vec3 previous_feedforward_ = Vec3::Zero();  ///< m's feedforward at the last step
   double latency_ = 0.0;                      ///< the tracker's latency identified [s] (adopt)
   double omega_ = 0.0;                        ///< the first mode at the current equilibrium [rad/s] (0: none yet)
