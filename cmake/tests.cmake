@@ -29,7 +29,7 @@ endfunction()
 foreach(t test_rod_closed_form test_rod_compliance test_scene test_rod_fk_cli test_actuation test_controller test_util
           test_dynamic_rod test_numerics_models test_numerics_extreme test_rod_solver test_integrators
           test_bounded_allocation test_resolved_rates test_reference test_approach test_task_space
-          test_modal_model test_modal_law test_identification
+          test_modal_model test_modal_law test_identification test_contact
           test_safety_monitor)
   hydrojet_gtest(${t} LIBS hydrojet_config)
 endforeach()

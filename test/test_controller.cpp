@@ -475,6 +475,8 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
       {"path/phi_start", f.path.phi_start, d.path.phi_start},
       {"path/phi_end", f.path.phi_end, d.path.phi_end},
       {"path/duration", f.path.duration, d.path.duration},
+      {"contact/force_threshold", f.contact.force_threshold, d.contact.force_threshold},
+      {"contact/max_force", f.contact.max_force, d.contact.max_force},
       {"flow_regulator/feedforward", ff.feedforward, fd.feedforward},
       {"flow_regulator/lead_time", ff.lead_time, fd.lead_time},
       {"flow_regulator/valve_exponent", ff.valve_exponent, fd.valve_exponent},
@@ -487,8 +489,9 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
     EXPECT_TRUE(in_file(n.key)) << n.key << " is not in " << path;
     EXPECT_EQ(n.file, n.def) << n.key;
   }
-  for (const char* key : {"mode", "control_law", "autostart", "base_frame", "path/type"})
+  for (const char* key : {"mode", "control_law", "autostart", "base_frame", "path/type", "contact/reaction"})
     EXPECT_TRUE(in_file(key)) << key;
+  EXPECT_EQ(f.contact.reaction, d.contact.reaction);
   EXPECT_EQ(f.mode, d.mode);
   EXPECT_EQ(f.control_law, d.control_law);
   EXPECT_EQ(f.path.type, d.path.type);
@@ -497,7 +500,7 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
   // And the file names nothing else (the parser rejects unknown keys, so this is the full list).
   size_t keys = 0;
   for (const auto& top : yaml) keys += top.second.IsMap() ? top.second.size() : 1;
-  EXPECT_EQ(keys, sizeof(numbers) / sizeof(numbers[0]) + 5);
+  EXPECT_EQ(keys, sizeof(numbers) / sizeof(numbers[0]) + 6);
 }
 
 // config/teleop.yaml is the source of the joystick defaults (TeleopOptions), key by key.

@@ -14,15 +14,17 @@ namespace {
 /// Controller options are "a/b" paths; errors are ParamError naming them.
 using Tree = YamlTree<ParamError>;
 
-/// A key that names one of two choices, `first` or `second` (as their to_string names them): the one
-/// it names; anything else fails naming the key.
-template <typename Choice>
-Choice read_choice(Tree& p, const char* key, Choice current, Choice first, Choice second) {
+/// A key that names one of `choices` (as their to_string names them): the one it names; anything else
+/// fails naming the key and the choices.
+template <typename Choice, typename... More>
+Choice read_choice(Tree& p, const char* key, Choice current, Choice first, More... more) {
   const std::string name = p.text(key, control::to_string(current));
-  if (name == control::to_string(first)) return first;
-  if (name == control::to_string(second)) return second;
-  p.fail(key, std::string("must be '") + control::to_string(first) + "' or '" + control::to_string(second) +
-                  "', got '" + name + "'");
+  std::string names;
+  for (const Choice c : {first, more...}) {
+    if (name == control::to_string(c)) return c;
+    names += std::string(names.empty() ? "'" : "', '") + control::to_string(c);
+  }
+  p.fail(key, "must be one of " + names + "', got '" + name + "'");
 }
 
 /// The node's own options: scene, rate, autostart, base_frame and the loop mode.
@@ -121,6 +123,8 @@ void read_controller_options(Tree& p, control::ControllerOptions& c, std::vector
       {"modal/ring_amplitude", &c.modal.ring_amplitude},
       {"modal/recover_time", &c.modal.recover_time},
       {"identification/probe_amplitude", &c.identification.probe_amplitude},
+      {"contact/force_threshold", &c.contact.force_threshold},
+      {"contact/max_force", &c.contact.max_force},
   };
   std::map<std::string, std::string> read_from;  // key -> where its value was read (a moved key's old place)
   for (const auto& n : numbers) {
@@ -136,6 +140,8 @@ void read_controller_options(Tree& p, control::ControllerOptions& c, std::vector
   c.control_law =
       read_choice(p, "control_law", c.control_law, control::ControlLaw::kPapers, control::ControlLaw::kModal);
   c.path.type = read_choice(p, "path/type", c.path.type, control::PathType::kSpiral, control::PathType::kNone);
+  c.contact.reaction = read_choice(p, "contact/reaction", c.contact.reaction, control::ContactReaction::kComply,
+                                   control::ContactReaction::kHold, control::ContactReaction::kRetreat);
   const std::string err = c.validate();
   if (!err.empty()) {
     const std::string key = err.substr(0, err.find(':'));

@@ -69,6 +69,7 @@ Controller::Controller(const RobotModel& model, const ControllerOptions& options
       lead_time_(model.flow.lead_time),
       previous_duty_(jets_.zeros()),
       previous_flows_(jets_.zeros()),
+      contact_(options.contact, jets_.input_count(), model_.upper().size() ? model_.upper().maxCoeff() : 1.0),
       last_inputs_(jets_.zeros()) {
   if (!law_) throw std::invalid_argument("control_law: no law given");
   law_->set_pd(options.pd);
@@ -106,6 +107,8 @@ void Controller::start(double t) {
   reset_actuation();
   probe_.cancel();
   probe_pending_ = false;
+  contact_.reset();
+  was_in_contact_ = false;
   if (fit_waiting_) probed_ = false;  // a start before the fit came back: probe again
   fit_waiting_ = record_ready_ = fit_delivered_ = false;
   if (!commands_pending_) start_configured_path(t);
@@ -131,6 +134,7 @@ void Controller::set_options(const ControllerOptions& options) {
   reference_.set_max_angular_rate(options.limits.max_angular_rate);
   reference_.set_max_path_rate(options.limits.max_path_rate);
   approach_.set_options(options.approach);
+  contact_.set_options(options.contact);
 }
 
 void Controller::follow(std::shared_ptr<const Path> path, double t, Reference::PathStart start,
@@ -198,8 +202,10 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   out.model_tip_rotation = sol.tip_rotation;
   const ActuatedModel::Linearisation lin = model_.linearise();  // C^b (eq. 14) and J_q of line 6
   if (std::string why = check_stability(lin, out); !why.empty()) return abort(out, why);
+  sense_contact(in, sol, lin, out);
 
   track_reference(in, sol, dt, out);
+  react_to_contact(out);
   if (std::string why = monitor_.check_oscillation(out.error_geodesic); !why.empty()) return abort(out, why);
   last_compliance_ = lin.body_compliance;
   last_inputs_ = out.jet_force_observed;
@@ -402,7 +408,8 @@ void Controller::reset_actuation() {
 // What the plant shows every cycle: the tracker's latency (a new sample's stamp) and each jet's lag
 // (the duty held since the last cycle against the flows then and now). The modal law takes them.
 void Controller::observe_plant(const ControllerInputs& in, double dt) {
-  if (in.tip_valid && in.tip_stamp != last_stamp_) {
+  new_tracker_sample_ = in.tip_valid && in.tip_stamp != last_stamp_;
+  if (new_tracker_sample_) {
     latency_.add(in.t, in.tip_stamp);
     last_stamp_ = in.tip_stamp;
   }
@@ -423,6 +430,55 @@ void Controller::observe_plant(const ControllerInputs& in, double dt) {
 void Controller::learn_reach(double dt, const ControllerOutput& out) {
   if (options_.mode != LoopMode::kClosed || probe_.active()) return;
   reference_.learned_reach().update(at_bound(out.jet_force_command), out.measured_direction, out.desired_direction, dt);
+}
+
+// The external tip force from the tracker's pose against the model's, and the detector (contact.h).
+void Controller::sense_contact(const ControllerInputs& in, const rod::RodSolution& sol,
+                               const ActuatedModel::Linearisation& lin, ControllerOutput& out) {
+  ContactCycle c;
+  c.t = in.t;
+  c.new_sample = new_tracker_sample_;
+  c.stamp = std::min(in.tip_stamp, in.t);
+  c.measured_rotation = in.tip_rotation;
+  c.measured_position = in.tip_position;
+  c.model_rotation = sol.tip_rotation;
+  c.model_position = sol.tip_position;
+  c.compliance = lin.ok ? lin.body_compliance : rod::Mat6::Constant(std::nan(""));
+  c.inputs = out.jet_force_observed;
+  out.contact = contact_.update(c);
+}
+
+// In contact (contact/reaction): the law sees where the tip would be without the force (so its
+// integral does not wind into the surface), and the reference goes no deeper than half of
+// contact/max_force would press; hold and retreat end the path at the surface or off it.
+void Controller::react_to_contact(ControllerOutput& out) {
+  const ContactState& c = out.contact;
+  const bool onset = c.in_contact && !was_in_contact_;
+  was_in_contact_ = c.in_contact;
+  if (!c.in_contact) return;
+  const Vec3 x = out.measured_direction;
+  const Vec3 turn = contact_.deflection(c.normal);  // how a unit force along the normal turns the tip
+  const Vec3 free_side = turn - turn.dot(x) * x;
+  const double compliance = free_side.norm();  // [rad/N]
+  if (!(compliance > 1e-9)) return;            // a force along the tip's axis: nothing to turn away from
+  const Vec3 d = free_side / compliance;
+  if (onset && options_.contact.reaction != ContactReaction::kComply) {
+    const double back = options_.contact.reaction == ContactReaction::kRetreat
+                            ? std::max(2.0 * compliance * options_.contact.max_force, 0.05)
+                            : 0.0;
+    reference_.aim(x + back * d, Source::kDirection);
+    commanded();
+  }
+  if (options_.mode == LoopMode::kClosed) out.observed_direction = (x - c.deflection).normalized();
+  const double depth = (x - out.desired_direction).dot(d);
+  const double allowed = 0.5 * options_.contact.max_force * compliance;
+  if (depth > allowed) {
+    const Vec3 before = out.desired_direction;
+    out.desired_direction = (out.desired_direction + (depth - allowed) * d).normalized();
+    out.contact_clip_angle = geodesic_error(before, out.desired_direction);
+    out.error_geodesic = geodesic_error(out.desired_direction, out.measured_direction);
+    out.error_pitch_yaw = pitch_yaw_error(out.desired_direction, out.measured_direction);
+  }
 }
 
 // A jet commanded to the learned reach's saturation (97 % of its q_max) or more: the forces have no

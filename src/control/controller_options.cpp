@@ -32,10 +32,11 @@ std::string PathOptions::validate() const {
 
 std::string ControllerOptions::validate() const {
   const std::pair<const char*, std::string> groups[] = {
-      {"pd", pd.validate()},         {"modal", modal.validate()},
-      {"limits", limits.validate()}, {"allocation", allocation.validate()},
-      {"safety", safety.validate()}, {"approach", approach.validate()},
-      {"path", path.validate()},     {"identification", identification.validate()}};
+      {"pd", pd.validate()},          {"modal", modal.validate()},
+      {"limits", limits.validate()},  {"allocation", allocation.validate()},
+      {"safety", safety.validate()},  {"approach", approach.validate()},
+      {"path", path.validate()},      {"identification", identification.validate()},
+      {"contact", contact.validate()}};
   for (const auto& [group, err] : groups)
     if (!err.empty()) return util::in_group(group, err);
   return "";

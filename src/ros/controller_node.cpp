@@ -52,6 +52,8 @@ Eigen::Matrix3d to_rotation(const geometry_msgs::Quaternion& q) {
   return Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().toRotationMatrix();
 }
 
+Eigen::Vector3d to_vector(const geometry_msgs::Point& p) { return {p.x, p.y, p.z}; }
+
 geometry_msgs::Vector3 to_msg(const Eigen::Vector3d& v) {
   geometry_msgs::Vector3 m;
   m.x = v.x(), m.y = v.y(), m.z = v.z();
@@ -601,7 +603,9 @@ class ControllerNode {
     if (!have_tip_ || !have_base_) return;
     in.tip_valid = true;
     if (finite_pose(tip_.pose) && finite_pose(base_.pose)) {
-      in.tip_rotation = to_rotation(base_.pose.orientation).transpose() * to_rotation(tip_.pose.orientation);
+      const Eigen::Matrix3d base = to_rotation(base_.pose.orientation);
+      in.tip_rotation = base.transpose() * to_rotation(tip_.pose.orientation);
+      in.tip_position = base.transpose() * (to_vector(tip_.pose.position) - to_vector(base_.pose.position));
       in.tip_stamp = std::min(tip_.header.stamp.toSec(), base_.header.stamp.toSec());
     } else {  // present but broken: let the core reject it as non-finite
       in.tip_rotation.setConstant(std::nan(""));

@@ -36,6 +36,8 @@ RunSample record(const plant::Plant& plant, const control::ControllerOutput& out
   s.contact_force = plant.contact().normal_force;
   s.clearance = plant.contact().clearance;
   s.external_force = plant.external_force();
+  s.contact_flag = out.contact.in_contact;
+  s.external_force_estimate = out.contact.force;
   return s;
 }
 
@@ -119,7 +121,9 @@ void read_sensors(plant::Plant& plant, double t, control::ControllerInputs& in) 
   if (ts.valid) {
     in.tip_valid = true;
     in.tip_stamp = ts.stamp;
-    in.tip_rotation = (ts.base.orientation.toRotationMatrix().transpose() * ts.tip.orientation.toRotationMatrix());
+    const Eigen::Matrix3d base = ts.base.orientation.toRotationMatrix();
+    in.tip_rotation = base.transpose() * ts.tip.orientation.toRotationMatrix();
+    in.tip_position = base.transpose() * (ts.tip.position - ts.base.position);
   }
   in.flows = plant.flow_sample();
   in.forces = plant.force_sample();

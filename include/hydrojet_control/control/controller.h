@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "hydrojet_control/control/approach.h"
+#include "hydrojet_control/control/contact.h"
 #include "hydrojet_control/control/controller_io.h"
 #include "hydrojet_control/control/controller_options.h"
 #include "hydrojet_control/control/direction_law.h"
@@ -126,6 +127,9 @@ class Controller {
   void approach(double t, ControllerOutput& out);
   void observe_plant(const ControllerInputs& in, double dt);
   void learn_reach(double dt, const ControllerOutput& out);
+  void sense_contact(const ControllerInputs& in, const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin,
+                     ControllerOutput& out);
+  void react_to_contact(ControllerOutput& out);
   bool at_bound(const InputVector& command) const;
   void begin_probe(double t, const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin);
   void probe(const ControllerInputs& in, const rod::RodSolution& sol, ControllerOutput& out);
@@ -176,6 +180,10 @@ class Controller {
   identification::ModeRecord record_;
   bool fit_delivered_ = false;
   identification::ModeFit delivered_fit_;
+  // Contact (contact.h).
+  ContactEstimator contact_;
+  bool new_tracker_sample_ = false;                ///< this cycle's tracker sample is new
+  bool was_in_contact_ = false;                    ///< the detector's flag at the last cycle
   rod::Mat6 last_compliance_ = rod::Mat6::Zero();  ///< C^b at the last cycle's equilibrium
   InputVector last_inputs_;                        ///< q_obs there [N]
 };

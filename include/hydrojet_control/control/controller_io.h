@@ -5,6 +5,9 @@
 
 #include <string>
 
+#include <cmath>
+
+#include "hydrojet_control/control/contact.h"
 #include "hydrojet_control/control/reference.h"
 #include "hydrojet_control/control/robot_model.h"
 #include "hydrojet_control/control/task_space.h"
@@ -17,10 +20,11 @@ const char* to_string(ControllerState s);
 
 /// One control cycle's inputs: the latest tracker and flow samples with their stamps.
 struct ControllerInputs {
-  double t = 0.0;                        ///< now [s]
-  bool tip_valid = false;                ///< a tracker sample has arrived and is marked valid
-  double tip_stamp = -1e300;             ///< [s]
-  Mat3 tip_rotation = Mat3::Identity();  ///< measured tip frame in the base frame
+  double t = 0.0;                                    ///< now [s]
+  bool tip_valid = false;                            ///< a tracker sample has arrived and is marked valid
+  double tip_stamp = -1e300;                         ///< [s]
+  Mat3 tip_rotation = Mat3::Identity();              ///< measured tip frame in the base frame
+  Vec3 tip_position = Vec3::Constant(std::nan(""));  ///< measured tip [m], base frame (NaN: not measured)
   bool flow_valid = false;
   double flow_stamp = -1e300;  ///< [s]
   InputVector flows;           ///< measured flow per jet [m^3/s] (one entry per actuator; 0 for force actuators)
@@ -66,6 +70,10 @@ struct ControllerOutput {
   /// (clipped, clip_angle say by how much).
   bool reach_limited = false;
   double time_scale = 1.0;  ///< how much longer than written the path has taken so far (Reference::time_scale)
+  /// The external tip force estimated and the contact detector's verdict (contact.h).
+  ContactState contact;
+  /// In contact, the reference was kept from going deeper than contact/max_force allows, by this much [rad].
+  double contact_clip_angle = 0.0;
 };
 
 }  // namespace control

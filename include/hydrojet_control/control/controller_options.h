@@ -6,6 +6,7 @@
 #include <string>
 
 #include "hydrojet_control/control/approach.h"
+#include "hydrojet_control/control/contact.h"
 #include "hydrojet_control/control/direction_law.h"
 #include "hydrojet_control/control/modal_law.h"
 #include "hydrojet_control/control/plant_identification.h"
@@ -56,6 +57,7 @@ struct ControllerOptions {
   ApproachOptions approach;      ///< when an approached path's clock starts (ApproachMonitor)
   PathOptions path;
   IdentificationOptions identification;  ///< what is measured of the plant present (PlantIdentity)
+  ContactOptions contact;                ///< the external force's estimate, the detector, the reaction
 
   /// Empty when valid, else "<group>/<field>: <what is wrong>" (the YAML key).
   std::string validate() const;

@@ -1,0 +1,128 @@
+// Contact and unknown loads (the paper's §8): the external tip force estimated from what the rig
+// measures, a detector with hysteresis, and what the controller does about a contact.
+//   Estimate: the tracker's tip pose against the model's (the cycle's solve at q_obs, delayed by the
+//   tracker's latency) is the deflection C^b f of an external tip force f; weighted least squares on
+//   the deflection's direction and position gives f and its covariance. The model's own mismatch
+//   reads as a force too, but it is slow and follows the configuration: a model linear in the inputs
+//   q and the tip frame's entries, learned by recursive least squares in free space and frozen in
+//   contact, is taken off.
+//   Detect: |f| above the threshold (or the mismatch model's own 3σ where it has not yet seen the
+//   configuration) on two samples in a row; released when below half of it for 0.15 s. A force
+//   along an axis the deflection does not observe (along a straight rod's axis) is not seen.
+// ROS-free (Eigen).
+#pragma once
+
+#include <deque>
+#include <string>
+
+#include "hydrojet_control/control/robot_model.h"
+#include "hydrojet_control/control/task_space.h"
+
+namespace hydrojet {
+namespace control {
+
+/// What the controller does when the tip touches something.
+enum class ContactReaction {
+  kComply,   ///< slide along the surface: the reference never goes deeper than max_force allows
+  kHold,     ///< stop: the reference holds where the tip met the surface (off it), the path ends
+  kRetreat,  ///< back off along the normal and hold there, the path ends
+};
+const char* to_string(ContactReaction r);
+/// "comply", "hold", "retreat"; false when `name` is none of them.
+bool parse_contact_reaction(const std::string& name, ContactReaction* reaction);
+
+/// The controller file's `contact:` group.
+struct ContactOptions {
+  /// |estimated external force| above which the tip is in contact [N]; above the free-space estimate's
+  /// noise and mismatch (docs/contact.md).
+  double force_threshold = 0.012;
+  ContactReaction reaction = ContactReaction::kComply;
+  /// The tissue is never pressed harder than this [N] (comply aims at half of it).
+  double max_force = 0.04;
+  /// Empty when valid, else "<field>: <what is wrong>".
+  std::string validate() const;
+};
+
+/// The estimate and the detector's verdict of one cycle (base frame).
+struct ContactState {
+  Vec3 force = Vec3::Zero();       ///< external tip force, the model's mismatch taken off [N]
+  Mat3 covariance = Mat3::Zero();  ///< of `force` [N^2]: the tracker's noise and the mismatch model's
+  double threshold = 0.0;          ///< the detector's threshold this cycle [N]
+  bool in_contact = false;         ///< the detector's flag
+  double since = 0.0;              ///< [s] when the present contact was detected
+  Vec3 normal = Vec3::Zero();      ///< unit, the force's direction while in contact (free side)
+  Vec3 deflection = Vec3::Zero();  ///< how far the force turns the tip direction (base) [rad]
+  bool ready = false;              ///< a tracker sample has been compared with the model
+};
+
+/// One cycle's view of the model and the tracker.
+struct ContactCycle {
+  double t = 0.0;                                         ///< now [s]
+  bool new_sample = false;                                ///< the tracker's sample is new this cycle
+  double stamp = 0.0;                                     ///< when the tracker measured it [s]
+  Mat3 measured_rotation = Mat3::Identity();              ///< the tracker's tip frame (base frame)
+  Vec3 measured_position = Vec3::Constant(std::nan(""));  ///< the tracker's tip [m] (NaN: not used)
+  Mat3 model_rotation = Mat3::Identity();                 ///< the model's tip frame at q_obs now
+  Vec3 model_position = Vec3::Zero();                     ///< [m]
+  rod::Mat6 compliance = rod::Mat6::Zero();               ///< C^b there
+  InputVector inputs;                                     ///< q_obs [N]
+};
+
+class ContactEstimator {
+ public:
+  /// input_scale [N]: the inputs' scale (the largest q_max) for the mismatch model's regressors.
+  ContactEstimator(const ContactOptions& options, int inputs, double input_scale);
+  void set_options(const ContactOptions& options) { options_ = options; }
+  /// Forgets the present contact and the filters; the learned mismatch is kept (a restart on the same rig).
+  void reset();
+  /// One control cycle: the model's pose is remembered (for the tracker's latency); a new tracker sample
+  /// updates the estimate, the detector and (in free space) the mismatch model.
+  const ContactState& update(const ContactCycle& cycle);
+  const ContactState& state() const { return state_; }
+  /// The tip direction's turn [rad, base frame] that a force f [N, base frame] makes at the last
+  /// compared equilibrium (C^b's force-to-rotation block).
+  Vec3 deflection(const Vec3& force) const;
+
+  // The tracker's specified per-axis noise (NDI Aurora): the weights of direction against position.
+  static constexpr double kDirectionSigma = 0.3 * M_PI / 180.0;  ///< [rad]
+  static constexpr double kPositionSigma = 0.5e-3;               ///< [m]
+  static constexpr double kMemory = 5.0;                         ///< [s] the mismatch model's forgetting time
+  static constexpr double kFilterTime = 0.05;                    ///< [s] the force's low-pass
+  static constexpr double kReleaseTime = 0.15;                   ///< [s] below half the threshold before a release
+  static constexpr double kArmTime = 0.5;                        ///< [s] of samples before the detector may flag
+  static constexpr double kRelearnDelay = 1.0;  ///< [s] after a release before the mismatch learns again
+
+ private:
+  struct ModelPose {
+    double t;
+    Mat3 rotation;
+    Vec3 position;
+    rod::Mat6 compliance;
+    InputVector inputs;
+  };
+  const ModelPose* pose_at(double stamp) const;
+  Eigen::VectorXd regressor(const Mat3& rotation, const InputVector& q) const;
+  bool deflection_force(const ContactCycle& c, const ModelPose& pose, Vec3* force, Mat3* cov) const;
+  void learn(const Eigen::VectorXd& phi, const Vec3& error, double spread, double dt);
+  void detect(double t, double alpha);
+
+  ContactOptions options_;
+  double input_scale_;
+  std::deque<ModelPose> history_;  ///< the model's poses of the last 0.5 s
+  // The mismatch model: f_tip ≈ Θᵀ φ, φ = regressor(); recursive least squares.
+  Eigen::MatrixXd theta_;                     ///< (10 + inputs) × 3
+  Eigen::MatrixXd p_;                         ///< (10 + inputs)², the regressors' information inverse
+  Vec3 residual_var_ = Vec3::Constant(1e-4);  ///< the fit's residual variance per axis [N^2]
+  double last_sample_t_ = -1.0;
+  double first_sample_t_ = -1.0;  ///< [s] the first sample compared since reset
+  double free_since_ = -1e300;    ///< [s] the last release (learning waits kRelearnDelay)
+  double below_since_ = -1.0;     ///< [s] the force fell below the release level
+  int above_ = 0;                 ///< samples in a row above the threshold
+  Vec3 filtered_ = Vec3::Zero();
+  Mat3 last_rotation_ = Mat3::Identity();
+  rod::Mat6 last_compliance_ = rod::Mat6::Zero();
+  ContactState state_;
+};
+
+}  // namespace control
+}  // namespace hydrojet

@@ -1,0 +1,206 @@
+#include "hydrojet_control/control/contact.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Eigenvalues>
+
+#include "hydrojet_control/util/format.h"
+
+namespace hydrojet {
+namespace control {
+
+namespace {
+constexpr double kPriorForce = 0.05;  ///< [N] the σ of a force along an axis not observed (a stomach's contact forces)
+constexpr double kObservable = 0.005;     ///< [N] an axis is observed when one sample's σ along it is below this
+constexpr double kPriorMismatch = 100.0;  ///< the mismatch model's initial P (in residual variances): σ ≈ 0.13 N
+constexpr double kVarianceTime = 10.0;    ///< [s] the residual variance's averaging time
+constexpr double kHistory = 0.5;          ///< [s] of model poses kept for the tracker's latency
+}  // namespace
+
+const char* to_string(ContactReaction r) {
+  switch (r) {
+    case ContactReaction::kComply: return "comply";
+    case ContactReaction::kHold: return "hold";
+    case ContactReaction::kRetreat: return "retreat";
+  }
+  return "unknown";
+}
+
+bool parse_contact_reaction(const std::string& name, ContactReaction* reaction) {
+  for (const ContactReaction r : {ContactReaction::kComply, ContactReaction::kHold, ContactReaction::kRetreat})
+    if (name == to_string(r)) {
+      *reaction = r;
+      return true;
+    }
+  return false;
+}
+
+std::string ContactOptions::validate() const {
+  if (std::string err = util::check_range("force_threshold", force_threshold, 0.001, 1.0); !err.empty()) return err;
+  if (std::string err = util::check_range("max_force", max_force, 0.005, 2.0); !err.empty()) return err;
+  if (!(max_force > force_threshold))
+    return util::bad("max_force", max_force, "must exceed force_threshold (a contact is held below max_force)");
+  return "";
+}
+
+ContactEstimator::ContactEstimator(const ContactOptions& options, int inputs, double input_scale)
+    : options_(options), input_scale_(input_scale > 0.0 ? input_scale : 1.0) {
+  theta_ = Eigen::MatrixXd::Zero(10 + inputs, 3);
+  p_ = kPriorMismatch * Eigen::MatrixXd::Identity(10 + inputs, 10 + inputs);
+  residual_var_ = Vec3::Constant(std::pow(options.force_threshold / 3.0, 2));
+}
+
+void ContactEstimator::reset() {
+  history_.clear();
+  last_sample_t_ = -1.0;
+  first_sample_t_ = -1.0;
+  below_since_ = -1.0;
+  above_ = 0;
+  filtered_.setZero();
+  state_ = ContactState();
+}
+
+// (1, the tip frame's nine entries, q / input_scale): a force fixed in the tip frame (a precurvature
+// offset), one fixed in the base frame seen from the tip (a gravity the model tilts wrongly), and
+// one that grows with the inputs (a stiffness or a jet's direction off).
+Eigen::VectorXd ContactEstimator::regressor(const Mat3& rotation, const InputVector& q) const {
+  Eigen::VectorXd phi = Eigen::VectorXd::Ones(theta_.rows());
+  phi.segment<9>(1) = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(rotation.data());
+  for (int i = 0; i < q.size() && i + 10 < phi.size(); ++i) phi[i + 10] = q[i] / input_scale_;
+  return phi;
+}
+
+// The latest model pose at or before `stamp` (the oldest kept when the stamp is older still).
+const ContactEstimator::ModelPose* ContactEstimator::pose_at(double stamp) const {
+  if (history_.empty()) return nullptr;
+  const ModelPose* best = &history_.front();
+  for (const ModelPose& p : history_)
+    if (p.t <= stamp + 1e-9) best = &p;
+  return best;
+}
+
+Vec3 ContactEstimator::deflection(const Vec3& force) const {
+  const Vec3 turn = last_compliance_.block<3, 3>(3, 0) * (last_rotation_.transpose() * force);
+  return last_rotation_ * Vec3(turn.y(), -turn.x(), 0.0);  // (θ × e3) in the tip frame
+}
+
+const ContactState& ContactEstimator::update(const ContactCycle& c) {
+  if (c.model_rotation.allFinite() && c.model_position.allFinite() && c.compliance.allFinite() &&
+      c.inputs.size() + 10 == theta_.rows())
+    history_.push_back({c.t, c.model_rotation, c.model_position, c.compliance, c.inputs});
+  while (!history_.empty() && history_.front().t < c.t - kHistory) history_.pop_front();
+  const ModelPose* pose = c.new_sample ? pose_at(c.stamp) : nullptr;
+  Vec3 raw;
+  Mat3 raw_cov;
+  if (!pose || !c.measured_rotation.allFinite() || !deflection_force(c, *pose, &raw, &raw_cov)) return state_;
+
+  const double dt = last_sample_t_ < 0.0 ? 0.0 : std::clamp(c.t - last_sample_t_, 0.0, 1.0);
+  last_sample_t_ = c.t;
+  if (first_sample_t_ < 0.0) first_sample_t_ = c.t;
+  const Eigen::VectorXd phi = regressor(pose->rotation, pose->inputs);
+  const Vec3 error = raw - theta_.transpose() * phi;  // the external force, tip frame
+  const double spread = phi.dot(p_ * phi);            // the mismatch model's uncertainty here, in residual variances
+  // Free space, and long enough after a contact: the mismatch is learned.
+  if (!state_.in_contact && c.t - free_since_ >= kRelearnDelay && dt > 0.0) learn(phi, error, spread, dt);
+
+  // The estimate: low-passed, in the base frame.
+  const Mat3& R = pose->rotation;
+  const double alpha = dt > 0.0 ? dt / (kFilterTime + dt) : 1.0;
+  filtered_ += alpha * (R * error - filtered_);
+  last_rotation_ = R;
+  last_compliance_ = pose->compliance;
+  const Mat3 mismatch_cov = (residual_var_ * spread).asDiagonal();
+  state_.force = filtered_;
+  state_.covariance = R * (raw_cov * (alpha / (2.0 - alpha)) + mismatch_cov) * R.transpose();
+  // The threshold, or 3σ of what the mismatch model leaves (its residual, wider where it has not
+  // seen the configuration): a plant far from its model is read less finely rather than falsely.
+  state_.threshold = std::max(options_.force_threshold, 3.0 * std::sqrt(residual_var_.maxCoeff() * (1.0 + spread)));
+  state_.deflection = deflection(filtered_);
+  state_.ready = true;
+  detect(c.t, alpha);
+  return state_;
+}
+
+// Weighted least squares of the deflection (the direction's (θ_y, −θ_x) and the position's, in the
+// model's tip frame) on C^b's force columns, on the axes it observes: an axis whose per-sample σ
+// exceeds kObservable (the axial force of a straight, axially stiff rod, seen in the position
+// alone) is reported as zero with the prior's variance.
+bool ContactEstimator::deflection_force(const ContactCycle& c, const ModelPose& pose, Vec3* force, Mat3* cov) const {
+  const Mat3& R = pose.rotation;
+  const bool with_position = c.measured_position.allFinite();
+  const int rows = with_position ? 5 : 2;
+  Eigen::Matrix<double, 5, 3> G;
+  Eigen::Matrix<double, 5, 1> r, w;
+  G.row(0) = pose.compliance.block<1, 3>(4, 0);
+  G.row(1) = -pose.compliance.block<1, 3>(3, 0);
+  const Vec3 dx = R.transpose() * (c.measured_rotation.col(2) - R.col(2));
+  r.head<2>() = dx.head<2>();
+  w.head<2>().setConstant(1.0 / (kDirectionSigma * kDirectionSigma));
+  if (with_position) {
+    G.bottomRows<3>() = pose.compliance.block<3, 3>(0, 0);
+    r.tail<3>() = R.transpose() * (c.measured_position - pose.position);
+    w.tail<3>().setConstant(1.0 / (kPositionSigma * kPositionSigma));
+  }
+  const auto Gs = G.topRows(rows);
+  const Mat3 info = Gs.transpose() * w.head(rows).asDiagonal() * Gs;
+  const Vec3 projected = Gs.transpose() * w.head(rows).asDiagonal() * r.head(rows);
+  const Eigen::SelfAdjointEigenSolver<Mat3> eig(info);
+  force->setZero();
+  cov->setZero();
+  for (int k = 0; k < 3; ++k) {
+    const Vec3 v = eig.eigenvectors().col(k);
+    const double lambda = eig.eigenvalues()[k];
+    if (lambda * kObservable * kObservable >= 1.0) {
+      *force += v * (v.dot(projected) / lambda);
+      *cov += v * v.transpose() / lambda;
+    } else {
+      *cov += v * v.transpose() * (kPriorForce * kPriorForce);
+    }
+  }
+  return force->allFinite() && cov->allFinite();
+}
+
+// Recursive least squares with exponential forgetting (kMemory) on the mismatch model, and the
+// residual's variance (the threshold's floor): slow, and each sample counts at most the threshold
+// squared, so that a contact's onset does not lift the threshold ahead of itself.
+void ContactEstimator::learn(const Eigen::VectorXd& phi, const Vec3& error, double spread, double dt) {
+  const double lambda = std::exp(-dt / kMemory);
+  const Eigen::VectorXd k = p_ * phi / (lambda + spread);
+  theta_ += k * error.transpose();
+  p_ = (p_ - k * (phi.transpose() * p_)) / lambda;
+  const double trace_max = kPriorMismatch * p_.rows();
+  if (p_.trace() > trace_max) p_ *= trace_max / p_.trace();  // no wind-up where nothing moves
+  const double a = std::min(1.0, dt / kVarianceTime);
+  const double cap = options_.force_threshold * options_.force_threshold;
+  residual_var_ += a * (error.cwiseAbs2().cwiseMin(cap) - residual_var_);
+}
+
+// Two samples above the threshold in a row (once armed: kArmTime of samples) flag a contact; below
+// half of it for kReleaseTime release it.
+void ContactEstimator::detect(double t, double alpha) {
+  const double magnitude = filtered_.norm();
+  if (!state_.in_contact) {
+    above_ = magnitude > state_.threshold && t - first_sample_t_ >= kArmTime ? above_ + 1 : 0;
+    if (above_ >= 2) {
+      state_.in_contact = true;
+      state_.since = t;
+      state_.normal = filtered_.normalized();
+      below_since_ = -1.0;
+    }
+  } else if (magnitude < 0.5 * state_.threshold) {
+    if (below_since_ < 0.0) below_since_ = t;
+    if (t - below_since_ >= kReleaseTime) {
+      state_.in_contact = false;
+      state_.normal.setZero();
+      free_since_ = t;
+      above_ = 0;
+    }
+  } else {
+    below_since_ = -1.0;
+    state_.normal = (state_.normal + alpha * (filtered_.normalized() - state_.normal)).normalized();
+  }
+}
+
+}  // namespace control
+}  // namespace hydrojet

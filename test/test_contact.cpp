@@ -1,0 +1,183 @@
+// The external tip force's estimate and the contact detector (control/contact.h), against the rod
+// solver's own equilibrium under a known tip force; the controller file's `contact:` group.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include <yaml-cpp/yaml.h>
+
+#include "hydrojet_control/config/controller_config.h"
+#include "hydrojet_control/control/contact.h"
+#include "controller_fixtures.h"
+#include "test_helpers.h"
+
+using namespace hydrojet;
+using control::ContactCycle;
+using control::ContactEstimator;
+using control::ContactOptions;
+using control::Mat3;
+using control::Vec3;
+
+namespace {
+
+/// The HydroJet's model and a plant that is the model plus a known tip force (fixed in the tip frame).
+struct Rig {
+  Rig()
+      : model(config::make_controller_model(test::scene("hydrojet_0deg"), test::flow_gains())), truth(model.solver()) {}
+  control::ActuatedModel model;
+  rod::RodSolver truth;
+
+  /// One cycle at time t with inputs q: the model's pose and C^b, and the pose the tracker measures with
+  /// `force` [N, tip frame] on the tip, plus the tracker's noise from `rng` (null: none).
+  ContactCycle cycle(double t, const control::InputVector& q, const Vec3& force, std::mt19937* rng = nullptr) {
+    ContactCycle c;
+    const rod::RodSolution s = model.solve(q);
+    c.t = c.stamp = t;
+    c.new_sample = true;
+    c.model_rotation = s.tip_rotation;
+    c.model_position = s.tip_position;
+    c.compliance = model.linearise().body_compliance;
+    c.inputs = q;
+    rod::TipWrench w;
+    w.force = force;
+    const rod::RodSolution m = truth.solve(q, w);
+    c.measured_rotation = m.tip_rotation;
+    c.measured_position = m.tip_position;
+    if (rng) {
+      std::normal_distribution<double> angle(0.0, ContactEstimator::kDirectionSigma);
+      std::normal_distribution<double> position(0.0, ContactEstimator::kPositionSigma);
+      const Vec3 turn(angle(*rng), angle(*rng), angle(*rng));
+      c.measured_rotation = c.measured_rotation * Eigen::AngleAxisd(turn.norm(), turn.normalized()).toRotationMatrix();
+      c.measured_position += Vec3(position(*rng), position(*rng), position(*rng));
+    }
+    return c;
+  }
+};
+
+control::InputVector inputs(double a, double b, double c) {
+  control::InputVector q(3);
+  q << a, b, c;
+  return q;
+}
+
+}  // namespace
+
+// One sample of a known lateral tip force on the solver's equilibrium: the estimate is the force in the
+// base frame across the tip's axis, to the linearisation's error (a few percent at 20 mN), with no
+// noise and nothing learned.
+TEST(ContactEstimator, OneSampleRecoversAKnownTipForce) {
+  Rig rig;
+  for (const Vec3& force : {Vec3(0.02, 0.0, 0.0), Vec3(0.0, -0.015, 0.0), Vec3(0.012, 0.012, 0.0)})
+    for (const control::InputVector& q : {inputs(0, 0, 0), inputs(0.08, 0.0, 0.02)}) {
+      ContactEstimator e(ContactOptions(), 3, 0.15);
+      const ContactCycle c = rig.cycle(0.0, q, force);
+      const control::ContactState& s = e.update(c);
+      ASSERT_TRUE(s.ready);
+      // The follower force in the base frame, across the tip's axis (along it the rod is stiff and
+      // the estimate says nothing).
+      const Vec3 truth = c.measured_rotation * force;
+      const Vec3 axis = c.measured_rotation.col(2);
+      const Vec3 miss = (s.force - truth) - (s.force - truth).dot(axis) * axis;
+      EXPECT_LT(miss.norm(), 0.05 * force.norm() + 2e-4)
+          << "force " << force.transpose() << " q " << q.transpose() << ": estimate " << s.force.transpose()
+          << ", truth " << truth.transpose();
+      // Its deflection is the measured turn of the tip's direction (to 8 %: turns of up to 0.12 rad,
+      // where C^b's linearisation is a few percent off).
+      const Vec3 turn = c.measured_rotation.col(2) - c.model_rotation.col(2);
+      EXPECT_LT((s.deflection - turn).norm(), 0.08 * turn.norm() + 1e-4);
+    }
+}
+
+// Free space with the tracker's noise: no flag, and the estimate's spread is the noise's. A 30 mN push
+// is flagged within 0.1 s (the filter and two samples), its size to 10 %; released within 0.15–0.4 s
+// of its end (hysteresis), and not before.
+TEST(ContactEstimator, TheDetectorFlagsAPushAndReleasesWithHysteresis) {
+  Rig rig;
+  std::mt19937 rng(3);
+  ContactEstimator e(ContactOptions(), 3, 0.15);
+  const control::InputVector q = inputs(0.05, 0.01, 0.03);
+  const double dt = 0.01;
+  double t = 0.0;
+  double worst = 0.0;
+  for (; t < 3.0; t += dt) {
+    const control::ContactState& s = e.update(rig.cycle(t, q, Vec3::Zero(), &rng));
+    ASSERT_FALSE(s.in_contact) << "free space flagged at t = " << t;
+    if (t > 1.0) worst = std::max(worst, s.force.norm());
+  }
+  EXPECT_LT(worst, 0.5 * ContactOptions().force_threshold);
+  const double push = t;
+  const Vec3 force(0.03, 0.0, 0.0);
+  double flagged = -1.0;
+  for (; t < push + 1.0; t += dt) {
+    const control::ContactState& s = e.update(rig.cycle(t, q, force, &rng));
+    if (s.in_contact && flagged < 0.0) flagged = t;
+  }
+  ASSERT_GE(flagged, 0.0) << "a 30 mN push was not flagged";
+  EXPECT_LE(flagged - push, 0.1);
+  EXPECT_NEAR(e.state().force.norm(), force.norm(), 0.1 * force.norm());
+  EXPECT_GT(e.state().normal.dot(Vec3::UnitX()), 0.98);
+  const double end = t;
+  double released = -1.0;
+  for (; t < end + 1.0; t += dt) {
+    const control::ContactState& s = e.update(rig.cycle(t, q, Vec3::Zero(), &rng));
+    if (!s.in_contact && released < 0.0) released = t;
+  }
+  ASSERT_GE(released, 0.0);
+  EXPECT_GE(released - end, ContactEstimator::kReleaseTime);
+  EXPECT_LE(released - end, 0.4);
+}
+
+// A model mismatch (a constant 20 mN in the tip frame, as a precurvature offset reads) over moving
+// inputs is learned in free space: no flag, the estimate near zero; a contact on top of it is then
+// read at its own size, the mismatch frozen meanwhile.
+TEST(ContactEstimator, TheMismatchIsLearnedInFreeSpaceAndFrozenInContact) {
+  Rig rig;
+  std::mt19937 rng(5);
+  ContactEstimator e(ContactOptions(), 3, 0.15);
+  const Vec3 mismatch(0.02, -0.01, 0.0);
+  const double dt = 0.01;
+  double t = 0.0;
+  auto q_at = [](double t) {
+    return inputs(0.04 + 0.03 * std::sin(0.7 * t), 0.04 + 0.03 * std::sin(0.7 * t + 2.1),
+                  0.04 + 0.03 * std::sin(0.7 * t + 4.2));
+  };
+  for (; t < 8.0; t += dt) {
+    const control::ContactState& s = e.update(rig.cycle(t, q_at(t), mismatch, &rng));
+    ASSERT_FALSE(s.in_contact) << "the mismatch was flagged at t = " << t;
+  }
+  EXPECT_LT(e.state().force.norm(), 0.004);
+  const Vec3 push(0.0, 0.03, 0.0);
+  ContactCycle last;
+  for (const double end = t + 1.5; t < end; t += dt) e.update(last = rig.cycle(t, q_at(t), mismatch + push, &rng));
+  ASSERT_TRUE(e.state().in_contact);
+  EXPECT_LT((e.state().force - last.measured_rotation * push).norm(), 0.006)
+      << "estimate " << e.state().force.transpose();
+}
+
+// The controller file's `contact:` group: the defaults, each key read, and bad values refused naming the key.
+TEST(ContactOptions, TheGroupIsReadAndBadValuesNameTheirKey) {
+  const config::ControllerNodeOptions o = config::parse_controller_options(
+      YAML::Load("{contact: {force_threshold: 0.02, reaction: retreat, max_force: 0.08}}"));
+  EXPECT_EQ(o.controller.contact.force_threshold, 0.02);
+  EXPECT_EQ(o.controller.contact.reaction, control::ContactReaction::kRetreat);
+  EXPECT_EQ(o.controller.contact.max_force, 0.08);
+  const struct {
+    const char* yaml;
+    const char* key;
+    const char* detail;
+  } refused[] = {{"{contact: {force_threshold: .nan}}", "contact/force_threshold", "must be finite"},
+                 {"{contact: {force_threshold: -0.01}}", "contact/force_threshold", "must lie in"},
+                 {"{contact: {max_force: 0.01}}", "contact/max_force", "must exceed force_threshold"},
+                 {"{contact: {reaction: push}}", "contact/reaction", "'comply', 'hold', 'retreat'"},
+                 {"{contact: {force_treshold: 0.01}}", "contact/force_treshold", "unknown key"}};
+  for (const auto& c : refused) {
+    try {
+      config::parse_controller_options(YAML::Load(c.yaml));
+      ADD_FAILURE() << c.yaml << " accepted";
+    } catch (const config::ParamError& e) {
+      EXPECT_EQ(e.key(), c.key) << e.what();
+      EXPECT_NE(e.detail().find(c.detail), std::string::npos) << e.what();
+    }
+  }
+}
