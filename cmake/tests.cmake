@@ -88,7 +88,7 @@ hydrojet_rostest_binary(view_markers DEPENDS view_node)
 hydrojet_rostest_binary(joystick_fifo DEPENDS joystick_node)
 hydrojet_rostest_binary(calibration_plant DEPENDS plant_node calibration_recorder_node calibrate
   LIBS hydrojet_calibration)
-foreach(f controller_params controller_stale sim_closed_loop sim_tracker_dropout sim_flow_fault sim_stuck_jet
+foreach(f controller_params controller_stale sim_closed_loop sim_tracker_dropout sim_flow_fault sim_stuck_jet sim_wall
           sim_controller_killed rig_emulated shutdown_signals_sim shutdown_signals_rig view_markers calibration_plant joystick_fifo
           teleop_keyboard operator_target_direction operator_look_at operator_joy operator_follow_path
           operator_clipped operator_rejected operator_reload_scene hostile_inputs)

@@ -8,6 +8,7 @@
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TwistStamped.h>
 #include <geometry_msgs/Vector3Stamped.h>
+#include <geometry_msgs/WrenchStamped.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Joy.h>
 #include <std_srvs/SetBool.h>
@@ -28,6 +29,7 @@
 #include "hydrojet_control/FollowPathAction.h"
 #include "hydrojet_control/JetCommand.h"
 #include "hydrojet_control/JetState.h"
+#include "hydrojet_control/Contact.h"
 #include "hydrojet_control/ReachableSet.h"
 #include "hydrojet_control/RodState.h"
 #include "hydrojet_control/TipTarget.h"
@@ -271,6 +273,8 @@ class ControllerNode {
     status_pub_ = nh.advertise<hydrojet_control::ControllerStatus>(names::kControllerStatus, 10);
     rod_pub_ = nh.advertise<hydrojet_control::RodState>(names::kRodState, 10);
     target_pub_ = nh.advertise<hydrojet_control::TipTarget>(names::kControllerTarget, 10);
+    force_pub_ = nh.advertise<geometry_msgs::WrenchStamped>(names::kExternalForce, 10);
+    contact_pub_ = nh.advertise<hydrojet_control::Contact>(names::kContact, 10);
     start_srv_ = nh.advertiseService(names::kStartService, &ControllerNode::on_start, this);
     stop_srv_ = nh.advertiseService(names::kStopService, &ControllerNode::on_stop, this);
     mode_srv_ = nh.advertiseService(names::kClosedLoopService, &ControllerNode::on_closed_loop, this);
@@ -594,6 +598,7 @@ class ControllerNode {
     if (out.state == control::ControllerState::kRunning || out.state == control::ControllerState::kFinished) {
       publish_target(st.header, out.desired_direction);
       publish_model(st.header, out, cycle_s);
+      publish_contact(st.header, out.contact);
     }
     diagnostics_.update();
   }
@@ -678,6 +683,21 @@ class ControllerNode {
     target_pub_.publish(tgt);
   }
 
+  // The external force's estimate and the contact detector (base frame).
+  void publish_contact(const std_msgs::Header& header, const control::ContactState& c) {
+    geometry_msgs::WrenchStamped w;
+    w.header = header;
+    w.wrench.force = to_msg(c.force);
+    force_pub_.publish(w);
+    hydrojet_control::Contact m;
+    m.header = header;
+    m.in_contact = c.in_contact;
+    m.normal = to_msg(c.normal);
+    m.force = to_msg(c.force);
+    if (c.in_contact && c.since > 0.0) m.since = ros::Time(c.since);
+    contact_pub_.publish(m);
+  }
+
   // The controller's model at this cycle: tip pose, backbone, wrench, stability and solve time.
   void publish_model(const std_msgs::Header& header, const control::ControllerOutput& out, double cycle_s) {
     hydrojet_control::RodState rs;
@@ -726,7 +746,7 @@ class ControllerNode {
   uint32_t rejected_targets_ = 0;  ///< since the node started
   ros::Subscriber tip_sub_, base_sub_, jet_sub_;
   ros::Subscriber target_sub_, look_at_sub_, clicked_sub_, joy_sub_, view_rate_sub_;
-  ros::Publisher cmd_pub_, status_pub_, rod_pub_, target_pub_, reachable_pub_;
+  ros::Publisher cmd_pub_, status_pub_, rod_pub_, target_pub_, reachable_pub_, force_pub_, contact_pub_;
   ros::ServiceServer start_srv_, stop_srv_, mode_srv_, reload_srv_;
   ros::Timer timer_;
   using Reconfigure = ros_bridge::ReconfigureServer<hydrojet_control::ControllerConfig>;

@@ -23,6 +23,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "hydrojet_control/Contact.h"
 #include "hydrojet_control/ControllerStatus.h"
 #include "hydrojet_control/JetState.h"
 #include "hydrojet_control/ReachableSet.h"
@@ -111,10 +112,11 @@ class ViewNode {
       if (scene.rod.actuators[i].at >= L)
         tip_actuators_.push_back({static_cast<int>(i), scene.rod.actuators[i].direction});
     if (scene.rod.actuators.empty()) throw config::SceneError("jets", "the scene has no jets or actuators section");
-    pnh.param("rod_diameter", rod_diameter_, 0.008);           // [m] (paper §6.2: 8 mm outer)
-    pnh.param("capsule_length", capsule_length_, 0.028);       // [m] (§6.1: 28 mm)
-    pnh.param("capsule_diameter", capsule_diameter_, 0.0098);  // [m] (§6.1: 9.8 mm)
-    pnh.param("force_scale", force_scale_, 0.15);              // arrow length per jet force [m/N]
+    pnh.param("rod_diameter", rod_diameter_, 0.008);              // [m] (paper §6.2: 8 mm outer)
+    pnh.param("capsule_length", capsule_length_, 0.028);          // [m] (§6.1: 28 mm)
+    pnh.param("capsule_diameter", capsule_diameter_, 0.0098);     // [m] (§6.1: 9.8 mm)
+    pnh.param("force_scale", force_scale_, 0.15);                 // arrow length per jet force [m/N]
+    pnh.param("contact_force_scale", contact_force_scale_, 1.0);  // arrow length per external force [m/N]
     // The reachable set is drawn on a sphere beyond the camera (2 L: the capsule's front stays within
     // L + 28 mm of the base), so that rviz's Publish Point on it gives a point the camera can look at.
     pnh.param("reachable_radius", reachable_radius_, 2 * scene.rod.length());  // [m]
@@ -133,6 +135,7 @@ class ViewNode {
     status_sub_ = nh.subscribe(names::kControllerStatus, 2, &ViewNode::on_status, this);
     jets_sub_ = nh.subscribe(names::kJetState, 2, &ViewNode::on_jet_state, this);
     reachable_sub_ = nh.subscribe(names::kReachableSet, 1, &ViewNode::on_reachable_set, this);
+    contact_sub_ = nh.subscribe(names::kContact, 2, &ViewNode::on_contact, this);
 
     // Static frames: world → tracker (the tracker is fixed in the lab) and base_sensor → base.
     geometry_msgs::TransformStamped a, b;
@@ -195,6 +198,7 @@ class ViewNode {
   }
 
   void on_jet_state(const hydrojet_control::JetState::ConstPtr& m) { jet_force_ = m->force; }
+  void on_contact(const hydrojet_control::Contact::ConstPtr& m) { contact_ = *m; }
 
   /// Frame and stamp of every marker of one rod message.
   struct MarkerStamp {
@@ -236,6 +240,7 @@ class ViewNode {
     add_directions(stamp, tip, &arr);
     add_stability_text(stamp, tip, m->stability_margin, tube, &arr);
     add_camera_frustum(stamp, tip, &arr);
+    add_contact(stamp, tip, &arr);
     broadcast(arr);
   }
 
@@ -320,6 +325,29 @@ class ViewNode {
     }
   }
 
+  /// The estimated external force (magenta arrow at the capsule's front, contact_force_scale [m/N]) and,
+  /// in contact, a red sphere where the capsule meets the surface (its front against the normal).
+  void add_contact(const MarkerStamp& s, const Tip& tip, visualization_msgs::MarkerArray* arr) const {
+    const Eigen::Vector3d f(contact_.force.x, contact_.force.y, contact_.force.z);
+    const Eigen::Vector3d n(contact_.normal.x, contact_.normal.y, contact_.normal.z);
+    const Eigen::Vector3d front = tip.p + capsule_length_ * tip.R.col(2);
+    visualization_msgs::Marker k = s.make("external_force", 0);
+    k.type = visualization_msgs::Marker::ARROW;
+    k.points.push_back(point(front));
+    k.points.push_back(point(front + contact_force_scale_ * (f.allFinite() ? f : Eigen::Vector3d::Zero())));
+    k.scale.x = 0.0012, k.scale.y = 0.0025, k.scale.z = 0.003;
+    k.color = color(0.9, 0.1, 0.9);
+    arr->markers.push_back(k);
+    visualization_msgs::Marker c = s.make("contact", 0);
+    c.type = visualization_msgs::Marker::SPHERE;
+    const bool touching = contact_.in_contact && n.allFinite() && n.norm() > 0.5;
+    c.action = touching ? visualization_msgs::Marker::ADD : visualization_msgs::Marker::DELETE;
+    c.pose.position = point(front - 0.5 * capsule_diameter_ * (touching ? n.normalized() : Eigen::Vector3d::Zero()));
+    c.scale.x = c.scale.y = c.scale.z = 0.004;
+    c.color = color(1.0, 0.1, 0.1);
+    arr->markers.push_back(c);
+  }
+
   /// The stability margin, the controller's state and its error as text below the tip.
   void add_stability_text(const MarkerStamp& s, const Tip& tip, double margin, const std_msgs::ColorRGBA& tube,
                           visualization_msgs::MarkerArray* arr) const {
@@ -401,14 +429,15 @@ class ViewNode {
     Eigen::Vector3d direction;  ///< tip frame
   };
   std::vector<TipActuator> tip_actuators_;
-  double rod_diameter_, capsule_length_, capsule_diameter_, force_scale_, reachable_radius_;
+  double rod_diameter_, capsule_length_, capsule_diameter_, force_scale_, contact_force_scale_, reachable_radius_;
   std::string world_frame_, tracker_frame_, base_frame_, last_state_;
   hydrojet_control::ControllerStatus status_;
-  std::vector<double> jet_force_;  ///< measured force per actuator [N] (jets/state)
+  hydrojet_control::Contact contact_;  ///< the controller's detector (controller/contact)
+  std::vector<double> jet_force_;      ///< measured force per actuator [N] (jets/state)
   ros::Publisher markers_pub_;
   int welcomed_ = 0;  ///< subscribers of markers_pub_ that have had their welcome DELETEALL
   std::vector<visualization_msgs::Marker> reachable_markers_;  ///< the last set's markers (empty: none)
-  ros::Subscriber rod_sub_, status_sub_, jets_sub_, reachable_sub_;
+  ros::Subscriber rod_sub_, status_sub_, jets_sub_, reachable_sub_, contact_sub_;
   tf2_ros::TransformBroadcaster tf_;
   tf2_ros::StaticTransformBroadcaster static_tf_;
 };

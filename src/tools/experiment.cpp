@@ -54,7 +54,9 @@ void write_run_csv(const std::string& path, const sim::RunResult& r) {
   f << "t,des_x,des_y,des_z,meas_x,meas_y,meas_z,tip_x,tip_y,tip_z,err_geodesic,err_pitch_yaw,true_x,true_y,true_z,"
        "err_true";
   for (int i = 0; i < n; ++i) f << ",q" << i + 1;  // actuator forces [N]
-  f << "\n";
+  // Contact (docs/contact.md): the truth (normal force [N], clearance [m], external force [N]) and the
+  // controller's flag and estimate [N], base frame.
+  f << ",contact_force,clearance,ext_x,ext_y,ext_z,contact_flag,est_x,est_y,est_z\n";
   char buf[512];
   for (const auto& s : r.samples) {
     std::snprintf(buf, sizeof(buf), "%.3f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6e,%.6e,%.6e,%.6e,%.6e", s.t, s.desired.x(),
@@ -67,7 +69,11 @@ void write_run_csv(const std::string& path, const sim::RunResult& r) {
       std::snprintf(buf, sizeof(buf), ",%.5f", s.jet_force[i]);
       f << buf;
     }
-    f << "\n";
+    std::snprintf(buf, sizeof(buf), ",%.6f,%.6e,%.6f,%.6f,%.6f,%d,%.6f,%.6f,%.6f", s.contact_force,
+                  s.clearance, s.external_force.x(), s.external_force.y(),
+                  s.external_force.z(), s.contact_flag ? 1 : 0, s.external_force_estimate.x(),
+                  s.external_force_estimate.y(), s.external_force_estimate.z());
+    f << buf << "\n";
   }
 }
 

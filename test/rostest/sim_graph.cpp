@@ -4,6 +4,11 @@
 //   tracker_dropout   1 s tracker dropout: jets at zero within 3 sample periods, no restart
 //   flow_fault        NaN / negative flow readings: rejected, aborted, reported on diagnostics
 //   stuck_jet         a valve stuck open: detected from flow feedback, path aborted
+//   wall              a wall across the spiral (~wall_point, ~wall_normal, ~wall_stiffness): each
+//                     contact the truth shows (plant/rod_state against the wall) is flagged on
+//                     controller/contact within 0.6 s, none before, and the wall is not pressed
+//                     harder than contact/max_force allows once it is
+#include <geometry_msgs/WrenchStamped.h>
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/PoseStamped.h>
 #include <gtest/gtest.h>
@@ -11,8 +16,10 @@
 
 #include <cmath>
 
+#include "hydrojet_control/Contact.h"
 #include "hydrojet_control/ControllerStatus.h"
 #include "hydrojet_control/JetCommand.h"
+#include "hydrojet_control/RodState.h"
 #include "hydrojet_control/ros/names.h"
 
 namespace names = hydrojet::names;
@@ -25,6 +32,9 @@ struct Log {
   double last_tracker = -1.0;  ///< sim time of the last tracker sample before the dropout
   double dropout_from = -1.0;  ///< first gap > 1.5 sample periods in the tracker stream
   std::vector<std::string> diag_errors;
+  std::vector<hydrojet_control::Contact> contact;
+  std::vector<geometry_msgs::WrenchStamped> external_force;
+  std::vector<std::pair<double, geometry_msgs::Point>> truth_tip;  ///< (stamp, the plant's true tip [m], base)
 };
 
 bool zero(const hydrojet_control::JetCommand& c) {
@@ -52,6 +62,15 @@ void run(Log& log, double wall_limit) {
         for (const auto& s : m->status)
           if (s.level == diagnostic_msgs::DiagnosticStatus::ERROR) log.diag_errors.push_back(s.message);
       });
+  ros::Subscriber s5 = nh.subscribe<hydrojet_control::Contact>(
+      names::kContact, 10000, [&](const hydrojet_control::Contact::ConstPtr& m) { log.contact.push_back(*m); });
+  ros::Subscriber s6 = nh.subscribe<geometry_msgs::WrenchStamped>(
+      names::kExternalForce, 10000,
+      [&](const geometry_msgs::WrenchStamped::ConstPtr& m) { log.external_force.push_back(*m); });
+  ros::Subscriber s7 = nh.subscribe<hydrojet_control::RodState>(
+      names::kPlantRodState, 10000, [&](const hydrojet_control::RodState::ConstPtr& m) {
+        log.truth_tip.emplace_back(m->header.stamp.toSec(), m->tip_pose.position);
+      });
   const ros::WallTime until = ros::WallTime::now() + ros::WallDuration(wall_limit);
   while (ros::ok() && ros::WallTime::now() < until) {
     ros::spinOnce();
@@ -72,6 +91,70 @@ const hydrojet_control::ControllerStatus* first_abort(const Log& log) {
   for (const auto& s : log.status)
     if (s.state == "aborted") return &s;
   return nullptr;
+}
+
+/// The wall scenario's checks: the truth is the plant's tip against the wall the test is given (the
+/// static penalty force k δ of the capsule's sphere), independent of the controller's estimate.
+void check_wall(const Log& log, ros::NodeHandle& pnh) {
+  std::vector<double> point, normal;
+  double stiffness = 0.0, radius = 0.0;
+  ASSERT_TRUE(pnh.getParam("wall_point", point) && point.size() == 3);
+  ASSERT_TRUE(pnh.getParam("wall_normal", normal) && normal.size() == 3);
+  ASSERT_TRUE(pnh.getParam("wall_stiffness", stiffness) && pnh.getParam("tip_radius", radius));
+  const auto* ab = first_abort(log);
+  ASSERT_EQ(ab, nullptr) << "aborted at " << ab->path_time << " s: " << ab->reason;
+  ASSERT_GT(log.truth_tip.size(), 100u) << "no plant/rod_state";
+  ASSERT_GT(log.contact.size(), 100u) << "no controller/contact";
+  ASSERT_GT(log.external_force.size(), 100u) << "no controller/external_force";
+  EXPECT_EQ(log.external_force.back().header.frame_id, "base");
+  auto force_at = [&](const geometry_msgs::Point& p) {
+    const double d = (p.x - point[0]) * normal[0] + (p.y - point[1]) * normal[1] + (p.z - point[2]) * normal[2];
+    return std::max(0.0, stiffness * (radius - d));
+  };
+  auto flagged_at = [&](double t) {  // the detector's flag at or before t
+    bool flag = false;
+    for (const auto& c : log.contact)
+      if (c.header.stamp.toSec() <= t) flag = c.in_contact;
+    return flag;
+  };
+  // Onsets as the experiment counts them: the true force past 20 mN after 0.5 s with none.
+  std::vector<double> onsets;
+  double quiet_since = log.truth_tip.front().first;
+  bool armed = true;
+  for (const auto& [t, p] : log.truth_tip) {
+    const double f = force_at(p);
+    if (f > 0.0) {
+      if (armed && f > 0.02) onsets.push_back(t), armed = false;
+      quiet_since = t;
+    } else if (t - quiet_since >= 0.5) {
+      armed = true;
+    }
+  }
+  ASSERT_FALSE(onsets.empty()) << "the spiral never reached the wall";
+  for (const double onset : onsets) {
+    double flagged = -1.0;
+    for (const auto& c : log.contact)
+      if (c.in_contact && c.header.stamp.toSec() >= onset - 0.5) {
+        flagged = c.header.stamp.toSec();
+        break;
+      }
+    EXPECT_GE(flagged, 0.0) << "the contact at " << onset << " s was never flagged";
+    EXPECT_LE(flagged - onset, 0.6) << "the contact at " << onset << " s was flagged at " << flagged << " s";
+  }
+  // No flag before the first contact; once flagged (0.3 s on), the wall is pressed with at most
+  // contact/max_force (0.04 N) and the 10 mN its damping and the estimate's lag add.
+  double first_flag = -1.0, worst = 0.0;
+  for (const auto& c : log.contact)
+    if (c.in_contact) {
+      first_flag = c.header.stamp.toSec();
+      break;
+    }
+  if (first_flag >= 0.0) EXPECT_GE(first_flag, onsets.front() - 0.5) << "flagged before the tip reached the wall";
+  for (const auto& [t, p] : log.truth_tip)
+    if (flagged_at(t - 0.3) && flagged_at(t)) worst = std::max(worst, force_at(p));
+  EXPECT_LE(worst, 0.05);
+  std::printf("wall: %zu onsets, first flagged %.2f s after it, force after detection at most %.3f N\n", onsets.size(),
+              first_flag - onsets.front(), worst);
 }
 
 }  // namespace
@@ -101,6 +184,11 @@ TEST(SimGraph, Scenario) {
     const double rms = std::sqrt(s2 / n);
     EXPECT_LT(rms, rms_bound);
     std::printf("closed loop on the simulated plant: RMS %.4f rad over %d cycles\n", rms, n);
+    return;
+  }
+
+  if (scenario == "wall") {
+    check_wall(log, pnh);
     return;
   }
 

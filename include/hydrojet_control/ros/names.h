@@ -29,8 +29,10 @@ constexpr char kLookAt[] = "controller/look_at";              ///< geometry_msgs
 constexpr char kClickedPoint[] = "/clicked_point";            ///< geometry_msgs/PointStamped (rviz Publish Point)
 constexpr char kViewRate[] = "controller/view_rate";          ///< geometry_msgs/TwistStamped: keyboard rates, tip frame
 constexpr char kReachableSet[] = "controller/reachable_set";  ///< hydrojet_control/ReachableSet, latched
-constexpr char kJoy[] = "joy";                                ///< sensor_msgs/Joy (joystick_node)
-constexpr char kDiagnostics[] = "/diagnostics";               ///< diagnostic_msgs/DiagnosticArray
+constexpr char kExternalForce[] = "controller/external_force";  ///< geometry_msgs/WrenchStamped, base frame
+constexpr char kContact[] = "controller/contact";               ///< hydrojet_control/Contact: the detector
+constexpr char kJoy[] = "joy";                                  ///< sensor_msgs/Joy (joystick_node)
+constexpr char kDiagnostics[] = "/diagnostics";                 ///< diagnostic_msgs/DiagnosticArray
 
 // Actions (actionlib: the goal, cancel, status, feedback and result topics under this name)
 constexpr char kFollowPathAction[] = "controller/follow_path";  ///< hydrojet_control/FollowPath
@@ -42,28 +44,12 @@ constexpr char kClosedLoopService[] = "controller/closed_loop";    ///< std_srvs
 constexpr char kReloadSceneService[] = "controller/reload_scene";  ///< std_srvs/Trigger
 
 /// Every topic and every service above (docs/ros_api.md lists exactly these; test/test_docs.cpp).
-constexpr const char* kTopics[] = {kTipPose,
-                                   kBasePose,
-                                   kTipRms,
-                                   kBaseRms,
-                                   kTipFrameNumber,
-                                   kJetState,
-                                   kJetCommand,
-                                   kControllerStatus,
-                                   kControllerTarget,
-                                   kRodState,
-                                   kPlantRodState,
-                                   kViewMarkers,
-                                   kCalibrationResult,
-                                   kClock,
-                                   kJoy,
-                                   kDiagnostics,
-                                   kTargetDirection,
-                                   kLookAt,
-                                   kClickedPoint,
-                                   kViewRate,
-                                   kReachableSet,
-                                   kPlantFault,
+constexpr const char* kTopics[] = {kTipPose,           kBasePose,      kTipRms,        kBaseRms,
+                                   kTipFrameNumber,    kJetState,      kJetCommand,    kControllerStatus,
+                                   kControllerTarget,  kRodState,      kPlantRodState, kViewMarkers,
+                                   kCalibrationResult, kClock,         kJoy,           kDiagnostics,
+                                   kTargetDirection,   kLookAt,        kClickedPoint,  kViewRate,
+                                   kReachableSet,      kExternalForce, kContact,       kPlantFault,
                                    kPlantFaultApplied};
 constexpr const char* kServices[] = {kStartService, kStopService, kClosedLoopService, kReloadSceneService};
 
