@@ -69,10 +69,9 @@ void write_run_csv(const std::string& path, const sim::RunResult& r) {
       std::snprintf(buf, sizeof(buf), ",%.5f", s.jet_force[i]);
       f << buf;
     }
-    std::snprintf(buf, sizeof(buf), ",%.6f,%.6e,%.6f,%.6f,%.6f,%d,%.6f,%.6f,%.6f", s.contact_force,
-                  s.clearance, s.external_force.x(), s.external_force.y(),
-                  s.external_force.z(), s.contact_flag ? 1 : 0, s.external_force_estimate.x(),
-                  s.external_force_estimate.y(), s.external_force_estimate.z());
+    std::snprintf(buf, sizeof(buf), ",%.6f,%.6e,%.6f,%.6f,%.6f,%d,%.6f,%.6f,%.6f", s.contact_force, s.clearance,
+                  s.external_force.x(), s.external_force.y(), s.external_force.z(), s.contact_flag ? 1 : 0,
+                  s.external_force_estimate.x(), s.external_force_estimate.y(), s.external_force_estimate.z());
     f << buf << "\n";
   }
 }
