@@ -55,6 +55,7 @@ void ContactEstimator::reset() {
   history_.clear();
   last_sample_t_ = -1.0;
   first_sample_t_ = -1.0;
+  learning_load_ = false;
   below_since_ = -1.0;
   above_ = 0;
   filtered_.setZero();
@@ -64,6 +65,14 @@ void ContactEstimator::reset() {
 // (1, the tip frame's nine entries, q / input_scale): a force fixed in the tip frame (a precurvature
 // offset), one fixed in the base frame seen from the tip (a gravity the model tilts wrongly), and
 // one that grows with the inputs (a stiffness or a jet's direction off).
+void ContactEstimator::take_as_load(double t) {
+  state_.in_contact = false;
+  state_.normal.setZero();
+  free_since_ = t - kRelearnDelay;
+  learning_load_ = true;
+  above_ = 0;
+}
+
 Eigen::VectorXd ContactEstimator::regressor(const Mat3& rotation, const InputVector& q) const {
   Eigen::VectorXd phi = Eigen::VectorXd::Ones(theta_.rows());
   phi.segment<9>(1) = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(rotation.data());
@@ -118,7 +127,7 @@ const ContactState& ContactEstimator::update(const ContactCycle& c) {
   state_.threshold = std::max(options_.force_threshold, 3.0 * std::sqrt(residual_var_.maxCoeff() * (1.0 + spread)));
   state_.deflection = deflection(filtered_);
   state_.ready = true;
-  detect(c.t, alpha);
+  detect(c.t, alpha, c.pressing);
   return state_;
 }
 
@@ -176,30 +185,36 @@ void ContactEstimator::learn(const Eigen::VectorXd& phi, const Vec3& error, doub
   residual_var_ += a * (error.cwiseAbs2().cwiseMin(cap) - residual_var_);
 }
 
-// Two samples above the threshold in a row (once armed: kArmTime of samples) flag a contact; below
-// half of it for kReleaseTime release it.
-void ContactEstimator::detect(double t, double alpha) {
-  const double magnitude = filtered_.norm();
+// Two samples above the threshold in a row (once armed: kArmTime of samples) flag a contact. In
+// contact a surface only pushes: the force along the contact's normal below half the threshold for
+// kReleaseTime (kHeldRelease while the reference is held back from the surface) releases it, and
+// the normal follows the force only while that push is clear.
+void ContactEstimator::detect(double t, double alpha, bool pressing) {
   if (!state_.in_contact) {
-    above_ = magnitude > state_.threshold && t - first_sample_t_ >= kArmTime ? above_ + 1 : 0;
+    if (learning_load_ && filtered_.norm() < 0.5 * state_.threshold) learning_load_ = false;
+    above_ = filtered_.norm() > state_.threshold && t - first_sample_t_ >= kArmTime && !learning_load_ ? above_ + 1 : 0;
     if (above_ >= 2) {
       state_.in_contact = true;
       state_.since = t;
       state_.normal = filtered_.normalized();
       below_since_ = -1.0;
     }
-  } else if (magnitude < 0.5 * state_.threshold) {
+    return;
+  }
+  const double push = filtered_.dot(state_.normal);
+  if (push < 0.5 * state_.threshold) {
     if (below_since_ < 0.0) below_since_ = t;
-    if (t - below_since_ >= kReleaseTime) {
+    if (t - below_since_ >= (pressing ? kHeldRelease : kReleaseTime)) {
       state_.in_contact = false;
       state_.normal.setZero();
       free_since_ = t;
       above_ = 0;
     }
-  } else {
-    below_since_ = -1.0;
-    state_.normal = (state_.normal + alpha * (filtered_.normalized() - state_.normal)).normalized();
+    return;
   }
+  below_since_ = -1.0;
+  if (push > state_.threshold)
+    state_.normal = (state_.normal + alpha * (filtered_.normalized() - state_.normal)).normalized();
 }
 
 }  // namespace control

@@ -445,12 +445,17 @@ void Controller::sense_contact(const ControllerInputs& in, const rod::RodSolutio
   c.model_position = sol.tip_position;
   c.compliance = lin.ok ? lin.body_compliance : rod::Mat6::Constant(std::nan(""));
   c.inputs = out.jet_force_observed;
+  c.pressing = last_output_.contact_clip_angle > 0.0;
   out.contact = contact_.update(c);
 }
 
-// In contact (contact/reaction): the law sees where the tip would be without the force (so its
-// integral does not wind into the surface), and the reference goes no deeper than half of
-// contact/max_force would press; hold and retreat end the path at the surface or off it.
+// In contact (contact/reaction) the reference goes no deeper into the surface (along the direction
+// the estimated normal turns the tip, past the tip) than a push of 0.4 contact/max_force would put
+// it, less what the estimated push exceeds that (at most half that push's turn): the law's own
+// integral then holds the push there instead of winding into the surface, and tangential motion is
+// free (the tip slides). A push that stays while the tip has moved off by kLoadTravel is a load,
+// not a surface (a tether's drag, a fold): it is handed to the estimator's mismatch and the law
+// compensates it as before. hold and retreat end the path at the surface or off it.
 void Controller::react_to_contact(ControllerOutput& out) {
   const ContactState& c = out.contact;
   const bool onset = c.in_contact && !was_in_contact_;
@@ -462,16 +467,27 @@ void Controller::react_to_contact(ControllerOutput& out) {
   const double compliance = free_side.norm();  // [rad/N]
   if (!(compliance > 1e-9)) return;            // a force along the tip's axis: nothing to turn away from
   const Vec3 d = free_side / compliance;
-  if (onset && options_.contact.reaction != ContactReaction::kComply) {
-    const double back = options_.contact.reaction == ContactReaction::kRetreat
-                            ? std::max(2.0 * compliance * options_.contact.max_force, 0.05)
-                            : 0.0;
-    reference_.aim(x + back * d, Source::kDirection);
-    commanded();
+  const double target = 0.4 * options_.contact.max_force;
+  const double push = std::max(c.force.dot(c.normal), 0.0);
+  if (onset) {
+    contact_onset_ = x;
+    if (options_.contact.reaction != ContactReaction::kComply) {
+      const double back = options_.contact.reaction == ContactReaction::kRetreat
+                              ? std::max(2.0 * compliance * options_.contact.max_force, 0.05)
+                              : 0.0;
+      reference_.aim(x + back * d, Source::kDirection);
+      commanded();
+    }
+  }
+  if ((x - contact_onset_).dot(d) > kLoadTravel && push > target + 0.5 * c.threshold) {
+    contact_.take_as_load(t_last_);
+    out.contact = contact_.state();
+    was_in_contact_ = false;
+    return;
   }
   if (options_.mode == LoopMode::kClosed) out.observed_direction = (x - c.deflection).normalized();
-  const double depth = (x - out.desired_direction).dot(d);
-  const double allowed = 0.5 * options_.contact.max_force * compliance;
+  const double allowed = compliance * target;
+  const double depth = (x - out.desired_direction).dot(d);  // the reference's, past the tip
   if (depth > allowed) {
     const Vec3 before = out.desired_direction;
     out.desired_direction = (out.desired_direction + (depth - allowed) * d).normalized();

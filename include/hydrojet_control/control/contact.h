@@ -66,6 +66,9 @@ struct ContactCycle {
   Vec3 model_position = Vec3::Zero();                     ///< [m]
   rod::Mat6 compliance = rod::Mat6::Zero();               ///< C^b there
   InputVector inputs;                                     ///< q_obs [N]
+  /// The reference was held back from the surface last cycle (the tip still presses on: a weak
+  /// estimate then does not release the contact before kHeldRelease).
+  bool pressing = false;
 };
 
 class ContactEstimator {
@@ -73,6 +76,10 @@ class ContactEstimator {
   /// input_scale [N]: the inputs' scale (the largest q_max) for the mismatch model's regressors.
   ContactEstimator(const ContactOptions& options, int inputs, double input_scale);
   void set_options(const ContactOptions& options) { options_ = options; }
+  /// The present contact is not a surface but a load that stays (the reaction did not bring its push
+  /// down): released, learned with the mismatch from now on, and no contact flagged until the
+  /// estimate has come down below half the threshold.
+  void take_as_load(double t);
   /// Forgets the present contact and the filters; the learned mismatch is kept (a restart on the same rig).
   void reset();
   /// One control cycle: the model's pose is remembered (for the tracker's latency); a new tracker sample
@@ -87,8 +94,9 @@ class ContactEstimator {
   static constexpr double kDirectionSigma = 0.3 * M_PI / 180.0;  ///< [rad]
   static constexpr double kPositionSigma = 0.5e-3;               ///< [m]
   static constexpr double kMemory = 5.0;                         ///< [s] the mismatch model's forgetting time
-  static constexpr double kFilterTime = 0.05;                    ///< [s] the force's low-pass
+  static constexpr double kFilterTime = 0.03;                    ///< [s] the force's low-pass
   static constexpr double kReleaseTime = 0.15;                   ///< [s] below half the threshold before a release
+  static constexpr double kHeldRelease = 0.5;                    ///< [s] the same while the reference is held back
   static constexpr double kArmTime = 0.5;                        ///< [s] of samples before the detector may flag
   static constexpr double kRelearnDelay = 1.0;  ///< [s] after a release before the mismatch learns again
 
@@ -104,7 +112,7 @@ class ContactEstimator {
   Eigen::VectorXd regressor(const Mat3& rotation, const InputVector& q) const;
   bool deflection_force(const ContactCycle& c, const ModelPose& pose, Vec3* force, Mat3* cov) const;
   void learn(const Eigen::VectorXd& phi, const Vec3& error, double spread, double dt);
-  void detect(double t, double alpha);
+  void detect(double t, double alpha, bool pressing);
 
   ContactOptions options_;
   double input_scale_;
@@ -118,6 +126,7 @@ class ContactEstimator {
   double free_since_ = -1e300;    ///< [s] the last release (learning waits kRelearnDelay)
   double below_since_ = -1.0;     ///< [s] the force fell below the release level
   int above_ = 0;                 ///< samples in a row above the threshold
+  bool learning_load_ = false;    ///< take_as_load: no flag until the estimate has come down
   Vec3 filtered_ = Vec3::Zero();
   Mat3 last_rotation_ = Mat3::Identity();
   rod::Mat6 last_compliance_ = rod::Mat6::Zero();
