@@ -128,6 +128,40 @@ TEST(ContactEstimator, TheDetectorFlagsAPushAndReleasesWithHysteresis) {
   EXPECT_LE(released - end, 0.4);
 }
 
+// While the reference is held back from the surface a weak estimate releases only after
+// kHeldRelease; a push handed over as a load is learned with the mismatch: no flag while it stays,
+// and the estimate comes down.
+TEST(ContactEstimator, TheHeldReleaseWaitsAndALoadIsLearned) {
+  Rig rig;
+  std::mt19937 rng(4);
+  ContactEstimator e(ContactOptions(), 3, 0.15);
+  const control::InputVector q = inputs(0.04, 0.02, 0.03);
+  const double dt = 0.01;
+  double t = 0.0;
+  auto step = [&](const Vec3& force, bool pressing) {
+    ContactCycle c = rig.cycle(t, q, force, &rng);
+    c.pressing = pressing;
+    t += dt;
+    return e.update(c).in_contact;
+  };
+  while (t < 3.0) ASSERT_FALSE(step(Vec3::Zero(), false));
+  const Vec3 push(0.0, 0.03, 0.0);
+  for (const double end = t + 1.0; t < end;) step(push, true);
+  ASSERT_TRUE(e.state().in_contact);
+  const double end = t;
+  while (step(Vec3::Zero(), true) && t < end + 2.0) {
+  }
+  EXPECT_GE(t - end, ContactEstimator::kHeldRelease);
+  EXPECT_LE(t - end, ContactEstimator::kHeldRelease + 0.2);
+  for (const double until = t + 1.5; t < until;) step(Vec3::Zero(), false);  // free again, learning
+  for (const double until = t + 1.0; t < until;) step(push, false);
+  ASSERT_TRUE(e.state().in_contact);
+  e.take_as_load(t);
+  EXPECT_FALSE(e.state().in_contact);
+  for (const double until = t + 4.0; t < until;) EXPECT_FALSE(step(push, false)) << "the load flagged again at " << t;
+  EXPECT_LT(e.state().force.norm(), 0.5 * ContactOptions().force_threshold);
+}
+
 // A model mismatch (a constant 20 mN in the tip frame, as a precurvature offset reads) over moving
 // inputs is learned in free space: no flag, the estimate near zero; a contact on top of it is then
 // read at its own size, the mismatch frozen meanwhile.
@@ -168,7 +202,7 @@ TEST(ContactOptions, TheGroupIsReadAndBadValuesNameTheirKey) {
     const char* detail;
   } refused[] = {{"{contact: {force_threshold: .nan}}", "contact/force_threshold", "must be finite"},
                  {"{contact: {force_threshold: -0.01}}", "contact/force_threshold", "must lie in"},
-                 {"{contact: {max_force: 0.01}}", "contact/max_force", "must exceed force_threshold"},
+                 {"{contact: {max_force: 0.025}}", "contact/max_force", "at least 2.5 force_threshold"},
                  {"{contact: {reaction: push}}", "contact/reaction", "'comply', 'hold', 'retreat'"},
                  {"{contact: {force_treshold: 0.01}}", "contact/force_treshold", "unknown key"}};
   for (const auto& c : refused) {

@@ -13,7 +13,7 @@ namespace control {
 namespace {
 constexpr double kPriorForce = 0.05;  ///< [N] the σ of a force along an axis not observed (a stomach's contact forces)
 constexpr double kObservable = 0.005;     ///< [N] an axis is observed when one sample's σ along it is below this
-constexpr double kPriorMismatch = 100.0;  ///< the mismatch model's initial P (in residual variances): σ ≈ 0.13 N
+constexpr double kPriorMismatch = 100.0;  ///< the mismatch model's initial P (in residual variances): σ ≈ 0.1 N
 constexpr double kVarianceTime = 10.0;    ///< [s] the residual variance's averaging time
 constexpr double kHistory = 0.5;          ///< [s] of model poses kept for the tracker's latency
 }  // namespace
@@ -39,8 +39,9 @@ bool parse_contact_reaction(const std::string& name, ContactReaction* reaction) 
 std::string ContactOptions::validate() const {
   if (std::string err = util::check_range("force_threshold", force_threshold, 0.001, 1.0); !err.empty()) return err;
   if (std::string err = util::check_range("max_force", max_force, 0.005, 2.0); !err.empty()) return err;
-  if (!(max_force > force_threshold))
-    return util::bad("max_force", max_force, "must exceed force_threshold (a contact is held below max_force)");
+  if (!(max_force >= 2.5 * force_threshold))
+    return util::bad("max_force", max_force,
+                     "must be at least 2.5 force_threshold (comply holds 0.4 of it, above the detector's threshold)");
   return "";
 }
 
@@ -57,22 +58,27 @@ void ContactEstimator::reset() {
   first_sample_t_ = -1.0;
   learning_load_ = false;
   below_since_ = -1.0;
+  load_since_ = -1.0;
   above_ = 0;
   filtered_.setZero();
   state_ = ContactState();
 }
 
-// (1, the tip frame's nine entries, q / input_scale): a force fixed in the tip frame (a precurvature
-// offset), one fixed in the base frame seen from the tip (a gravity the model tilts wrongly), and
-// one that grows with the inputs (a stiffness or a jet's direction off).
 void ContactEstimator::take_as_load(double t) {
+  load_since_ = t;
   state_.in_contact = false;
   state_.normal.setZero();
+  state_.since = 0.0;
   free_since_ = t - kRelearnDelay;
   learning_load_ = true;
+  p_ += kPriorMismatch *
+        Eigen::MatrixXd::Identity(p_.rows(), p_.cols());  // the model is unsure again: it learns the load fast
   above_ = 0;
 }
 
+// (1, the tip frame's nine entries, q / input_scale): a force fixed in the tip frame (a precurvature
+// offset), one fixed in the base frame seen from the tip (a gravity the model tilts wrongly), and
+// one that grows with the inputs (a stiffness or a jet's direction off).
 Eigen::VectorXd ContactEstimator::regressor(const Mat3& rotation, const InputVector& q) const {
   Eigen::VectorXd phi = Eigen::VectorXd::Ones(theta_.rows());
   phi.segment<9>(1) = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(rotation.data());
@@ -185,13 +191,13 @@ void ContactEstimator::learn(const Eigen::VectorXd& phi, const Vec3& error, doub
   residual_var_ += a * (error.cwiseAbs2().cwiseMin(cap) - residual_var_);
 }
 
-// Two samples above the threshold in a row (once armed: kArmTime of samples) flag a contact. In
-// contact a surface only pushes: the force along the contact's normal below half the threshold for
-// kReleaseTime (kHeldRelease while the reference is held back from the surface) releases it, and
-// the normal follows the force only while that push is clear.
+// Two samples above the threshold in a row (once armed) flag a contact. A surface only pushes: the
+// force along the contact's normal below the release level for kReleaseTime (kHeldRelease while the
+// reference is held back) releases it; the normal follows the force while the push is clear.
 void ContactEstimator::detect(double t, double alpha, bool pressing) {
   if (!state_.in_contact) {
-    if (learning_load_ && filtered_.norm() < 0.5 * state_.threshold) learning_load_ = false;
+    if (learning_load_ && (filtered_.norm() < 0.5 * options_.force_threshold || t - load_since_ > kLoadLearnTime))
+      learning_load_ = false;
     above_ = filtered_.norm() > state_.threshold && t - first_sample_t_ >= kArmTime && !learning_load_ ? above_ + 1 : 0;
     if (above_ >= 2) {
       state_.in_contact = true;
@@ -201,12 +207,15 @@ void ContactEstimator::detect(double t, double alpha, bool pressing) {
     }
     return;
   }
+  // The release level: under comply's push even where the threshold has risen with the mismatch.
+  const double release = 0.5 * std::min(state_.threshold, ContactOptions::kComplyFraction * options_.max_force);
   const double push = filtered_.dot(state_.normal);
-  if (push < 0.5 * state_.threshold) {
+  if (push < release) {
     if (below_since_ < 0.0) below_since_ = t;
     if (t - below_since_ >= (pressing ? kHeldRelease : kReleaseTime)) {
       state_.in_contact = false;
       state_.normal.setZero();
+      state_.since = 0.0;
       free_since_ = t;
       above_ = 0;
     }

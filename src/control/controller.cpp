@@ -449,13 +449,12 @@ void Controller::sense_contact(const ControllerInputs& in, const rod::RodSolutio
   out.contact = contact_.update(c);
 }
 
-// In contact (contact/reaction) the reference goes no deeper into the surface (along the direction
-// the estimated normal turns the tip, past the tip) than a push of 0.4 contact/max_force would put
-// it, less what the estimated push exceeds that (at most half that push's turn): the law's own
-// integral then holds the push there instead of winding into the surface, and tangential motion is
-// free (the tip slides). A push that stays while the tip has moved off by kLoadTravel is a load,
-// not a surface (a tether's drag, a fold): it is handed to the estimator's mismatch and the law
-// compensates it as before. hold and retreat end the path at the surface or off it.
+// In contact (contact/reaction): the law observes where the tip would be without the force (its
+// integral does not wind into the surface), and the reference goes no deeper past the tip, along
+// the turn the estimated normal makes, than comply's push would put it; tangentially it is free
+// (the tip slides). hold and retreat aim at or off the surface and end a path. A push under which
+// the tip gives way (half the turn it makes in free space, since the onset) is a load, not a
+// surface: it is handed to the estimator's mismatch and the law compensates it as before.
 void Controller::react_to_contact(ControllerOutput& out) {
   const ContactState& c = out.contact;
   const bool onset = c.in_contact && !was_in_contact_;
@@ -467,7 +466,7 @@ void Controller::react_to_contact(ControllerOutput& out) {
   const double compliance = free_side.norm();  // [rad/N]
   if (!(compliance > 1e-9)) return;            // a force along the tip's axis: nothing to turn away from
   const Vec3 d = free_side / compliance;
-  const double target = 0.4 * options_.contact.max_force;
+  const double target = ContactOptions::kComplyFraction * options_.contact.max_force;
   const double push = std::max(c.force.dot(c.normal), 0.0);
   if (onset) {
     contact_onset_ = x;
@@ -475,11 +474,14 @@ void Controller::react_to_contact(ControllerOutput& out) {
       const double back = options_.contact.reaction == ContactReaction::kRetreat
                               ? std::max(2.0 * compliance * options_.contact.max_force, 0.05)
                               : 0.0;
+      if (reference_.source() == Source::kPath)
+        out.path_failure = std::string("contact: the tip met a surface (") + to_string(options_.contact.reaction) + ")";
       reference_.aim(x + back * d, Source::kDirection);
       commanded();
     }
   }
-  if ((x - contact_onset_).dot(d) > kLoadTravel && push > target + 0.5 * c.threshold) {
+  const double give = (x - contact_onset_).dot(d);  // the tip's give to the free side since the onset
+  if (push > 0.5 * c.threshold && give > std::max(kLoadTravel, 0.5 * compliance * push)) {
     contact_.take_as_load(t_last_);
     out.contact = contact_.state();
     was_in_contact_ = false;

@@ -7,8 +7,8 @@
 //   q and the tip frame's entries, learned by recursive least squares in free space and frozen in
 //   contact, is taken off.
 //   Detect: |f| above the threshold (or the mismatch model's own 3σ where it has not yet seen the
-//   configuration) on two samples in a row; released when below half of it for 0.15 s. A force
-//   along an axis the deflection does not observe (along a straight rod's axis) is not seen.
+//   configuration) on two samples in a row; released when the push along the contact's normal stays
+//   below its release level. A force along a straight rod's axis is not observed.
 // ROS-free (Eigen).
 #pragma once
 
@@ -23,9 +23,9 @@ namespace control {
 
 /// What the controller does when the tip touches something.
 enum class ContactReaction {
-  kComply,   ///< slide along the surface: the reference never goes deeper than max_force allows
-  kHold,     ///< stop: the reference holds where the tip met the surface (off it), the path ends
-  kRetreat,  ///< back off along the normal and hold there, the path ends
+  kComply,   ///< slide along the surface, pressing with kComplyFraction of max_force
+  kHold,     ///< aim where the tip met the surface and stop there; a path ends ("contact: ...")
+  kRetreat,  ///< aim off the surface along the normal and stop there; a path ends
 };
 const char* to_string(ContactReaction r);
 /// "comply", "hold", "retreat"; false when `name` is none of them.
@@ -37,8 +37,11 @@ struct ContactOptions {
   /// noise and mismatch (docs/contact.md).
   double force_threshold = 0.012;
   ContactReaction reaction = ContactReaction::kComply;
-  /// The tissue is never pressed harder than this [N] (comply aims at half of it).
+  /// The tissue is never pressed harder than this [N]; at least 2.5 force_threshold.
   double max_force = 0.04;
+  /// comply holds the push at this fraction of max_force (0.5 left 50 mN on the walls of
+  /// docs/contact.md, 0.3 a flag after the tip had left).
+  static constexpr double kComplyFraction = 0.4;
   /// Empty when valid, else "<field>: <what is wrong>".
   std::string validate() const;
 };
@@ -76,9 +79,9 @@ class ContactEstimator {
   /// input_scale [N]: the inputs' scale (the largest q_max) for the mismatch model's regressors.
   ContactEstimator(const ContactOptions& options, int inputs, double input_scale);
   void set_options(const ContactOptions& options) { options_ = options; }
-  /// The present contact is not a surface but a load that stays (the reaction did not bring its push
-  /// down): released, learned with the mismatch from now on, and no contact flagged until the
-  /// estimate has come down below half the threshold.
+  /// The present contact is a load, not a surface: released and learned with the mismatch (its
+  /// uncertainty reset, so it learns fast); no new flag until the estimate has come down below half
+  /// the threshold (kLoadLearnTime at most).
   void take_as_load(double t);
   /// Forgets the present contact and the filters; the learned mismatch is kept (a restart on the same rig).
   void reset();
@@ -95,10 +98,11 @@ class ContactEstimator {
   static constexpr double kPositionSigma = 0.5e-3;               ///< [m]
   static constexpr double kMemory = 5.0;                         ///< [s] the mismatch model's forgetting time
   static constexpr double kFilterTime = 0.03;                    ///< [s] the force's low-pass
-  static constexpr double kReleaseTime = 0.15;                   ///< [s] below half the threshold before a release
+  static constexpr double kReleaseTime = 0.15;                   ///< [s] below the release level before a release
   static constexpr double kHeldRelease = 0.5;                    ///< [s] the same while the reference is held back
   static constexpr double kArmTime = 0.5;                        ///< [s] of samples before the detector may flag
-  static constexpr double kRelearnDelay = 1.0;  ///< [s] after a release before the mismatch learns again
+  static constexpr double kLoadLearnTime = 2.0;  ///< [s] take_as_load keeps the detector down at most this long
+  static constexpr double kRelearnDelay = 1.0;   ///< [s] after a release before the mismatch learns again
 
  private:
   struct ModelPose {
@@ -126,6 +130,7 @@ class ContactEstimator {
   double free_since_ = -1e300;    ///< [s] the last release (learning waits kRelearnDelay)
   double below_since_ = -1.0;     ///< [s] the force fell below the release level
   int above_ = 0;                 ///< samples in a row above the threshold
+  double load_since_ = -1.0;      ///< [s] take_as_load's time
   bool learning_load_ = false;    ///< take_as_load: no flag until the estimate has come down
   Vec3 filtered_ = Vec3::Zero();
   Mat3 last_rotation_ = Mat3::Identity();

@@ -185,7 +185,7 @@ class Controller {
   bool new_tracker_sample_ = false;                ///< this cycle's tracker sample is new
   bool was_in_contact_ = false;                    ///< the detector's flag at the last cycle
   Vec3 contact_onset_ = Vec3::UnitZ();             ///< the tip's direction when the present contact was flagged
-  static constexpr double kLoadTravel = 0.1;       ///< [rad] off that along the free side, still pushed: a load
+  static constexpr double kLoadTravel = 0.03;      ///< [rad] the least give that can tell a load (react_to_contact)
   rod::Mat6 last_compliance_ = rod::Mat6::Zero();  ///< C^b at the last cycle's equilibrium
   InputVector last_inputs_;                        ///< q_obs there [N]
 };
