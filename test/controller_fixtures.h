@@ -6,10 +6,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
+
+#include <yaml-cpp/yaml.h>
 
 #include "hydrojet_control/actuation/flow_regulator.h"
 #include "hydrojet_control/actuation/jet_map.h"
 #include "hydrojet_control/actuation/thrust.h"
+#include "hydrojet_control/config/controller_config.h"
 #include "hydrojet_control/config/scene.h"
 #include "hydrojet_control/control/controller.h"
 #include "hydrojet_control/control/path.h"
@@ -108,6 +112,22 @@ class ArcPath : public control::Path {
  private:
   double rate_, duration_;
 };
+
+/// A controller file's YAML that must be refused: the error names `key` and its detail holds `detail`.
+struct RefusedOptions {
+  const char* yaml;
+  const char* key;
+  const char* detail;
+};
+inline void expect_refused(const RefusedOptions& c) {
+  try {
+    config::parse_controller_options(YAML::Load(c.yaml));
+    ADD_FAILURE() << c.yaml << " accepted";
+  } catch (const config::ParamError& e) {
+    EXPECT_EQ(e.key(), c.key) << e.what();
+    EXPECT_NE(e.detail().find(c.detail), std::string::npos) << e.what();
+  }
+}
 
 }  // namespace test
 }  // namespace hydrojet
