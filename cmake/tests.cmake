@@ -29,7 +29,7 @@ endfunction()
 foreach(t test_rod_closed_form test_rod_compliance test_scene test_rod_fk_cli test_actuation test_controller test_util
           test_dynamic_rod test_numerics_models test_numerics_extreme test_rod_solver test_integrators
           test_bounded_allocation test_resolved_rates test_reference test_approach test_task_space
-          test_modal_model test_modal_law test_identification test_contact
+          test_modal_model test_modal_law test_identification test_contact test_keep_out
           test_safety_monitor)
   hydrojet_gtest(${t} LIBS hydrojet_config)
 endforeach()
@@ -88,7 +88,7 @@ hydrojet_rostest_binary(view_markers DEPENDS view_node)
 hydrojet_rostest_binary(joystick_fifo DEPENDS joystick_node)
 hydrojet_rostest_binary(calibration_plant DEPENDS plant_node calibration_recorder_node calibrate
   LIBS hydrojet_calibration)
-foreach(f controller_params controller_stale sim_closed_loop sim_tracker_dropout sim_flow_fault sim_stuck_jet sim_wall
+foreach(f controller_params controller_stale sim_closed_loop sim_tracker_dropout sim_flow_fault sim_stuck_jet sim_wall sim_keep_out
           sim_controller_killed rig_emulated shutdown_signals_sim shutdown_signals_rig view_markers calibration_plant joystick_fifo
           teleop_keyboard operator_target_direction operator_look_at operator_joy operator_follow_path
           operator_clipped operator_rejected operator_reload_scene hostile_inputs)

@@ -477,8 +477,10 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
     EXPECT_TRUE(in_file(n.key)) << n.key << " is not in " << path;
     EXPECT_EQ(n.file, n.def) << n.key;
   }
-  for (const char* key : {"mode", "control_law", "autostart", "base_frame", "path/type", "contact/reaction"})
+  for (const char* key :
+       {"mode", "control_law", "autostart", "base_frame", "path/type", "contact/reaction", "keep_out"})
     EXPECT_TRUE(in_file(key)) << key;
+  EXPECT_TRUE(f.keep_out.empty() && d.keep_out.empty());
   EXPECT_EQ(f.contact.reaction, d.contact.reaction);
   EXPECT_EQ(f.mode, d.mode);
   EXPECT_EQ(f.control_law, d.control_law);
@@ -488,7 +490,7 @@ TEST(ControllerOptions, DefaultsEqualConfigControllerYaml) {
   // And the file names nothing else (the parser rejects unknown keys, so this is the full list).
   size_t keys = 0;
   for (const auto& top : yaml) keys += top.second.IsMap() ? top.second.size() : 1;
-  EXPECT_EQ(keys, sizeof(numbers) / sizeof(numbers[0]) + 6);
+  EXPECT_EQ(keys, sizeof(numbers) / sizeof(numbers[0]) + 7);
 }
 
 // config/teleop.yaml is the source of the joystick defaults (TeleopOptions), key by key.

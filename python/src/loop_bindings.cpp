@@ -160,6 +160,7 @@ nb::dict run_experiment(const std::string& scene_file, const std::string& plant_
   d["wall_s"] = r.wall_seconds;
   d["time_scale"] = r.time_scale;
   d["reach_limited_s"] = r.reach_limited_s;
+  d["keep_out_s"] = r.keep_out_s;
   d["supervisor_fallbacks"] = r.supervisor_fallbacks;
   d["supervised_s"] = r.supervised_s;
   d["identified"] = identity_dict(r.identified, true);

@@ -1,4 +1,5 @@
 #include "hydrojet_control/config/controller_config.h"
+#include "hydrojet_control/config/surface_yaml.h"
 #include "hydrojet_control/util/files.h"
 
 #include <algorithm>
@@ -73,6 +74,25 @@ void read_removed(Tree& p, std::vector<std::string>& warnings) {
   warnings.push_back(p.key(key) + ": removed (the step's base is always the previous command); ignored");
 }
 
+/// keep_out: a list of regions (surfaces with a margin), each checked; errors name keep_out[i]/key.
+void read_keep_out(Tree& p, std::vector<control::KeepOutRegion>& regions) {
+  if (!p.has("keep_out")) return;
+  p.allow("keep_out");
+  const YAML::Node list = p.find("keep_out");
+  if (!list.IsSequence()) p.fail("keep_out", "must be a list of regions (type plane|sphere|ellipsoid, margin)");
+  regions.clear();
+  for (size_t i = 0; i < list.size(); ++i) {
+    const std::string at = p.key("keep_out[" + std::to_string(i) + "]");
+    if (!list[i].IsMap()) throw ParamError(at, "must be a mapping");
+    Tree t(list[i], '/', at + "/");
+    control::KeepOutRegion r;
+    r.surface = read_surface_shape(t, {"margin"});
+    r.margin = t.number("margin", r.margin);
+    if (std::string e = r.validate(); !e.empty()) t.fail(e.substr(0, e.find(':')), e.substr(e.find(':') + 2));
+    regions.push_back(r);
+  }
+}
+
 /// Every option of ControllerOptions at its key, the group's path (pd/kp is pd.kp), validated; an
 /// error names the key it was read from.
 void read_controller_options(Tree& p, control::ControllerOptions& c, std::vector<std::string>& warnings) {
@@ -142,6 +162,7 @@ void read_controller_options(Tree& p, control::ControllerOptions& c, std::vector
   c.path.type = read_choice(p, "path/type", c.path.type, control::PathType::kSpiral, control::PathType::kNone);
   c.contact.reaction = read_choice(p, "contact/reaction", c.contact.reaction, control::ContactReaction::kComply,
                                    control::ContactReaction::kHold, control::ContactReaction::kRetreat);
+  read_keep_out(p, c.keep_out);
   const std::string err = c.validate();
   if (!err.empty()) {
     const std::string key = err.substr(0, err.find(':'));

@@ -1,4 +1,5 @@
 #include "hydrojet_control/config/plant_config.h"
+#include "hydrojet_control/config/surface_yaml.h"
 #include "hydrojet_control/util/files.h"
 
 #include <yaml-cpp/yaml.h>
@@ -36,27 +37,7 @@ plant::Surface parse_surface(const YAML::Node& n, const std::string& path) {
   if (!n.IsMap()) throw SceneError(path, "must be a mapping");
   Tree t(n, '.', path + ".");
   plant::Surface s;
-  const std::string type = t.text("type", "");
-  if (type == "plane") {
-    t.keys("", {"type", "point", "normal", "stiffness", "damping", "friction"});
-    s.type = plant::SurfaceType::kPlane;
-    s.point = t.vec3<Eigen::Vector3d>("point");
-    s.normal = t.vec3<Eigen::Vector3d>("normal");
-  } else if (type == "sphere") {
-    t.keys("", {"type", "centre", "radius", "inside", "stiffness", "damping", "friction"});
-    s.type = plant::SurfaceType::kSphere;
-    s.point = t.vec3<Eigen::Vector3d>("centre");
-    s.radii = Eigen::Vector3d::Constant(t.number("radius"));
-    s.inside = t.boolean("inside", false);
-  } else if (type == "ellipsoid") {
-    t.keys("", {"type", "centre", "radii", "inside", "stiffness", "damping", "friction"});
-    s.type = plant::SurfaceType::kEllipsoid;
-    s.point = t.vec3<Eigen::Vector3d>("centre");
-    s.radii = t.vec3<Eigen::Vector3d>("radii");
-    s.inside = t.boolean("inside", false);
-  } else {
-    t.fail("type", "must be plane, sphere or ellipsoid (got '" + type + "')");
-  }
+  static_cast<geometry::Surface&>(s) = read_surface_shape(t, {"stiffness", "damping", "friction"});
   s.stiffness = t.number("stiffness", s.stiffness);
   s.damping = t.number("damping", s.damping);
   s.friction = t.number("friction", s.friction);
@@ -206,6 +187,7 @@ plant::PlantModel nominal_plant(const Scene& nominal) {
   plant::PlantModel p;
   p.rod.rod = nominal.rod;
   p.nozzle = nominal.nozzle;
+  p.environment.tip_radius = nominal.rod.tip_radius;  // the robot's capsule, unless the plant file says otherwise
   const Eigen::Vector3d g = nominal.rod.gravity;
   if (std::abs(g.x()) > 1e-9 * (1.0 + g.norm()))
     throw SceneError("gravity", "the plant tilts its base about x only: gravity[0] must be 0");

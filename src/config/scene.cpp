@@ -114,8 +114,9 @@ void parse_rod(Tree& t, Scene* s) {
 
 void parse_tip(Tree& t, Scene* s) {
   const YAML::Node tip = t.section("tip");
-  t.keys("tip", {"mass", "actuated"});
+  t.keys("tip", {"mass", "radius", "actuated"});
   s->rod.tip_mass = t.nonnegative("tip.mass");
+  s->rod.tip_radius = t.nonnegative("tip.radius", s->rod.tip_radius);
   if (t.has("tip.actuated")) {
     t.allow("tip.actuated");
     static const char* names[6] = {"fx", "fy", "fz", "mx", "my", "mz"};

@@ -34,6 +34,16 @@ InputVector jet_mask(const JetActuation& jets) {
   return mask;
 }
 
+/// The same regions, field by field.
+bool same_regions(const std::vector<KeepOutRegion>& a, const std::vector<KeepOutRegion>& b) {
+  auto same = [](const KeepOutRegion& x, const KeepOutRegion& y) {
+    return x.surface.type == y.surface.type && x.surface.point == y.surface.point &&
+           x.surface.normal == y.surface.normal && x.surface.radii == y.surface.radii &&
+           x.surface.inside == y.surface.inside && x.margin == y.margin;
+  };
+  return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), same);
+}
+
 }  // namespace
 
 const char* to_string(ControllerState s) {
@@ -94,6 +104,17 @@ Controller::Controller(const RobotModel& model, const ControllerOptions& options
   }
   known_valves_ = known_valves && known.valves_identified;
   reference_.set_max_path_rate(options.limits.max_path_rate);
+  if (!options.keep_out.empty()) reference_.set_keep_out(make_keep_out(options.keep_out));
+}
+
+std::shared_ptr<const KeepOut> Controller::make_keep_out(const std::vector<KeepOutRegion>& regions) const {
+  // Over the paths' set (full q_max): it holds the operator targets' set too.
+  return std::make_shared<const KeepOut>(regions, model_.rod().tip_radius, path_reachable_);
+}
+
+void Controller::set_keep_out(std::shared_ptr<const KeepOut> keep_out) {
+  options_.keep_out = keep_out ? keep_out->regions() : std::vector<KeepOutRegion>();
+  reference_.set_keep_out(keep_out && !keep_out->regions().empty() ? std::move(keep_out) : nullptr);
 }
 
 void Controller::start(double t) {
@@ -123,6 +144,9 @@ void Controller::stop() {
 
 void Controller::set_options(const ControllerOptions& options) {
   validated(options);
+  std::shared_ptr<const KeepOut> keep_out;
+  const bool new_regions = !same_regions(options.keep_out, options_.keep_out);
+  if (new_regions) keep_out = make_keep_out(options.keep_out);
   std::unique_ptr<DirectionLaw> law =
       options.control_law == law_->kind()
           ? nullptr
@@ -135,6 +159,7 @@ void Controller::set_options(const ControllerOptions& options) {
   reference_.set_max_path_rate(options.limits.max_path_rate);
   approach_.set_options(options.approach);
   contact_.set_options(options.contact);
+  if (new_regions) set_keep_out(std::move(keep_out));
 }
 
 void Controller::follow(std::shared_ptr<const Path> path, double t, Reference::PathStart start,
@@ -203,6 +228,7 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   const ActuatedModel::Linearisation lin = model_.linearise();  // C^b (eq. 14) and J_q of line 6
   if (std::string why = check_stability(lin, out); !why.empty()) return abort(out, why);
   sense_contact(in, sol, lin, out);
+  learn_keep_out_offset(in, out, dt);
 
   track_reference(in, sol, dt, out);
   react_to_contact(out);
@@ -296,6 +322,7 @@ void Controller::track_reference(const ControllerInputs& in, const rod::RodSolut
   out.clipped = reference_.clipped();
   out.clip_angle = reference_.clip_angle();
   out.reach_limited = reference_.reach_limited();
+  out.kept_out = reference_.kept_out();
   out.time_scale = reference_.time_scale();
   out.error_geodesic = geodesic_error(out.desired_direction, out.measured_direction);
   out.error_pitch_yaw = pitch_yaw_error(out.desired_direction, out.measured_direction);
@@ -447,6 +474,19 @@ void Controller::sense_contact(const ControllerInputs& in, const rod::RodSolutio
   c.inputs = out.jet_force_observed;
   c.pressing = last_output_.contact_clip_angle > 0.0;
   out.contact = contact_.update(c);
+}
+
+// Where the tracker puts the tip against where the model puts it at the same measured direction, low-
+// passed (kKeepOutOffsetTime) in free space: the keep-out regions are checked with it, so that a plant
+// softer or bent otherwise than the model keeps its capsule out too. Frozen in contact (the surface
+// moves the tip off the model) and without a tip position.
+void Controller::learn_keep_out_offset(const ControllerInputs& in, const ControllerOutput& out, double dt) {
+  const KeepOut* k = reference_.keep_out();
+  if (!k || !new_tracker_sample_ || out.contact.in_contact || !in.tip_position.allFinite()) return;
+  const Vec3 raw = in.tip_position - k->tip_position(in.tip_rotation.col(2));
+  if (!raw.allFinite() || raw.norm() > kMaxKeepOutOffset) return;
+  const Vec3 offset = reference_.keep_out_offset();
+  reference_.set_keep_out_offset(offset + std::min(1.0, dt / kKeepOutOffsetTime) * (raw - offset));
 }
 
 // In contact (contact/reaction): the law observes where the tip would be without the force (its

@@ -39,6 +39,8 @@ std::string ControllerOptions::validate() const {
       {"contact", contact.validate()}};
   for (const auto& [group, err] : groups)
     if (!err.empty()) return util::in_group(group, err);
+  for (size_t i = 0; i < keep_out.size(); ++i)
+    if (std::string err = keep_out[i].validate(); !err.empty()) return "keep_out[" + std::to_string(i) + "]/" + err;
   return "";
 }
 

@@ -52,15 +52,15 @@ class ForceSweep {
     return true;
   }
 
-  /// The accepted directions: converged, σ_c ≥ min_stability_margin and eig_min > 0. Stops with
-  /// std::runtime_error once `deadline` has passed.
-  std::vector<Vec3> accepted_directions(std::chrono::steady_clock::time_point deadline) {
+  /// The accepted directions: converged, σ_c ≥ min_stability_margin and eig_min > 0; their tip
+  /// positions in *positions. Stops with std::runtime_error once `deadline` has passed.
+  std::vector<Vec3> accepted_directions(std::chrono::steady_clock::time_point deadline, std::vector<Vec3>* positions) {
     std::vector<Vec3> out;
     const int rays = kRaysPerBin * options_.azimuth_bins, rings = options_.force_samples;
     const Eigen::Vector2d o = polygon_->origin();
-    Vec3 d;
+    Vec3 d, p;
     InputVector q = rest_;
-    if (accepted(o, &q, &d)) out.push_back(d);
+    if (accepted(o, &q, &d, &p)) out.push_back(d), positions->push_back(p);
     for (int j = 0; j < rays; ++j) {
       const Eigen::Vector2d u(std::cos(kTwoPi * j / rays), std::sin(kTwoPi * j / rays));
       const double extent = polygon_->extent(u);
@@ -73,15 +73,16 @@ class ForceSweep {
           throw std::runtime_error(os.str());
         }
         const int k = j % 2 == 0 ? kk : rings + 1 - kk;
-        if (accepted(o + extent * k / rings * u, &q, &d)) out.push_back(d);
+        if (accepted(o + extent * k / rings * u, &q, &d, &p)) out.push_back(d), positions->push_back(p);
       }
     }
     return out;
   }
 
  private:
-  /// The model at the inputs that steer to s (warm-started from *q, which they replace).
-  bool accepted(const Eigen::Vector2d& s, InputVector* q, Vec3* d) {
+  /// The model at the inputs that steer to s (warm-started from *q, which they replace): its tip
+  /// direction *d and position *p.
+  bool accepted(const Eigen::Vector2d& s, InputVector* q, Vec3* d, Vec3* p) {
     const actuation::BoundedAllocationResult a =
         actuation::allocate_bounded(steering_, s, model_.lower(), model_.upper(), lambda_, 1e-9, q);
     if (!a.ok) return false;
@@ -89,6 +90,7 @@ class ForceSweep {
     const rod::RodSolution sol = model_.solve(*q);
     if (!sol.converged) return false;
     *d = sol.tip_rotation.col(2);
+    *p = sol.tip_position;
     const ActuatedModel::Linearisation lin = model_.linearise();
     if (!lin.ok) return false;
     const rod::StabilityReport st = model_.stability(lin);
@@ -139,7 +141,8 @@ ReachableSet ReachableSet::compute(const RobotModel& model, const ReachableSetOp
   ForceSweep sweep(model, options);
   if (sweep.zero_force_direction(&set.center_)) {
     set.samples_ = sweep.accepted_directions(t0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                                      std::chrono::duration<double>(options.max_time)));
+                                                      std::chrono::duration<double>(options.max_time)),
+                                             &set.sample_positions_);
     set.build_boundary(options.azimuth_bins);
   }
   set.compute_time_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

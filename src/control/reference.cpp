@@ -111,7 +111,8 @@ Vec3 Reference::preview(double t, double lead) const {
   (void)t;
   const Vec3 ahead = path_->direction_at(path_clock_ + lead / time_scale_now_);
   const Vec3 in_set = path_clip_ ? path_clip_->clip(ahead) : Vec3(ahead.normalized());
-  return path_clip_ ? learned_.clip(in_set) : in_set;
+  const Vec3 reached = path_clip_ ? learned_.clip(in_set) : in_set;
+  return keep_out_ ? keep_out_->clip(reached, nullptr, keep_out_offset_) : reached;
 }
 
 // The path's clock over dt [s]: at the path's own pace, or slower where the path would turn the
@@ -146,29 +147,41 @@ void Reference::advance_clock(double t, double dt) {
   slowed_ = t - path_start_ - path_clock_;
 }
 
-// The commanded direction (unit) clipped to `set` (none: not clipped), then to the learned reach.
+// The commanded direction (unit) clipped to `set` (none: not clipped), then to the learned reach,
+// then out of the keep-out regions.
 void Reference::set_target(const Vec3& target, const ReachableSet* set) {
   clip_angle_ = 0.0;
-  reach_limited_ = false;
+  reach_limited_ = kept_out_ = false;
   target_ = set ? set->clip(target, &clip_angle_) : target;
-  if (!set) return;
-  double pulled = 0.0;
-  target_ = learned_.clip(target_, &pulled);
-  if (pulled > 0.0) {
-    reach_limited_ = true;
-    clip_angle_ = geodesic_error(target, target_);
+  if (set) {
+    double pulled = 0.0;
+    target_ = learned_.clip(target_, &pulled);
+    reach_limited_ = pulled > 0.0;
   }
+  if (keep_out_) {
+    double moved = 0.0;
+    target_ = keep_out_->clip(target_, &moved, keep_out_offset_);
+    kept_out_ = moved > 0.0;
+  }
+  if (reach_limited_ || kept_out_) clip_angle_ = geodesic_error(target, target_);
 }
 
 // Along the great circle toward the target, at most max_angular_rate·dt; exactly onto it when closer.
+// A reference outside the keep-out regions that the step would take in stays on their edge (one that
+// starts inside, where the tip was, moves out toward its allowed target).
 void Reference::move_toward_target(double dt) {
   const Vec3 rotation = rotation_between(reference_, target_);
   const double angle = rotation.norm(), step = max_rate_ * dt;
+  const bool was_out = keep_out_ && keep_out_->allows(reference_, keep_out_offset_);
   if (angle <= step) {
     reference_ = target_;
     return;
   }
   reference_ = (Eigen::AngleAxisd(step, rotation / angle) * reference_).normalized();
+  if (was_out && !keep_out_->allows(reference_, keep_out_offset_)) {
+    reference_ = keep_out_->clip(reference_, nullptr, keep_out_offset_);
+    kept_out_ = true;
+  }
 }
 
 }  // namespace control

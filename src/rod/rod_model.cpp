@@ -31,6 +31,7 @@ std::string RodModel::check_inputs(const Eigen::Ref<const Eigen::VectorXd>& q) c
 
 std::string RodModel::validate() const {
   if (segments.empty()) return "segments: at least one segment is needed";
+  if (!(tip_radius >= 0.0 && tip_radius <= 1.0)) return "tip_radius: must lie in [0, 1] m";
   for (size_t i = 0; i < segments.size(); ++i) {
     const RodSegment& g = segments[i];
     if (!(g.length > 0.0) || !std::isfinite(g.length)) return item("segments", i, "length") + "must be > 0";

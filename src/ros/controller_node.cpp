@@ -22,6 +22,7 @@
 #include <chrono>
 #include <future>
 #include <iostream>
+#include <mutex>
 #include <optional>
 
 #include "hydrojet_control/ControllerConfig.h"
@@ -30,6 +31,8 @@
 #include "hydrojet_control/JetCommand.h"
 #include "hydrojet_control/JetState.h"
 #include "hydrojet_control/Contact.h"
+#include "hydrojet_control/KeepOut.h"
+#include "hydrojet_control/SetKeepOut.h"
 #include "hydrojet_control/ReachableSet.h"
 #include "hydrojet_control/RodState.h"
 #include "hydrojet_control/TipTarget.h"
@@ -60,6 +63,33 @@ geometry_msgs::Vector3 to_msg(const Eigen::Vector3d& v) {
   geometry_msgs::Vector3 m;
   m.x = v.x(), m.y = v.y(), m.z = v.z();
   return m;
+}
+
+/// Keep-out regions from their messages; an unknown type fails naming keep_out[i]/type (the rest is
+/// checked where they are built: control::KeepOut).
+std::string from_msg(const std::vector<hydrojet_control::KeepOutRegion>& msgs,
+                     std::vector<control::KeepOutRegion>* regions) {
+  for (size_t i = 0; i < msgs.size(); ++i) {
+    const hydrojet_control::KeepOutRegion& m = msgs[i];
+    control::KeepOutRegion r;
+    if (m.type == "plane")
+      r.surface.type = geometry::SurfaceType::kPlane;
+    else if (m.type == "sphere")
+      r.surface.type = geometry::SurfaceType::kSphere;
+    else if (m.type == "ellipsoid")
+      r.surface.type = geometry::SurfaceType::kEllipsoid;
+    else
+      return "keep_out[" + std::to_string(i) + "]/type: must be plane, sphere or ellipsoid (got '" + m.type + "')";
+    r.surface.point = to_vector(m.point);
+    r.surface.normal = {m.normal.x, m.normal.y, m.normal.z};
+    r.surface.radii = r.surface.type == geometry::SurfaceType::kSphere
+                          ? Eigen::Vector3d::Constant(m.radii.x)
+                          : Eigen::Vector3d(m.radii.x, m.radii.y, m.radii.z);
+    r.surface.inside = m.inside;
+    r.margin = m.margin;
+    regions->push_back(r);
+  }
+  return "";
 }
 
 bool finite_pose(const geometry_msgs::Pose& p) {
@@ -135,6 +165,7 @@ class FollowPathServer {
     max_clip_ = std::max(max_clip_, out.clip_angle);
     time_scale_ = out.time_scale;
     if (out.reach_limited && !out.approaching) reach_limited_s_ += controller_.options().safety.sample_period;
+    if (out.kept_out && !out.approaching) keep_out_s_ += controller_.options().safety.sample_period;
     if (!out.approaching) {  // the error of a path counts from its clock's start
       sum_sq_ += out.error_geodesic * out.error_geodesic;
       max_error_ = std::max(max_error_, out.error_geodesic);
@@ -148,6 +179,7 @@ class FollowPathServer {
       f.clipped = out.clipped;
       f.clip_angle = out.clip_angle;
       f.approaching = out.approaching;
+      f.kept_out = out.kept_out;
       server_.publishFeedback(f);
       last_feedback_ = now;
     }
@@ -165,7 +197,7 @@ class FollowPathServer {
   void on_goal() {
     const auto goal = server_.acceptNewGoal();
     path_.reset();
-    sum_sq_ = max_error_ = max_clip_ = approach_time_ = reach_limited_s_ = 0.0;
+    sum_sq_ = max_error_ = max_clip_ = approach_time_ = reach_limited_s_ = keep_out_s_ = 0.0;
     time_scale_ = 1.0;
     samples_ = 0;
     building_ = ++goals_;
@@ -228,6 +260,7 @@ class FollowPathServer {
     r.approach_time = approach_time_;
     r.time_scale = time_scale_;
     r.reach_limited_s = reach_limited_s_;
+    r.keep_out_s = keep_out_s_;
     return r;
   }
 
@@ -244,6 +277,7 @@ class FollowPathServer {
   double approach_time_ = 0.0;             ///< [s] the path's approach (so far)
   double time_scale_ = 1.0;                ///< the path's time scaling so far
   double reach_limited_s_ = 0.0;           ///< [s] of the path clipped to the learned reach
+  double keep_out_s_ = 0.0;                ///< [s] of the path moved out of a keep-out region
   int samples_ = 0;
   ros::Time last_feedback_;
 };
@@ -275,6 +309,18 @@ class ControllerNode {
     target_pub_ = nh.advertise<hydrojet_control::TipTarget>(names::kControllerTarget, 10);
     force_pub_ = nh.advertise<geometry_msgs::WrenchStamped>(names::kExternalForce, 10);
     contact_pub_ = nh.advertise<hydrojet_control::Contact>(names::kContact, 10);
+    keep_out_pub_ = nh.advertise<hydrojet_control::KeepOut>(names::kKeepOut, 1, /*latch=*/true);
+    keep_out_regions_ = opts_.controller.keep_out;
+    keep_out_basis_ = {controller_->shared_path_reachable_set(), controller_->tip_radius()};
+    publish_keep_out();
+    // Built off the control loop (a fit over the reachable set's sweep), adopted between two cycles.
+    ros::AdvertiseServiceOptions keep_out = ros::AdvertiseServiceOptions::create<hydrojet_control::SetKeepOut>(
+        names::kSetKeepOutService,
+        [this](hydrojet_control::SetKeepOut::Request& req, hydrojet_control::SetKeepOut::Response& res) {
+          return on_set_keep_out(req, res);
+        },
+        ros::VoidConstPtr(), background_.queue());
+    keep_out_srv_ = nh.advertiseService(keep_out);
     start_srv_ = nh.advertiseService(names::kStartService, &ControllerNode::on_start, this);
     stop_srv_ = nh.advertiseService(names::kStopService, &ControllerNode::on_stop, this);
     mode_srv_ = nh.advertiseService(names::kClosedLoopService, &ControllerNode::on_closed_loop, this);
@@ -518,7 +564,12 @@ class ControllerNode {
     SceneSwap swap;
     try {
       const control::RobotModel model = config::make_controller_model(config::load_scene(path), opts_.flow_regulator);
-      swap.controller = std::make_unique<control::Controller>(model, initial_params_);
+      control::ControllerOptions params = initial_params_;
+      {
+        std::lock_guard<std::mutex> lock(keep_out_mutex_);
+        params.keep_out = keep_out_regions_;  // the regions in force, over the new robot's reach
+      }
+      swap.controller = std::make_unique<control::Controller>(model, params);
       swap.look_at = std::make_unique<control::LookAtSolver>(model);
     } catch (const std::exception& e) {
       return refuse(e.what());
@@ -538,6 +589,61 @@ class ControllerNode {
     return true;
   }
 
+  // New keep-out regions (background thread): checked and built here against the reachable set in
+  // force; refused naming the key (the regions in force stay), else adopted at the next cycle.
+  bool on_set_keep_out(hydrojet_control::SetKeepOut::Request& req, hydrojet_control::SetKeepOut::Response& res) {
+    std::vector<control::KeepOutRegion> regions;
+    std::string error = from_msg(req.regions, &regions);
+    std::shared_ptr<const control::KeepOut> keep_out;
+    if (error.empty()) {
+      KeepOutBasis basis;
+      {
+        std::lock_guard<std::mutex> lock(keep_out_mutex_);
+        basis = keep_out_basis_;
+      }
+      try {
+        keep_out = std::make_shared<const control::KeepOut>(regions, basis.tip_radius, basis.set);
+      } catch (const std::exception& e) {
+        error = e.what();
+      }
+    }
+    res.success = error.empty();
+    if (!res.success) {
+      res.message = util::printable("refused: " + error + " (the regions in force stay)");
+      ROS_WARN("controller: set_keep_out %s", res.message.c_str());
+      return true;
+    }
+    {
+      std::lock_guard<std::mutex> lock(keep_out_mutex_);
+      keep_out_regions_ = regions;
+    }
+    keep_out_box_.put(std::move(keep_out));
+    res.message = std::to_string(regions.size()) + " keep-out region(s) from the next control cycle";
+    ROS_INFO("controller: %s", res.message.c_str());
+    return true;
+  }
+
+  /// The regions in force, latched (the view draws them).
+  void publish_keep_out() {
+    hydrojet_control::KeepOut m;
+    m.header.stamp = ros::Time::now();
+    m.header.frame_id = opts_.base_frame;
+    for (const control::KeepOutRegion& r : controller_->options().keep_out) {
+      hydrojet_control::KeepOutRegion k;
+      const geometry::SurfaceType t = r.surface.type;
+      k.type = t == geometry::SurfaceType::kPlane    ? "plane"
+               : t == geometry::SurfaceType::kSphere ? "sphere"
+                                                     : "ellipsoid";
+      k.point.x = r.surface.point.x(), k.point.y = r.surface.point.y(), k.point.z = r.surface.point.z();
+      k.normal = to_msg(r.surface.normal);
+      k.radii = to_msg(r.surface.radii);
+      k.inside = r.surface.inside;
+      k.margin = r.margin;
+      m.regions.push_back(k);
+    }
+    keep_out_pub_.publish(m);
+  }
+
   /// Between two cycles: a scene loaded by reload_scene replaces the model (unless the controller
   /// runs: then it is refused).
   void adopt_scene() {
@@ -553,12 +659,20 @@ class ControllerNode {
     look_at_ = std::move(swap->look_at);
     sweep_time_ = controller_->reachable_set().compute_time();
     publish_reachable_set();
+    {
+      std::lock_guard<std::mutex> lock(keep_out_mutex_);
+      keep_out_basis_ = {controller_->shared_path_reachable_set(), controller_->tip_radius()};
+    }
     swap->verdict.set_value("");
   }
 
   // One control cycle: latest samples in, Algorithm 1, command and status out.
   void tick(const ros::TimerEvent&) {
     adopt_scene();
+    if (std::optional<std::shared_ptr<const control::KeepOut>> k = keep_out_box_.take()) {
+      controller_->set_keep_out(std::move(*k));
+      publish_keep_out();
+    }
     const ros::Time now = ros::Time::now();
     control::ControllerInputs in;
     in.t = now.toSec();
@@ -771,6 +885,17 @@ class ControllerNode {
   /// set by each cycle and by controller/stop.
   std::atomic<bool> running_{false};
   ros_bridge::Mailbox<SceneSwap> scene_box_;
+  /// What set_keep_out builds regions over (the loop sets it; the background thread reads it).
+  struct KeepOutBasis {
+    std::shared_ptr<const control::ReachableSet> set;
+    double tip_radius = 0.0;
+  };
+  std::mutex keep_out_mutex_;  ///< guards the two below
+  KeepOutBasis keep_out_basis_;
+  std::vector<control::KeepOutRegion> keep_out_regions_;  ///< in force, or on their way to the loop
+  ros_bridge::Mailbox<std::shared_ptr<const control::KeepOut>> keep_out_box_;
+  ros::Publisher keep_out_pub_;
+  ros::ServiceServer keep_out_srv_;
   // Last: destroyed first, so that no background job outlives what it uses.
   /// The probe's fit, from the background thread (declared before it: the thread stops first).
   ros_bridge::Mailbox<identification::ModeFit> mode_fits_;

@@ -24,6 +24,7 @@
 #include <cstdio>
 
 #include "hydrojet_control/Contact.h"
+#include "hydrojet_control/KeepOut.h"
 #include "hydrojet_control/ControllerStatus.h"
 #include "hydrojet_control/JetState.h"
 #include "hydrojet_control/ReachableSet.h"
@@ -136,6 +137,7 @@ class ViewNode {
     jets_sub_ = nh.subscribe(names::kJetState, 2, &ViewNode::on_jet_state, this);
     reachable_sub_ = nh.subscribe(names::kReachableSet, 1, &ViewNode::on_reachable_set, this);
     contact_sub_ = nh.subscribe(names::kContact, 2, &ViewNode::on_contact, this);
+    keep_out_sub_ = nh.subscribe(names::kKeepOut, 1, &ViewNode::on_keep_out, this);
 
     // Static frames: world → tracker (the tracker is fixed in the lab) and base_sensor → base.
     geometry_msgs::TransformStamped a, b;
@@ -157,6 +159,7 @@ class ViewNode {
     m.action = visualization_msgs::Marker::DELETEALL;
     arr.markers.push_back(m);
     arr.markers.insert(arr.markers.end(), reachable_markers_.begin(), reachable_markers_.end());
+    arr.markers.insert(arr.markers.end(), keep_out_markers_.begin(), keep_out_markers_.end());
     return arr;
   }
   void delete_all() { broadcast(reset_markers()); }
@@ -186,6 +189,42 @@ class ViewNode {
         k.action = visualization_msgs::Marker::DELETE;
         arr.markers.push_back(k);
       }
+    }
+    broadcast(arr);
+  }
+
+  /// The keep-out regions in force (orange, translucent): a plane as a thin square about its point,
+  /// spheres and ellipsoids as themselves; they replace the previous ones.
+  void on_keep_out(const hydrojet_control::KeepOut::ConstPtr& m) {
+    const MarkerStamp stamp{m->header.frame_id.empty() ? base_frame_ : m->header.frame_id, ros::Time()};
+    visualization_msgs::MarkerArray arr;
+    for (size_t i = m->regions.size(); i < keep_out_markers_.size(); ++i) {
+      visualization_msgs::Marker k = stamp.make("keep_out", static_cast<int>(i));
+      k.action = visualization_msgs::Marker::DELETE;
+      arr.markers.push_back(k);
+    }
+    keep_out_markers_.clear();
+    for (size_t i = 0; i < m->regions.size(); ++i) {
+      const hydrojet_control::KeepOutRegion& r = m->regions[i];
+      visualization_msgs::Marker k = stamp.make("keep_out", static_cast<int>(i));
+      k.pose.position = r.point;
+      k.pose.orientation.w = 1.0;
+      if (r.type == "plane") {
+        k.type = visualization_msgs::Marker::CUBE;
+        const Eigen::Vector3d n(r.normal.x, r.normal.y, r.normal.z);
+        const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), n);
+        k.pose.orientation.w = q.w(), k.pose.orientation.x = q.x(), k.pose.orientation.y = q.y(),
+        k.pose.orientation.z = q.z();
+        k.scale.x = k.scale.y = reachable_radius_, k.scale.z = 0.0005;
+      } else {
+        k.type = visualization_msgs::Marker::SPHERE;
+        const bool sphere = r.type == "sphere";
+        k.scale.x = 2.0 * r.radii.x, k.scale.y = 2.0 * (sphere ? r.radii.x : r.radii.y);
+        k.scale.z = 2.0 * (sphere ? r.radii.x : r.radii.z);
+      }
+      k.color = color(1.0, 0.55, 0.1, r.inside ? 0.12 : 0.3);
+      keep_out_markers_.push_back(k);
+      arr.markers.push_back(k);
     }
     broadcast(arr);
   }
@@ -437,7 +476,8 @@ class ViewNode {
   ros::Publisher markers_pub_;
   int welcomed_ = 0;  ///< subscribers of markers_pub_ that have had their welcome DELETEALL
   std::vector<visualization_msgs::Marker> reachable_markers_;  ///< the last set's markers (empty: none)
-  ros::Subscriber rod_sub_, status_sub_, jets_sub_, reachable_sub_, contact_sub_;
+  std::vector<visualization_msgs::Marker> keep_out_markers_;   ///< the keep-out regions in force
+  ros::Subscriber rod_sub_, status_sub_, jets_sub_, reachable_sub_, contact_sub_, keep_out_sub_;
   tf2_ros::TransformBroadcaster tf_;
   tf2_ros::StaticTransformBroadcaster static_tf_;
 };

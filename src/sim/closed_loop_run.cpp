@@ -214,6 +214,7 @@ RunResult run_path(const control::RobotModel& model, const control::ControllerOp
       r.samples.push_back(record(episode.plant(), out, t - path_start));
       if (out.law_weight < 1.0) r.supervised_s += plan.control_period;
       if (out.reach_limited) r.reach_limited_s += plan.control_period;
+      if (out.kept_out) r.keep_out_s += plan.control_period;
       r.time_scale = out.time_scale;
       if (out.law_weight == 0.0 && weight > 0.0) ++r.supervisor_fallbacks;
       weight = out.law_weight;

@@ -275,7 +275,7 @@ std::string write_results(const std::vector<Job>& jobs, const std::string& out, 
       o.add("aborted_at_s", r.aborted_at);
     else
       o.add_null("aborted_at_s");
-    o.add("time_scale", r.time_scale).add("reach_limited_s", r.reach_limited_s);
+    o.add("time_scale", r.time_scale).add("reach_limited_s", r.reach_limited_s).add("keep_out_s", r.keep_out_s);
     o.add("supervisor_fallbacks", r.supervisor_fallbacks).add("supervised_s", r.supervised_s);
     o.raw("identified", sim::identity_json(r.identified, true)).raw("plant_truth", sim::identity_json(r.truth, false));
     add_contact(o, r.contact);

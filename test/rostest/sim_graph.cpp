@@ -8,6 +8,9 @@
 //                     contact the truth shows (plant/rod_state against the wall) is flagged on
 //                     controller/contact within 0.6 s, none before, and the wall is not pressed
 //                     harder than contact/max_force allows once it is
+//   keep_out          the same wall, and the same plane set as a keep-out region through
+//                     controller/set_keep_out (a broken one refused first, naming the key): the truth
+//                     never touches the wall, and controller/keep_out carries the region
 #include <geometry_msgs/WrenchStamped.h>
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/PoseStamped.h>
@@ -19,6 +22,8 @@
 #include "hydrojet_control/Contact.h"
 #include "hydrojet_control/ControllerStatus.h"
 #include "hydrojet_control/JetCommand.h"
+#include "hydrojet_control/KeepOut.h"
+#include "hydrojet_control/SetKeepOut.h"
 #include "hydrojet_control/RodState.h"
 #include "hydrojet_control/ros/names.h"
 
@@ -35,6 +40,7 @@ struct Log {
   std::vector<hydrojet_control::Contact> contact;
   std::vector<geometry_msgs::WrenchStamped> external_force;
   std::vector<std::pair<double, geometry_msgs::Point>> truth_tip;  ///< (stamp, the plant's true tip [m], base)
+  std::vector<hydrojet_control::KeepOut> keep_out;
 };
 
 bool zero(const hydrojet_control::JetCommand& c) {
@@ -71,6 +77,8 @@ void run(Log& log, double wall_limit) {
       names::kPlantRodState, 10000, [&](const hydrojet_control::RodState::ConstPtr& m) {
         log.truth_tip.emplace_back(m->header.stamp.toSec(), m->tip_pose.position);
       });
+  ros::Subscriber s8 = nh.subscribe<hydrojet_control::KeepOut>(
+      names::kKeepOut, 10, [&](const hydrojet_control::KeepOut::ConstPtr& m) { log.keep_out.push_back(*m); });
   const ros::WallTime until = ros::WallTime::now() + ros::WallDuration(wall_limit);
   while (ros::ok() && ros::WallTime::now() < until) {
     ros::spinOnce();
@@ -157,6 +165,59 @@ void check_wall(const Log& log, ros::NodeHandle& pnh) {
               first_flag - onsets.front(), worst);
 }
 
+/// The wall of ~wall_point, ~wall_normal as a keep-out region with `margin`.
+hydrojet_control::KeepOutRegion wall_region(ros::NodeHandle& pnh, double margin) {
+  std::vector<double> point, normal;
+  pnh.getParam("wall_point", point);
+  pnh.getParam("wall_normal", normal);
+  hydrojet_control::KeepOutRegion r;
+  r.type = "plane";
+  if (point.size() == 3) r.point.x = point[0], r.point.y = point[1], r.point.z = point[2];
+  if (normal.size() == 3) r.normal.x = normal[0], r.normal.y = normal[1], r.normal.z = normal[2];
+  r.margin = margin;
+  return r;
+}
+
+/// Sets the keep-out region through the service before the run: a broken region first (refused,
+/// naming the key), then the wall with a 2 mm margin.
+void set_keep_out(ros::NodeHandle& pnh) {
+  ASSERT_TRUE(ros::service::waitForService(names::kSetKeepOutService, ros::Duration(60.0)));
+  hydrojet_control::SetKeepOut bad;
+  bad.request.regions.push_back(wall_region(pnh, 0.002));
+  bad.request.regions.back().normal = geometry_msgs::Vector3();
+  ASSERT_TRUE(ros::service::call(names::kSetKeepOutService, bad));
+  EXPECT_FALSE(bad.response.success);
+  EXPECT_NE(bad.response.message.find("keep_out[0]/normal"), std::string::npos) << bad.response.message;
+  hydrojet_control::SetKeepOut good;
+  good.request.regions.push_back(wall_region(pnh, 0.002));
+  ASSERT_TRUE(ros::service::call(names::kSetKeepOutService, good));
+  EXPECT_TRUE(good.response.success) << good.response.message;
+}
+
+/// The keep_out scenario's checks: the plant's tip (truth) keeps the capsule off the wall.
+void check_keep_out(const Log& log, ros::NodeHandle& pnh) {
+  std::vector<double> point, normal;
+  double radius = 0.0;
+  ASSERT_TRUE(pnh.getParam("wall_point", point) && pnh.getParam("wall_normal", normal) &&
+              pnh.getParam("tip_radius", radius));
+  const auto* ab = first_abort(log);
+  ASSERT_EQ(ab, nullptr) << "aborted at " << ab->path_time << " s: " << ab->reason;
+  EXPECT_EQ(log.status.back().state, "finished");
+  ASSERT_FALSE(log.keep_out.empty()) << "no controller/keep_out";
+  ASSERT_EQ(log.keep_out.back().regions.size(), 1u);
+  EXPECT_EQ(log.keep_out.back().regions[0].type, "plane");
+  ASSERT_GT(log.truth_tip.size(), 100u) << "no plant/rod_state";
+  double least = 1e9, farthest = -1e9;
+  for (const auto& [t, p] : log.truth_tip) {
+    const double d = (p.x - point[0]) * normal[0] + (p.y - point[1]) * normal[1] + (p.z - point[2]) * normal[2];
+    least = std::min(least, d - radius);
+    farthest = std::max(farthest, -d);
+  }
+  EXPECT_GE(least, 0.0) << "the capsule touched the wall the region keeps it from";
+  EXPECT_LT(least, 0.006) << "the spiral never came near the wall";
+  std::printf("keep_out: the capsule's least clearance from the wall %.4f m\n", least);
+}
+
 }  // namespace
 
 TEST(SimGraph, Scenario) {
@@ -166,6 +227,7 @@ TEST(SimGraph, Scenario) {
   double rms_bound = 0.02;
   pnh.param("rms_bound", rms_bound, rms_bound);
   Log log;
+  if (scenario == "keep_out") set_keep_out(pnh);
   run(log, 240.0);
   ASSERT_FALSE(log.status.empty()) << "no controller status received";
 
@@ -189,6 +251,10 @@ TEST(SimGraph, Scenario) {
 
   if (scenario == "wall") {
     check_wall(log, pnh);
+    return;
+  }
+  if (scenario == "keep_out") {
+    check_keep_out(log, pnh);
     return;
   }
 

@@ -171,6 +171,9 @@ class YamlTree {
   /// other key (so a misspelt required key is named as the typo, not as "missing"), and "must be a
   /// mapping" when it is not one. Nothing happens when the section is absent.
   void keys(const std::string& section, std::initializer_list<const char*> allowed) {
+    keys(section, std::vector<std::string>(allowed.begin(), allowed.end()));
+  }
+  void keys(const std::string& section, const std::vector<std::string>& allowed) {
     const YAML::Node n = section.empty() ? root_ : find(section);
     if (!n.IsDefined() || n.IsNull()) return;
     if (!n.IsMap()) fail(section, "must be a mapping");

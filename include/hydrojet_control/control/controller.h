@@ -75,14 +75,25 @@ class Controller {
   const ReachableSet& reachable_set() const { return *reachable_; }
   /// The set path points are clipped to (full q_max).
   const ReachableSet& path_reachable_set() const { return *path_reachable_; }
+  /// The same, shared (keep-out regions are built over it: KeepOut).
+  std::shared_ptr<const ReachableSet> shared_path_reachable_set() const { return path_reachable_; }
+  /// The capsule's contact sphere about the tip [m] (the robot description's tip.radius).
+  double tip_radius() const { return model_.rod().tip_radius; }
   /// The reach the jets have shown on this plant (it clips both sets' targets).
   const LearnedReach& learned_reach() const { return reference_.learned_reach(); }
 
+  /// Keep-out regions over this robot's reachable set (keep_out.h), for set_keep_out: const and
+  /// thread-safe, so that a node builds them off the control loop. std::invalid_argument naming the
+  /// key (keep_out[i]/…) when a region is invalid or they leave no direction free.
+  std::shared_ptr<const KeepOut> make_keep_out(const std::vector<KeepOutRegion>& regions) const;
+  /// The regions the reference keeps out of from the next cycle (null or empty: none).
+  void set_keep_out(std::shared_ptr<const KeepOut> keep_out);
+
   /// Switches between closed and open loop (takes effect on the next update).
   void set_mode(LoopMode mode) { options_.mode = mode; }
-  /// New gains and limits (std::invalid_argument naming the key when not valid; nothing changes then);
-  /// the state is kept. Another control_law starts a new law; the modal law's options are read at
-  /// construction (and at a change of law) only.
+  /// New gains, limits and keep-out regions (std::invalid_argument naming the key when not valid; nothing changes
+  /// then); the state is kept. Another control_law starts a new law; the modal law's options are read at construction
+  /// (and at a change of law) only.
   void set_options(const ControllerOptions& options);
   const ControllerOptions& options() const { return options_; }
   /// The law that acts.
@@ -130,6 +141,9 @@ class Controller {
   void sense_contact(const ControllerInputs& in, const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin,
                      ControllerOutput& out);
   void react_to_contact(ControllerOutput& out);
+  void learn_keep_out_offset(const ControllerInputs& in, const ControllerOutput& out, double dt);
+  static constexpr double kKeepOutOffsetTime = 1.0;  ///< [s] the tip offset's low-pass
+  static constexpr double kMaxKeepOutOffset = 0.02;  ///< [m] larger: a tracker fault, not a model error
   bool at_bound(const InputVector& command) const;
   void begin_probe(double t, const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin);
   void probe(const ControllerInputs& in, const rod::RodSolution& sol, ControllerOutput& out);

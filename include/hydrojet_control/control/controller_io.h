@@ -70,6 +70,8 @@ struct ControllerOutput {
   /// (clipped, clip_angle say by how much).
   bool reach_limited = false;
   double time_scale = 1.0;  ///< how much longer than written the path has taken so far (Reference::time_scale)
+  /// The target, or the reference on its way, was moved out of a keep-out region (clipped, clip_angle).
+  bool kept_out = false;
   /// The external tip force estimated and the contact detector's verdict (contact.h).
   ContactState contact;
   /// In contact, the reference was kept from going deeper than contact/max_force allows, by this much [rad].

@@ -3,10 +3,13 @@
 // defaults equal config/controller.yaml (test_controller). ROS-free (Eigen only).
 #pragma once
 
+#include <vector>
+
 #include <string>
 
 #include "hydrojet_control/control/approach.h"
 #include "hydrojet_control/control/contact.h"
+#include "hydrojet_control/control/keep_out.h"
 #include "hydrojet_control/control/direction_law.h"
 #include "hydrojet_control/control/modal_law.h"
 #include "hydrojet_control/control/plant_identification.h"
@@ -58,6 +61,8 @@ struct ControllerOptions {
   PathOptions path;
   IdentificationOptions identification;  ///< what is measured of the plant present (PlantIdentity)
   ContactOptions contact;                ///< the external force's estimate, the detector, the reaction
+  /// Regions the reference never takes the capsule into (keep_out.h); `keep_out` in the controller file.
+  std::vector<KeepOutRegion> keep_out;
 
   /// Empty when valid, else "<group>/<field>: <what is wrong>" (the YAML key).
   std::string validate() const;

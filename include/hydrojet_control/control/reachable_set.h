@@ -45,6 +45,8 @@ class ReachableSet {
   const std::vector<Vec3>& boundary() const { return boundary_; }
   /// The accepted sweep directions (converged, σ_c above the bound).
   const std::vector<Vec3>& samples() const { return samples_; }
+  /// The model's tip position at each sample [m], base frame (what keep-out regions are checked on).
+  const std::vector<Vec3>& sample_positions() const { return sample_positions_; }
   /// Wall time of compute() [s].
   double compute_time() const { return compute_time_; }
 
@@ -72,6 +74,7 @@ class ReachableSet {
   Vec3 center_ = Vec3::UnitZ();
   std::vector<Vec3> boundary_;
   std::vector<Vec3> samples_;
+  std::vector<Vec3> sample_positions_;
   double compute_time_ = 0.0;
   Vec3 e1_ = Vec3::UnitX(), e2_ = Vec3::UnitY();  ///< orthonormal basis ⊥ center_, e1_ × e2_ = center_
   std::vector<double> max_angle_;                 ///< largest angle from center_ per azimuth bin [rad]

@@ -6,7 +6,8 @@
 // the paper's experiment instead jumps onto its spiral at start. Its own motion per
 // step is the PD's feedforward (DirectionPd takes the change of x_des, eq. 17; preview() gives the
 // path ahead for a lead). Every commanded direction goes
-// through ReachableSet::clip first, so the reference never leaves the reachable set. Two sets:
+// through ReachableSet::clip first, so the reference never leaves the reachable set (and then out of
+// the keep-out regions, keep_out.h). Two sets:
 // operator targets (direction, look_at, rates) are clipped to the set swept with a force reserve,
 // so that the closed loop keeps authority where a person may park the tip; a path (designed, as the
 // paper's §7 spiral, which the paper ran on hardware) is clipped only to what the jets can reach at
@@ -26,6 +27,7 @@
 #include <limits>
 #include <memory>
 
+#include "hydrojet_control/control/keep_out.h"
 #include "hydrojet_control/control/learned_reach.h"
 #include "hydrojet_control/control/path.h"
 #include "hydrojet_control/control/reachable_set.h"
@@ -53,6 +55,15 @@ class Reference {
   /// controller teaches it (LearnedReach::update).
   LearnedReach& learned_reach() { return learned_; }
   const LearnedReach& learned_reach() const { return learned_; }
+
+  /// Keep-out regions (keep_out.h; null: none): every target is clipped out of them after the sets,
+  /// and the reference moving toward a target slides along their edge instead of entering.
+  void set_keep_out(std::shared_ptr<const KeepOut> keep_out) { keep_out_ = std::move(keep_out); }
+  const KeepOut* keep_out() const { return keep_out_.get(); }
+  /// How far the plant's tip is off the model's at the same direction [m] (KeepOut::clearance): the
+  /// keep-out regions are checked at the model's position plus this.
+  void set_keep_out_offset(const Vec3& offset) { keep_out_offset_ = offset; }
+  const Vec3& keep_out_offset() const { return keep_out_offset_; }
 
   // Commands: each replaces the one before (the latest wins).
   /// Which set a path's points are clipped to: a designed path (the configured §7 spiral) only to
@@ -117,6 +128,8 @@ class Reference {
   double time_scale() const { return path_clock_ > 0.0 ? (path_clock_ + slowed_) / path_clock_ : 1.0; }
   /// The last target was clipped by the learned reach (LearnedReach), not by the set alone.
   bool reach_limited() const { return reach_limited_; }
+  /// The last target, or the reference on its way, was moved out of a keep-out region.
+  bool kept_out() const { return kept_out_; }
 
  private:
   void set_target(const Vec3& target, const ReachableSet* set);
@@ -129,6 +142,9 @@ class Reference {
   double path_clock_ = 0.0;  ///< [s] along the path (its clock, time-scaled)
   double slowed_ = 0.0;      ///< [s] the clock has lost to time scaling
   bool reach_limited_ = false;
+  bool kept_out_ = false;
+  std::shared_ptr<const KeepOut> keep_out_;
+  Vec3 keep_out_offset_ = Vec3::Zero();
   double time_scale_now_ = 1.0;                     ///< the clock's slowing at the last advance (1: as written)
   std::shared_ptr<const ReachableSet> target_set_;  ///< with reserve: fixed and rate targets
   std::shared_ptr<const ReachableSet> path_set_;    ///< full force: path points

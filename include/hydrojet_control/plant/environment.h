@@ -12,33 +12,23 @@
 
 #include <Eigen/Core>
 
+#include "hydrojet_control/geometry/surface.h"
+
 namespace hydrojet {
 namespace plant {
 
-enum class SurfaceType { kPlane, kSphere, kEllipsoid };
+using geometry::nearest_point;
+using geometry::SurfacePoint;
+using geometry::SurfaceType;
 
-struct Surface {
-  SurfaceType type = SurfaceType::kPlane;
-  Eigen::Vector3d point = Eigen::Vector3d::Zero();    ///< a plane's point, a sphere's or ellipsoid's centre [m]
-  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  ///< a plane's normal, toward the free side (unit)
-  /// A sphere's radius (all three), an ellipsoid's semi-axes along the base frame's x, y, z [m].
-  Eigen::Vector3d radii = Eigen::Vector3d::Ones();
-  bool inside = false;     ///< a sphere or ellipsoid: the capsule lives inside it (a stomach)
+/// A surface of the plant's environment: its shape (geometry/surface.h) and how it presses.
+struct Surface : geometry::Surface {
   double stiffness = 1e3;  ///< [N/m]
   double damping = 0.0;    ///< [N s/m]
   double friction = 0.0;   ///< Coulomb coefficient [-]
   /// Empty when valid, else "<field>: <what is wrong>".
   std::string validate() const;
 };
-
-/// The nearest point of a surface to p: its signed distance (positive on the free side), the unit
-/// normal there toward the free side, and the point itself.
-struct SurfacePoint {
-  double distance = 0.0;
-  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
-  Eigen::Vector3d point = Eigen::Vector3d::Zero();
-};
-SurfacePoint nearest_point(const Surface& s, const Eigen::Vector3d& p);
 
 /// A load that acts on the tip from start to end [s] (end infinite: for good): force [N] and moment [N m] in the tip
 /// frame (a fold leaning with the capsule) or the base frame (a tether's drag).

@@ -123,6 +123,7 @@ struct RodModel {
   std::vector<PointLoad> loads;     ///< besides the tip's, any order
   std::vector<Actuator> actuators;  ///< inputs in this order (0..kMaxInputs of them)
   double tip_mass = 0.0;            ///< m_t [kg] at s = L
+  double tip_radius = 0.007;        ///< [m] the tip's contact sphere about s = L (the capsule; keep-out regions)
   Vec3 gravity = Vec3::Zero();      ///< g in the base frame [m/s^2]
 
   /// L [m]: the sum of the segment lengths.

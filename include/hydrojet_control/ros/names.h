@@ -31,6 +31,7 @@ constexpr char kViewRate[] = "controller/view_rate";          ///< geometry_msgs
 constexpr char kReachableSet[] = "controller/reachable_set";  ///< hydrojet_control/ReachableSet, latched
 constexpr char kExternalForce[] = "controller/external_force";  ///< geometry_msgs/WrenchStamped, base frame
 constexpr char kContact[] = "controller/contact";               ///< hydrojet_control/Contact: the detector
+constexpr char kKeepOut[] = "controller/keep_out";              ///< hydrojet_control/KeepOut, latched: regions in force
 constexpr char kJoy[] = "joy";                                  ///< sensor_msgs/Joy (joystick_node)
 constexpr char kDiagnostics[] = "/diagnostics";                 ///< diagnostic_msgs/DiagnosticArray
 
@@ -42,6 +43,7 @@ constexpr char kStartService[] = "controller/start";               ///< std_srvs
 constexpr char kStopService[] = "controller/stop";                 ///< std_srvs/Trigger
 constexpr char kClosedLoopService[] = "controller/closed_loop";    ///< std_srvs/SetBool
 constexpr char kReloadSceneService[] = "controller/reload_scene";  ///< std_srvs/Trigger
+constexpr char kSetKeepOutService[] = "controller/set_keep_out";   ///< hydrojet_control/SetKeepOut
 
 /// Every topic and every service above (docs/ros_api.md lists exactly these; test/test_docs.cpp).
 constexpr const char* kTopics[] = {kTipPose,           kBasePose,      kTipRms,        kBaseRms,
@@ -50,8 +52,9 @@ constexpr const char* kTopics[] = {kTipPose,           kBasePose,      kTipRms, 
                                    kCalibrationResult, kClock,         kJoy,           kDiagnostics,
                                    kTargetDirection,   kLookAt,        kClickedPoint,  kViewRate,
                                    kReachableSet,      kExternalForce, kContact,       kPlantFault,
-                                   kPlantFaultApplied};
-constexpr const char* kServices[] = {kStartService, kStopService, kClosedLoopService, kReloadSceneService};
+                                   kPlantFaultApplied, kKeepOut};
+constexpr const char* kServices[] = {kStartService, kStopService, kClosedLoopService, kReloadSceneService,
+                                     kSetKeepOutService};
 
 }  // namespace names
 }  // namespace hydrojet

@@ -92,6 +92,7 @@ struct RunResult {
   std::vector<RunSample> samples;
   double time_scale = 1.0;       ///< how much longer than written the path took (its clock's time scaling)
   double reach_limited_s = 0.0;  ///< [s] of the path clipped to the reach the jets showed (LearnedReach)
+  double keep_out_s = 0.0;       ///< [s] of the path moved out of a keep-out region (KeepOut)
   int supervisor_fallbacks = 0;  ///< times the law fell back to the paper's (the mode rang, a jet held at its bound)
   double supervised_s = 0.0;     ///< [s] of the path with the law's weight below 1
   control::PlantIdentity identified;  ///< what the controller ended with (Controller::identity)
