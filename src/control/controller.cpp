@@ -104,6 +104,7 @@ Controller::Controller(const RobotModel& model, const ControllerOptions& options
   }
   known_valves_ = known_valves && known.valves_identified;
   reference_.set_max_path_rate(options.limits.max_path_rate);
+  tip_map_ = make_keep_out({});
   if (!options.keep_out.empty()) reference_.set_keep_out(make_keep_out(options.keep_out));
 }
 
@@ -477,13 +478,12 @@ void Controller::sense_contact(const ControllerInputs& in, const rod::RodSolutio
 }
 
 // Where the tracker puts the tip against where the model puts it at the same measured direction, low-
-// passed (kKeepOutOffsetTime) in free space: the keep-out regions are checked with it, so that a plant
+// passed (kKeepOutOffsetTime) in free space, with or without regions: they are checked with it, so that a plant
 // softer or bent otherwise than the model keeps its capsule out too. Frozen in contact (the surface
 // moves the tip off the model) and without a tip position.
 void Controller::learn_keep_out_offset(const ControllerInputs& in, const ControllerOutput& out, double dt) {
-  const KeepOut* k = reference_.keep_out();
-  if (!k || !new_tracker_sample_ || out.contact.in_contact || !in.tip_position.allFinite()) return;
-  const Vec3 raw = in.tip_position - k->tip_position(in.tip_rotation.col(2));
+  if (!new_tracker_sample_ || out.contact.in_contact || !in.tip_position.allFinite()) return;
+  const Vec3 raw = in.tip_position - tip_map_->tip_position(in.tip_rotation.col(2));
   if (!raw.allFinite() || raw.norm() > kMaxKeepOutOffset) return;
   const Vec3 offset = reference_.keep_out_offset();
   reference_.set_keep_out_offset(offset + std::min(1.0, dt / kKeepOutOffsetTime) * (raw - offset));

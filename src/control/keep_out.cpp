@@ -117,6 +117,7 @@ void KeepOut::fit_grid() {
 }
 
 Vec3 KeepOut::position_at(const Vec2& u) const {
+  if (!u.allFinite()) return Vec3::Constant(std::nan(""));
   const double step = 2.0 * extent_ / (n_ - 1);
   const double x = std::clamp((u.x() + extent_) / step, 0.0, n_ - 1.000001);
   const double y = std::clamp((u.y() + extent_) / step, 0.0, n_ - 1.000001);
@@ -144,8 +145,11 @@ Vec3 KeepOut::position_at(const Vec2& u) const {
 
 double KeepOut::clearance_of(const Vec3& p) const {
   double least = std::numeric_limits<double>::infinity();
-  for (const KeepOutRegion& r : regions_)
-    least = std::min(least, geometry::nearest_point(r.surface, p).distance - tip_radius_ - r.margin);
+  for (const KeepOutRegion& r : regions_) {
+    const double c = geometry::nearest_point(r.surface, p).distance - tip_radius_ - r.margin;
+    if (!std::isfinite(c)) return -std::numeric_limits<double>::infinity();  // unknown: not allowed
+    least = std::min(least, c);
+  }
   return least;
 }
 
@@ -193,21 +197,25 @@ KeepOut::Vec2 KeepOut::edge_toward(const Vec2& allowed, const Vec2& u, const Vec
 Vec3 KeepOut::clip(const Vec3& d, double* moved, const Vec3& offset) const {
   const Vec3 unit = d.normalized();
   if (moved) *moved = 0.0;
-  if (allows(unit, offset)) return unit;
+  if (!unit.allFinite() || allows(unit, offset)) return unit;
   const Vec2 u = chart(unit);
   const double step = 2.0 * extent_ / (n_ - 1);
+  auto node_at = [&](int at) { return Vec2(-extent_ + (at % n_) * step, -extent_ + (at / n_) * step); };
   // The start: the nearest node allowed for any offset as long as this one (a surface's distance
-  // changes by at most the offset's length).
-  const double slack = offset.norm();
+  // changes by at most the offset's length); failing that, the nearest allowed with this offset.
   int best = -1;
-  double best_dot = -2.0;
-  for (int at = 0; at < n_ * n_; ++at) {
-    if (!node_valid_[at] || !node_in_set_[at] || !(node_clearance_[at] >= slack)) continue;
-    const double dot = direction(Vec2(-extent_ + (at % n_) * step, -extent_ + (at / n_) * step)).dot(unit);
-    if (dot > best_dot) best_dot = dot, best = at;
+  for (const bool exact : {false, true}) {
+    double best_dot = -2.0;
+    for (int at = 0; at < n_ * n_; ++at) {
+      if (!node_valid_[at] || !node_in_set_[at]) continue;
+      if (exact ? !(clearance_at(node_at(at), offset) >= 0.0) : !(node_clearance_[at] >= offset.norm())) continue;
+      const double dot = direction(node_at(at)).dot(unit);
+      if (dot > best_dot) best_dot = dot, best = at;
+    }
+    if (best >= 0) break;
   }
-  if (best < 0) return unit;  // the offset leaves no node allowed: nothing to clip to (the caller holds)
-  const Vec2 node(-extent_ + (best % n_) * step, -extent_ + (best / n_) * step);
+  if (best < 0) return unit;  // nothing allowed with this offset: the caller holds (Reference)
+  const Vec2 node = node_at(best);
   Vec3 out = direction(edge_toward(node, u, offset, true));
   if (!set_->contains(out))
     out = direction(edge_toward(node, u, offset, false));  // slid off the set: the edge's first point

@@ -90,7 +90,9 @@ const Vec3& Reference::advance(double t, double dt, const Mat3& tip_frame) {
     // max_path_rate. Approaching: its first direction.
     if (on_path_) advance_clock(t, dt);
     set_target(path_->direction_at(on_path_ ? path_clock_ : 0.0), path_clip_);
-    if (on_path_) reference_ = target_;
+    // On the path: onto its point, at most max_path_rate a step where keep-out regions are (off their
+    // edge the clipped point may jump; the reference must not cross them).
+    if (on_path_) move_toward_target(keep_out_ ? max_path_rate_ * dt : std::numeric_limits<double>::infinity());
     if (!on_path_) approach_time_ = t - path_start_;
     path_advanced_ = true;
   } else if (source_ == Source::kJoy || source_ == Source::kKeyboard) {
@@ -102,7 +104,7 @@ const Vec3& Reference::advance(double t, double dt, const Mat3& tip_frame) {
       if (angle > 0.0) set_target(Eigen::AngleAxisd(angle, omega.normalized()) * target_, target_set_.get());
     }
   }
-  move_toward_target(dt);
+  move_toward_target(max_rate_ * dt);
   return reference_;
 }
 
@@ -162,26 +164,36 @@ void Reference::set_target(const Vec3& target, const ReachableSet* set) {
     double moved = 0.0;
     target_ = keep_out_->clip(target_, &moved, keep_out_offset_);
     kept_out_ = moved > 0.0;
+    if (!clear(target_)) target_ = reference_, kept_out_ = true;  // nothing allowed: hold
   }
   if (reach_limited_ || kept_out_) clip_angle_ = geodesic_error(target, target_);
 }
 
-// Along the great circle toward the target, at most max_angular_rate·dt; exactly onto it when closer.
-// A reference outside the keep-out regions that the step would take in stays on their edge (one that
-// starts inside, where the tip was, moves out toward its allowed target).
-void Reference::move_toward_target(double dt) {
+// Along the great circle toward the target by at most `step` [rad]; exactly onto it when closer. A
+// reference clear of the keep-out regions that the step would take in slides along their edge
+// instead (or stays, where nothing is allowed); one that starts inside, where the tip was, moves out
+// toward its allowed target.
+void Reference::move_toward_target(double step) {
+  const Vec3 before = reference_;
+  const bool was_clear = clear(reference_);
   const Vec3 rotation = rotation_between(reference_, target_);
-  const double angle = rotation.norm(), step = max_rate_ * dt;
-  const bool was_out = keep_out_ && keep_out_->allows(reference_, keep_out_offset_);
-  if (angle <= step) {
-    reference_ = target_;
-    return;
-  }
-  reference_ = (Eigen::AngleAxisd(step, rotation / angle) * reference_).normalized();
-  if (was_out && !keep_out_->allows(reference_, keep_out_offset_)) {
-    reference_ = keep_out_->clip(reference_, nullptr, keep_out_offset_);
+  const double angle = rotation.norm();
+  reference_ = angle <= step ? target_ : Vec3((Eigen::AngleAxisd(step, rotation / angle) * reference_).normalized());
+  if (keep_out_ && was_clear && !clear(reference_)) {
+    const Vec3 slid = keep_out_->clip(reference_, nullptr, keep_out_offset_);
+    reference_ = clear(slid) ? slid : before;
     kept_out_ = true;
   }
+}
+
+bool Reference::clear(const Vec3& d) const {
+  return !keep_out_ || keep_out_->clearance(d, keep_out_offset_) >= -kEdgeTolerance;
+}
+
+void Reference::set_keep_out(std::shared_ptr<const KeepOut> keep_out) {
+  keep_out_ = std::move(keep_out);
+  if (keep_out_ && source_ != Source::kPath)
+    set_target(target_, nullptr);  // a fixed target already set: out of them too
 }
 
 }  // namespace control

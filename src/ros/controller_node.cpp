@@ -46,6 +46,7 @@
 #include "hydrojet_control/util/format.h"
 #include "hydrojet_control/util/text.h"
 #include "background.h"
+#include "surface_msg.h"
 #include "reconfigure_server.h"
 
 namespace names = hydrojet::names;
@@ -70,7 +71,7 @@ geometry_msgs::Vector3 to_msg(const Eigen::Vector3d& v) {
 std::string from_msg(const std::vector<hydrojet_control::KeepOutRegion>& msgs,
                      std::vector<control::KeepOutRegion>* regions) {
   for (size_t i = 0; i < msgs.size(); ++i) {
-    const hydrojet_control::KeepOutRegion& m = msgs[i];
+    const hydrojet_control::Surface& m = msgs[i].surface;
     control::KeepOutRegion r;
     if (m.type == "plane")
       r.surface.type = geometry::SurfaceType::kPlane;
@@ -80,13 +81,17 @@ std::string from_msg(const std::vector<hydrojet_control::KeepOutRegion>& msgs,
       r.surface.type = geometry::SurfaceType::kEllipsoid;
     else
       return "keep_out[" + std::to_string(i) + "]/type: must be plane, sphere or ellipsoid (got '" + m.type + "')";
+    const std::string at = "keep_out[" + std::to_string(i) + "]/";
+    if (r.surface.type == geometry::SurfaceType::kSphere &&
+        !((m.radii.y == 0.0 || m.radii.y == m.radii.x) && (m.radii.z == 0.0 || m.radii.z == m.radii.x)))
+      return at + "radii: a sphere's radius is radii.x (y and z: 0 or the same)";
     r.surface.point = to_vector(m.point);
     r.surface.normal = {m.normal.x, m.normal.y, m.normal.z};
     r.surface.radii = r.surface.type == geometry::SurfaceType::kSphere
                           ? Eigen::Vector3d::Constant(m.radii.x)
                           : Eigen::Vector3d(m.radii.x, m.radii.y, m.radii.z);
     r.surface.inside = m.inside;
-    r.margin = m.margin;
+    r.margin = msgs[i].margin;
     regions->push_back(r);
   }
   return "";
@@ -605,6 +610,10 @@ class ControllerNode {
         keep_out = std::make_shared<const control::KeepOut>(regions, basis.tip_radius, basis.set);
       } catch (const std::exception& e) {
         error = e.what();
+        // The message's fields: a centre is its `point`, a radius its `radii`.
+        for (const auto& [file_key, field] :
+             {std::pair<std::string, std::string>{"/centre:", "/point:"}, {"/radius:", "/radii:"}})
+          if (const size_t p = error.find(file_key); p != std::string::npos) error.replace(p, file_key.size(), field);
       }
     }
     res.success = error.empty();
@@ -623,6 +632,20 @@ class ControllerNode {
     return true;
   }
 
+  /// Between two cycles: regions set_keep_out built, unless a scene reloaded since (then they were
+  /// built over the old robot's reach: dropped, the caller told to set them again).
+  void adopt_keep_out() {
+    std::optional<std::shared_ptr<const control::KeepOut>> k = keep_out_box_.take();
+    if (!k) return;
+    if ((*k)->set() != controller_->shared_path_reachable_set()) {
+      message_ = "keep_out: regions set during a scene reload were dropped; set them again";
+      ROS_WARN("controller: %s", message_.c_str());
+      return;
+    }
+    controller_->set_keep_out(std::move(*k));
+    publish_keep_out();
+  }
+
   /// The regions in force, latched (the view draws them).
   void publish_keep_out() {
     hydrojet_control::KeepOut m;
@@ -630,14 +653,7 @@ class ControllerNode {
     m.header.frame_id = opts_.base_frame;
     for (const control::KeepOutRegion& r : controller_->options().keep_out) {
       hydrojet_control::KeepOutRegion k;
-      const geometry::SurfaceType t = r.surface.type;
-      k.type = t == geometry::SurfaceType::kPlane    ? "plane"
-               : t == geometry::SurfaceType::kSphere ? "sphere"
-                                                     : "ellipsoid";
-      k.point.x = r.surface.point.x(), k.point.y = r.surface.point.y(), k.point.z = r.surface.point.z();
-      k.normal = to_msg(r.surface.normal);
-      k.radii = to_msg(r.surface.radii);
-      k.inside = r.surface.inside;
+      k.surface = ros_bridge::to_msg(r.surface);
       k.margin = r.margin;
       m.regions.push_back(k);
     }
@@ -653,7 +669,9 @@ class ControllerNode {
       swap->verdict.set_value("the controller is running (call controller/stop first)");
       return;
     }
-    swap->controller->set_options(controller_->options());  // the gains in force
+    control::ControllerOptions in_force = controller_->options();  // the gains in force ...
+    in_force.keep_out = swap->controller->options().keep_out;      // ... and the regions it was built with
+    swap->controller->set_options(in_force);
     *controller_ = std::move(*swap->controller);
     controller_->set_fit_inline(false);
     look_at_ = std::move(swap->look_at);
@@ -668,11 +686,8 @@ class ControllerNode {
 
   // One control cycle: latest samples in, Algorithm 1, command and status out.
   void tick(const ros::TimerEvent&) {
+    adopt_keep_out();
     adopt_scene();
-    if (std::optional<std::shared_ptr<const control::KeepOut>> k = keep_out_box_.take()) {
-      controller_->set_keep_out(std::move(*k));
-      publish_keep_out();
-    }
     const ros::Time now = ros::Time::now();
     control::ControllerInputs in;
     in.t = now.toSec();

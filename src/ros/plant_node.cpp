@@ -13,6 +13,7 @@
 #include <iostream>
 #include <set>
 
+#include "hydrojet_control/Environment.h"
 #include "hydrojet_control/JetCommand.h"
 #include "hydrojet_control/JetState.h"
 #include "hydrojet_control/PlantFault.h"
@@ -22,6 +23,7 @@
 #include "hydrojet_control/ros/params.h"
 #include "hydrojet_control/ros/names.h"
 #include "hydrojet_control/ros/shutdown.h"
+#include "surface_msg.h"
 
 namespace names = hydrojet::names;
 
@@ -112,6 +114,8 @@ class PlantNode {
     base_pub_ = nh.advertise<geometry_msgs::PoseStamped>(names::kBasePose, 10);
     jet_pub_ = nh.advertise<hydrojet_control::JetState>(names::kJetState, 10);
     truth_pub_ = nh.advertise<hydrojet_control::RodState>(names::kPlantRodState, 10);
+    environment_pub_ = nh.advertise<hydrojet_control::Environment>(names::kPlantEnvironment, 1, /*latch=*/true);
+    publish_environment();
     cmd_sub_ = nh.subscribe(names::kJetCommand, 10, &PlantNode::command, this, ros::TransportHints().tcpNoDelay());
     fault_sub_ = nh.subscribe(names::kPlantFault, 10, &PlantNode::on_fault, this);
     fault_pub_ = nh.advertise<hydrojet_control::PlantFault>(names::kPlantFaultApplied, 10);
@@ -310,8 +314,23 @@ class PlantNode {
       rs.tip_pose.orientation.w = qt.w(), rs.tip_pose.orientation.x = qt.x();
       rs.tip_pose.orientation.y = qt.y(), rs.tip_pose.orientation.z = qt.z();
       rs.converged = plant_->error().empty();
+      const Eigen::Vector3d f = plant_->external_force();
+      rs.external_force.x = f.x(), rs.external_force.y = f.y(), rs.external_force.z = f.z();
       truth_pub_.publish(rs);
     }
+  }
+
+  /// The plant's surfaces (the truth), latched: the view draws them.
+  void publish_environment() {
+    hydrojet_control::Environment m;
+    m.header.stamp = ros::Time::now();
+    m.header.frame_id = "base";
+    for (const plant::Surface& s : model_.environment.surfaces) {
+      m.surfaces.push_back(ros_bridge::to_msg(s));
+      m.stiffness.push_back(s.stiffness);
+    }
+    m.tip_radius = model_.environment.tip_radius;
+    environment_pub_.publish(m);
   }
 
   // The simulated lab's fixed frames, so that a point clicked in rviz (fixed frame world) reaches the
@@ -343,7 +362,7 @@ class PlantNode {
   PlantNodeOptions o_;
   plant::PlantModel model_;
   std::unique_ptr<plant::Plant> plant_;
-  ros::Publisher clock_pub_, tip_pub_, base_pub_, jet_pub_, truth_pub_;
+  ros::Publisher clock_pub_, tip_pub_, base_pub_, jet_pub_, truth_pub_, environment_pub_;
   ros::Subscriber cmd_sub_, fault_sub_;
   ros::Publisher fault_pub_;
   std::vector<ActiveFault> faults_;

@@ -24,6 +24,7 @@
 #include <cstdio>
 
 #include "hydrojet_control/Contact.h"
+#include "hydrojet_control/Environment.h"
 #include "hydrojet_control/KeepOut.h"
 #include "hydrojet_control/ControllerStatus.h"
 #include "hydrojet_control/JetState.h"
@@ -138,6 +139,8 @@ class ViewNode {
     reachable_sub_ = nh.subscribe(names::kReachableSet, 1, &ViewNode::on_reachable_set, this);
     contact_sub_ = nh.subscribe(names::kContact, 2, &ViewNode::on_contact, this);
     keep_out_sub_ = nh.subscribe(names::kKeepOut, 1, &ViewNode::on_keep_out, this);
+    environment_sub_ = nh.subscribe(names::kPlantEnvironment, 1, &ViewNode::on_environment, this);
+    truth_sub_ = nh.subscribe(names::kPlantRodState, 2, &ViewNode::on_plant_rod_state, this);
 
     // Static frames: world → tracker (the tracker is fixed in the lab) and base_sensor → base.
     geometry_msgs::TransformStamped a, b;
@@ -152,6 +155,22 @@ class ViewNode {
   }
 
  private:
+  /// Frame and stamp of every marker of one rod message.
+  struct MarkerStamp {
+    std::string frame;
+    ros::Time stamp;
+    visualization_msgs::Marker make(const std::string& ns, int id) const {
+      visualization_msgs::Marker k;
+      k.header.frame_id = frame;
+      k.header.stamp = stamp;
+      k.ns = ns;
+      k.id = id;
+      k.action = visualization_msgs::Marker::ADD;
+      k.pose.orientation.w = 1.0;
+      return k;
+    }
+  };
+
   /// Clears every marker, then draws the reachable set again (in the same message, so rviz keeps it).
   visualization_msgs::MarkerArray reset_markers() const {
     visualization_msgs::MarkerArray arr;
@@ -160,6 +179,7 @@ class ViewNode {
     arr.markers.push_back(m);
     arr.markers.insert(arr.markers.end(), reachable_markers_.begin(), reachable_markers_.end());
     arr.markers.insert(arr.markers.end(), keep_out_markers_.begin(), keep_out_markers_.end());
+    arr.markers.insert(arr.markers.end(), environment_markers_.begin(), environment_markers_.end());
     return arr;
   }
   void delete_all() { broadcast(reset_markers()); }
@@ -193,41 +213,65 @@ class ViewNode {
     broadcast(arr);
   }
 
-  /// The keep-out regions in force (orange, translucent): a plane as a thin square about its point,
-  /// spheres and ellipsoids as themselves; they replace the previous ones.
-  void on_keep_out(const hydrojet_control::KeepOut::ConstPtr& m) {
-    const MarkerStamp stamp{m->header.frame_id.empty() ? base_frame_ : m->header.frame_id, ros::Time()};
+  /// A surface as a marker: a plane as a thin square about its point, spheres and ellipsoids as
+  /// themselves.
+  visualization_msgs::Marker surface_marker(const MarkerStamp& stamp, const char* ns, int id,
+                                            const hydrojet_control::Surface& r) const {
+    visualization_msgs::Marker k = stamp.make(ns, id);
+    k.pose.position = r.point;
+    k.pose.orientation.w = 1.0;
+    if (r.type == "plane") {
+      k.type = visualization_msgs::Marker::CUBE;
+      const Eigen::Vector3d n(r.normal.x, r.normal.y, r.normal.z);
+      const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), n);
+      k.pose.orientation.w = q.w(), k.pose.orientation.x = q.x(), k.pose.orientation.y = q.y(),
+      k.pose.orientation.z = q.z();
+      k.scale.x = k.scale.y = reachable_radius_, k.scale.z = 0.0005;
+    } else {
+      k.type = visualization_msgs::Marker::SPHERE;
+      const bool sphere = r.type == "sphere";
+      k.scale.x = 2.0 * r.radii.x, k.scale.y = 2.0 * (sphere ? r.radii.x : r.radii.y);
+      k.scale.z = 2.0 * (sphere ? r.radii.x : r.radii.z);
+    }
+    return k;
+  }
+
+  /// Surfaces replacing the previous ones of namespace `ns` (*kept: what a reset draws again).
+  void replace_surfaces(const MarkerStamp& stamp, const char* ns,
+                        const std::vector<hydrojet_control::Surface>& surfaces, const std_msgs::ColorRGBA& outside,
+                        const std_msgs::ColorRGBA& inside, std::vector<visualization_msgs::Marker>* kept) {
     visualization_msgs::MarkerArray arr;
-    for (size_t i = m->regions.size(); i < keep_out_markers_.size(); ++i) {
-      visualization_msgs::Marker k = stamp.make("keep_out", static_cast<int>(i));
+    for (size_t i = surfaces.size(); i < kept->size(); ++i) {
+      visualization_msgs::Marker k = stamp.make(ns, static_cast<int>(i));
       k.action = visualization_msgs::Marker::DELETE;
       arr.markers.push_back(k);
     }
-    keep_out_markers_.clear();
-    for (size_t i = 0; i < m->regions.size(); ++i) {
-      const hydrojet_control::KeepOutRegion& r = m->regions[i];
-      visualization_msgs::Marker k = stamp.make("keep_out", static_cast<int>(i));
-      k.pose.position = r.point;
-      k.pose.orientation.w = 1.0;
-      if (r.type == "plane") {
-        k.type = visualization_msgs::Marker::CUBE;
-        const Eigen::Vector3d n(r.normal.x, r.normal.y, r.normal.z);
-        const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), n);
-        k.pose.orientation.w = q.w(), k.pose.orientation.x = q.x(), k.pose.orientation.y = q.y(),
-        k.pose.orientation.z = q.z();
-        k.scale.x = k.scale.y = reachable_radius_, k.scale.z = 0.0005;
-      } else {
-        k.type = visualization_msgs::Marker::SPHERE;
-        const bool sphere = r.type == "sphere";
-        k.scale.x = 2.0 * r.radii.x, k.scale.y = 2.0 * (sphere ? r.radii.x : r.radii.y);
-        k.scale.z = 2.0 * (sphere ? r.radii.x : r.radii.z);
-      }
-      k.color = color(1.0, 0.55, 0.1, r.inside ? 0.12 : 0.3);
-      keep_out_markers_.push_back(k);
+    kept->clear();
+    for (size_t i = 0; i < surfaces.size(); ++i) {
+      visualization_msgs::Marker k = surface_marker(stamp, ns, static_cast<int>(i), surfaces[i]);
+      k.color = surfaces[i].inside ? inside : outside;
+      kept->push_back(k);
       arr.markers.push_back(k);
     }
     broadcast(arr);
   }
+
+  /// The keep-out regions in force: orange, translucent.
+  void on_keep_out(const hydrojet_control::KeepOut::ConstPtr& m) {
+    std::vector<hydrojet_control::Surface> surfaces;
+    for (const hydrojet_control::KeepOutRegion& r : m->regions) surfaces.push_back(r.surface);
+    replace_surfaces({m->header.frame_id.empty() ? base_frame_ : m->header.frame_id, ros::Time()}, "keep_out", surfaces,
+                     color(1.0, 0.55, 0.1, 0.3), color(1.0, 0.55, 0.1, 0.12), &keep_out_markers_);
+  }
+
+  /// The simulated plant's surfaces (the truth): grey, translucent.
+  void on_environment(const hydrojet_control::Environment::ConstPtr& m) {
+    replace_surfaces({m->header.frame_id.empty() ? base_frame_ : m->header.frame_id, ros::Time()}, "plant_surfaces",
+                     m->surfaces, color(0.6, 0.6, 0.65, 0.35), color(0.6, 0.6, 0.65, 0.12), &environment_markers_);
+  }
+
+  /// The plant's true tip and external force (simulation only).
+  void on_plant_rod_state(const hydrojet_control::RodState::ConstPtr& m) { truth_ = *m; }
 
   void on_status(const hydrojet_control::ControllerStatus::ConstPtr& m) {
     const bool reset = (m->state == "idle" || m->state == "aborted") && last_state_ != m->state;
@@ -238,22 +282,6 @@ class ViewNode {
 
   void on_jet_state(const hydrojet_control::JetState::ConstPtr& m) { jet_force_ = m->force; }
   void on_contact(const hydrojet_control::Contact::ConstPtr& m) { contact_ = *m; }
-
-  /// Frame and stamp of every marker of one rod message.
-  struct MarkerStamp {
-    std::string frame;
-    ros::Time stamp;
-    visualization_msgs::Marker make(const std::string& ns, int id) const {
-      visualization_msgs::Marker k;
-      k.header.frame_id = frame;
-      k.header.stamp = stamp;
-      k.ns = ns;
-      k.id = id;
-      k.action = visualization_msgs::Marker::ADD;
-      k.pose.orientation.w = 1.0;
-      return k;
-    }
-  };
   /// The model's tip: position [m] and orientation in the base frame.
   struct Tip {
     Eigen::Vector3d p;
@@ -385,6 +413,24 @@ class ViewNode {
     c.scale.x = c.scale.y = c.scale.z = 0.004;
     c.color = color(1.0, 0.1, 0.1);
     arr->markers.push_back(c);
+    // In simulation: the plant's true external force (green) from its own capsule's front, at most
+    // 1 s old (else deleted).
+    visualization_msgs::Marker t = s.make("true_force", 0);
+    t.type = visualization_msgs::Marker::ARROW;
+    const bool fresh = !truth_.header.stamp.isZero() && std::abs((s.stamp - truth_.header.stamp).toSec()) < 1.0;
+    t.action = fresh ? visualization_msgs::Marker::ADD : visualization_msgs::Marker::DELETE;
+    const Eigen::Quaterniond q(truth_.tip_pose.orientation.w, truth_.tip_pose.orientation.x,
+                               truth_.tip_pose.orientation.y, truth_.tip_pose.orientation.z);
+    const Eigen::Vector3d p(truth_.tip_pose.position.x, truth_.tip_pose.position.y, truth_.tip_pose.position.z);
+    const Eigen::Vector3d tf(truth_.external_force.x, truth_.external_force.y, truth_.external_force.z);
+    const Eigen::Vector3d true_front =
+        p +
+        capsule_length_ * (q.norm() > 0.5 ? q.normalized() : Eigen::Quaterniond::Identity()).toRotationMatrix().col(2);
+    t.points.push_back(point(true_front));
+    t.points.push_back(point(true_front + contact_force_scale_ * (tf.allFinite() ? tf : Eigen::Vector3d::Zero())));
+    t.scale.x = 0.0012, t.scale.y = 0.0025, t.scale.z = 0.003;
+    t.color = color(0.1, 0.8, 0.2);
+    arr->markers.push_back(t);
   }
 
   /// The stability margin, the controller's state and its error as text below the tip.
@@ -475,9 +521,12 @@ class ViewNode {
   std::vector<double> jet_force_;      ///< measured force per actuator [N] (jets/state)
   ros::Publisher markers_pub_;
   int welcomed_ = 0;  ///< subscribers of markers_pub_ that have had their welcome DELETEALL
-  std::vector<visualization_msgs::Marker> reachable_markers_;  ///< the last set's markers (empty: none)
-  std::vector<visualization_msgs::Marker> keep_out_markers_;   ///< the keep-out regions in force
-  ros::Subscriber rod_sub_, status_sub_, jets_sub_, reachable_sub_, contact_sub_, keep_out_sub_;
+  std::vector<visualization_msgs::Marker> reachable_markers_;    ///< the last set's markers (empty: none)
+  std::vector<visualization_msgs::Marker> keep_out_markers_;     ///< the keep-out regions in force
+  std::vector<visualization_msgs::Marker> environment_markers_;  ///< the simulated plant's surfaces
+  hydrojet_control::RodState truth_;                             ///< the plant's last (simulation only)
+  ros::Subscriber rod_sub_, status_sub_, jets_sub_, reachable_sub_, contact_sub_, keep_out_sub_, environment_sub_,
+      truth_sub_;
   tf2_ros::TransformBroadcaster tf_;
   tf2_ros::StaticTransformBroadcaster static_tf_;
 };

@@ -17,10 +17,12 @@
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "hydrojet_control/Contact.h"
 #include "hydrojet_control/ControllerStatus.h"
+#include "hydrojet_control/Environment.h"
 #include "hydrojet_control/JetCommand.h"
 #include "hydrojet_control/KeepOut.h"
 #include "hydrojet_control/SetKeepOut.h"
@@ -41,6 +43,8 @@ struct Log {
   std::vector<geometry_msgs::WrenchStamped> external_force;
   std::vector<std::pair<double, geometry_msgs::Point>> truth_tip;  ///< (stamp, the plant's true tip [m], base)
   std::vector<hydrojet_control::KeepOut> keep_out;
+  std::vector<hydrojet_control::Environment> environment;
+  double max_true_force = 0.0;  ///< the largest |external force| plant/rod_state carried [N]
 };
 
 bool zero(const hydrojet_control::JetCommand& c) {
@@ -76,7 +80,12 @@ void run(Log& log, double wall_limit) {
   ros::Subscriber s7 = nh.subscribe<hydrojet_control::RodState>(
       names::kPlantRodState, 10000, [&](const hydrojet_control::RodState::ConstPtr& m) {
         log.truth_tip.emplace_back(m->header.stamp.toSec(), m->tip_pose.position);
+        log.max_true_force = std::max(
+            log.max_true_force, std::hypot(std::hypot(m->external_force.x, m->external_force.y), m->external_force.z));
       });
+  ros::Subscriber s9 = nh.subscribe<hydrojet_control::Environment>(
+      names::kPlantEnvironment, 10,
+      [&](const hydrojet_control::Environment::ConstPtr& m) { log.environment.push_back(*m); });
   ros::Subscriber s8 = nh.subscribe<hydrojet_control::KeepOut>(
       names::kKeepOut, 10, [&](const hydrojet_control::KeepOut::ConstPtr& m) { log.keep_out.push_back(*m); });
   const ros::WallTime until = ros::WallTime::now() + ros::WallDuration(wall_limit);
@@ -139,6 +148,7 @@ void check_wall(const Log& log, ros::NodeHandle& pnh) {
     }
   }
   ASSERT_FALSE(onsets.empty()) << "the spiral never reached the wall";
+  EXPECT_GT(log.max_true_force, 0.02) << "plant/rod_state carried no external force while the tip met the wall";
   for (const double onset : onsets) {
     double flagged = -1.0;
     for (const auto& c : log.contact)
@@ -171,9 +181,10 @@ hydrojet_control::KeepOutRegion wall_region(ros::NodeHandle& pnh, double margin)
   pnh.getParam("wall_point", point);
   pnh.getParam("wall_normal", normal);
   hydrojet_control::KeepOutRegion r;
-  r.type = "plane";
-  if (point.size() == 3) r.point.x = point[0], r.point.y = point[1], r.point.z = point[2];
-  if (normal.size() == 3) r.normal.x = normal[0], r.normal.y = normal[1], r.normal.z = normal[2];
+  r.surface.type = "plane";
+  if (point.size() == 3) r.surface.point.x = point[0], r.surface.point.y = point[1], r.surface.point.z = point[2];
+  if (normal.size() == 3)
+    r.surface.normal.x = normal[0], r.surface.normal.y = normal[1], r.surface.normal.z = normal[2];
   r.margin = margin;
   return r;
 }
@@ -184,7 +195,7 @@ void set_keep_out(ros::NodeHandle& pnh) {
   ASSERT_TRUE(ros::service::waitForService(names::kSetKeepOutService, ros::Duration(60.0)));
   hydrojet_control::SetKeepOut bad;
   bad.request.regions.push_back(wall_region(pnh, 0.002));
-  bad.request.regions.back().normal = geometry_msgs::Vector3();
+  bad.request.regions.back().surface.normal = geometry_msgs::Vector3();
   ASSERT_TRUE(ros::service::call(names::kSetKeepOutService, bad));
   EXPECT_FALSE(bad.response.success);
   EXPECT_NE(bad.response.message.find("keep_out[0]/normal"), std::string::npos) << bad.response.message;
@@ -205,7 +216,7 @@ void check_keep_out(const Log& log, ros::NodeHandle& pnh) {
   EXPECT_EQ(log.status.back().state, "finished");
   ASSERT_FALSE(log.keep_out.empty()) << "no controller/keep_out";
   ASSERT_EQ(log.keep_out.back().regions.size(), 1u);
-  EXPECT_EQ(log.keep_out.back().regions[0].type, "plane");
+  EXPECT_EQ(log.keep_out.back().regions[0].surface.type, "plane");
   ASSERT_GT(log.truth_tip.size(), 100u) << "no plant/rod_state";
   double least = 1e9, farthest = -1e9;
   for (const auto& [t, p] : log.truth_tip) {
@@ -215,6 +226,12 @@ void check_keep_out(const Log& log, ros::NodeHandle& pnh) {
   }
   EXPECT_GE(least, 0.0) << "the capsule touched the wall the region keeps it from";
   EXPECT_LT(least, 0.006) << "the spiral never came near the wall";
+  // The plant says what it simulates: its one wall, and no external force on a tip kept off it.
+  ASSERT_FALSE(log.environment.empty()) << "no plant/environment";
+  ASSERT_EQ(log.environment.back().surfaces.size(), 1u);
+  EXPECT_EQ(log.environment.back().surfaces[0].type, "plane");
+  EXPECT_DOUBLE_EQ(log.environment.back().tip_radius, radius);
+  EXPECT_EQ(log.max_true_force, 0.0);
   std::printf("keep_out: the capsule's least clearance from the wall %.4f m\n", least);
 }
 
@@ -227,7 +244,7 @@ TEST(SimGraph, Scenario) {
   double rms_bound = 0.02;
   pnh.param("rms_bound", rms_bound, rms_bound);
   Log log;
-  if (scenario == "keep_out") set_keep_out(pnh);
+  if (scenario == "keep_out") ASSERT_NO_FATAL_FAILURE(set_keep_out(pnh));
   run(log, 240.0);
   ASSERT_FALSE(log.status.empty()) << "no controller status received";
 

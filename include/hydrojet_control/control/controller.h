@@ -165,6 +165,7 @@ class Controller {
   InputVector previous_command_;  ///< the last step's inputs [N], before the rounding (the base of the next step)
   std::shared_ptr<const ReachableSet> path_reachable_;  ///< full q_max: path points
   std::shared_ptr<const ReachableSet> reachable_;       ///< with reserve: operator targets
+  std::shared_ptr<const KeepOut> tip_map_;              ///< no regions: the model's tip position per direction
   Reference reference_;
   ApproachMonitor approach_;       ///< when a path's clock may start
   bool commands_pending_ = false;  ///< commands given while idle or aborted, for the next start()

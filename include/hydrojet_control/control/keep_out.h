@@ -34,6 +34,8 @@ class KeepOut {
   KeepOut(std::vector<KeepOutRegion> regions, double tip_radius, std::shared_ptr<const ReachableSet> set);
 
   const std::vector<KeepOutRegion>& regions() const { return regions_; }
+  /// The set the regions were fitted over.
+  const std::shared_ptr<const ReachableSet>& set() const { return set_; }
   double tip_radius() const { return tip_radius_; }
   /// The model's tip position at tip direction d [m], base frame (interpolated from the sweep).
   Vec3 tip_position(const Vec3& d) const;
@@ -45,7 +47,8 @@ class KeepOut {
     return regions_.empty() || clearance(d, offset) >= 0.0;
   }
   /// d (normalised) when allowed; else the nearest allowed direction of the set (on the regions' edge),
-  /// and the angle between the two in *moved [rad] (0 when allowed).
+  /// and the angle between the two in *moved [rad] (0 when allowed). d itself when nothing is allowed
+  /// (an offset that large): the caller checks allows() and holds.
   Vec3 clip(const Vec3& d, double* moved = nullptr, const Vec3& offset = Vec3::Zero()) const;
 
  private:

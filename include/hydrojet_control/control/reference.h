@@ -58,7 +58,7 @@ class Reference {
 
   /// Keep-out regions (keep_out.h; null: none): every target is clipped out of them after the sets,
   /// and the reference moving toward a target slides along their edge instead of entering.
-  void set_keep_out(std::shared_ptr<const KeepOut> keep_out) { keep_out_ = std::move(keep_out); }
+  void set_keep_out(std::shared_ptr<const KeepOut> keep_out);
   const KeepOut* keep_out() const { return keep_out_.get(); }
   /// How far the plant's tip is off the model's at the same direction [m] (KeepOut::clearance): the
   /// keep-out regions are checked at the model's position plus this.
@@ -134,7 +134,10 @@ class Reference {
  private:
   void set_target(const Vec3& target, const ReachableSet* set);
   void advance_clock(double t, double dt);
-  void move_toward_target(double dt);
+  void move_toward_target(double step);
+  /// Clear of the keep-out regions (within kEdgeTolerance: an edge point is clear).
+  bool clear(const Vec3& d) const;
+  static constexpr double kEdgeTolerance = 1e-6;  ///< [m]
 
   double max_rate_;
   double max_path_rate_ = std::numeric_limits<double>::infinity();

@@ -21,6 +21,7 @@ constexpr char kRodState[] = "rod/state";                       ///< hydrojet_co
 constexpr char kPlantRodState[] = "plant/rod_state";            ///< hydrojet_control/RodState (simulated truth)
 constexpr char kPlantFault[] = "plant/fault";                   ///< hydrojet_control/PlantFault: inject (sim only)
 constexpr char kPlantFaultApplied[] = "plant/fault_applied";    ///< hydrojet_control/PlantFault: when it took effect
+constexpr char kPlantEnvironment[] = "plant/environment";       ///< hydrojet_control/Environment, latched (sim only)
 constexpr char kViewMarkers[] = "view/markers";                 ///< visualization_msgs/MarkerArray
 constexpr char kCalibrationResult[] = "calibration/result";     ///< std_msgs/String (JSON), latched
 constexpr char kClock[] = "/clock";                             ///< rosgraph_msgs/Clock (plant_node in lockstep)
@@ -46,13 +47,33 @@ constexpr char kReloadSceneService[] = "controller/reload_scene";  ///< std_srvs
 constexpr char kSetKeepOutService[] = "controller/set_keep_out";   ///< hydrojet_control/SetKeepOut
 
 /// Every topic and every service above (docs/ros_api.md lists exactly these; test/test_docs.cpp).
-constexpr const char* kTopics[] = {kTipPose,           kBasePose,      kTipRms,        kBaseRms,
-                                   kTipFrameNumber,    kJetState,      kJetCommand,    kControllerStatus,
-                                   kControllerTarget,  kRodState,      kPlantRodState, kViewMarkers,
-                                   kCalibrationResult, kClock,         kJoy,           kDiagnostics,
-                                   kTargetDirection,   kLookAt,        kClickedPoint,  kViewRate,
-                                   kReachableSet,      kExternalForce, kContact,       kPlantFault,
-                                   kPlantFaultApplied, kKeepOut};
+constexpr const char* kTopics[] = {kTipPose,
+                                   kBasePose,
+                                   kTipRms,
+                                   kBaseRms,
+                                   kTipFrameNumber,
+                                   kJetState,
+                                   kJetCommand,
+                                   kControllerStatus,
+                                   kControllerTarget,
+                                   kRodState,
+                                   kPlantRodState,
+                                   kViewMarkers,
+                                   kCalibrationResult,
+                                   kClock,
+                                   kJoy,
+                                   kDiagnostics,
+                                   kTargetDirection,
+                                   kLookAt,
+                                   kClickedPoint,
+                                   kViewRate,
+                                   kReachableSet,
+                                   kExternalForce,
+                                   kContact,
+                                   kPlantFault,
+                                   kPlantFaultApplied,
+                                   kKeepOut,
+                                   kPlantEnvironment};
 constexpr const char* kServices[] = {kStartService, kStopService, kClosedLoopService, kReloadSceneService,
                                      kSetKeepOutService};
 
