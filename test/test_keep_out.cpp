@@ -92,7 +92,7 @@ std::vector<Vec3> directions_in_set(const control::ReachableSet& set, int rings,
 }
 
 double geometric_clearance(const KeepOutRegion& r, const Vec3& p, double tip_radius) {
-  return geometry::nearest_point(r.surface, p).distance - tip_radius - r.margin;
+  return geometry::nearest_point(r.surface, p).distance - tip_radius - r.margin - KeepOut::kTrackingAllowance;
 }
 
 TEST(KeepOut, TheModelsTipPositionMatchesAnIndependentSolve) {

@@ -146,7 +146,7 @@ Vec3 KeepOut::position_at(const Vec2& u) const {
 double KeepOut::clearance_of(const Vec3& p) const {
   double least = std::numeric_limits<double>::infinity();
   for (const KeepOutRegion& r : regions_) {
-    const double c = geometry::nearest_point(r.surface, p).distance - tip_radius_ - r.margin;
+    const double c = geometry::nearest_point(r.surface, p).distance - tip_radius_ - r.margin - kTrackingAllowance;
     if (!std::isfinite(c)) return -std::numeric_limits<double>::infinity();  // unknown: not allowed
     least = std::min(least, c);
   }
