@@ -167,7 +167,9 @@ void check_wall(const Log& log, ros::NodeHandle& pnh) {
       first_flag = c.header.stamp.toSec();
       break;
     }
-  if (first_flag >= 0.0) EXPECT_GE(first_flag, onsets.front() - 0.5) << "flagged before the tip reached the wall";
+  if (first_flag >= 0.0) {
+    EXPECT_GE(first_flag, onsets.front() - 0.5) << "flagged before the tip reached the wall";
+  }
   for (const auto& [t, p] : log.truth_tip)
     if (flagged_at(t - 0.3) && flagged_at(t)) worst = std::max(worst, force_at(p));
   EXPECT_LE(worst, 0.05);
@@ -244,7 +246,9 @@ TEST(SimGraph, Scenario) {
   double rms_bound = 0.02;
   pnh.param("rms_bound", rms_bound, rms_bound);
   Log log;
-  if (scenario == "keep_out") ASSERT_NO_FATAL_FAILURE(set_keep_out(pnh));
+  if (scenario == "keep_out") {
+    ASSERT_NO_FATAL_FAILURE(set_keep_out(pnh));
+  }
   run(log, 240.0);
   ASSERT_FALSE(log.status.empty()) << "no controller status received";
 
