@@ -75,6 +75,17 @@ KeepOutRegion plane(const Vec3& point, const Vec3& normal, double margin) {
   return r;
 }
 
+/// A sphere (radii all alike) or an ellipsoid about `centre`.
+KeepOutRegion body(SurfaceType type, const Vec3& centre, const Vec3& radii, double margin, bool inside = false) {
+  KeepOutRegion r;
+  r.surface.type = type;
+  r.surface.point = centre;
+  r.surface.radii = radii;
+  r.surface.inside = inside;
+  r.margin = margin;
+  return r;
+}
+
 /// Directions of the set on a polar grid about its centre (inside it).
 std::vector<Vec3> directions_in_set(const control::ReachableSet& set, int rings, int spokes) {
   const Vec3 c = set.center();
@@ -150,11 +161,7 @@ TEST(KeepOut, MovesATargetNoFurtherThanTheNearestAllowedDirection) {
   // Brute force: the nearest allowed direction among a fine polar grid of the set (checked by the
   // same clearance, so this tests the search, not the position map).
   const Robot& b = robot();
-  KeepOutRegion ball;
-  ball.surface.type = SurfaceType::kSphere;
-  ball.surface.point = {0.025, 0.01, 0.07};
-  ball.surface.radii = Vec3::Constant(0.01);
-  ball.margin = 0.002;
+  const KeepOutRegion ball = body(SurfaceType::kSphere, {0.025, 0.01, 0.07}, Vec3::Constant(0.01), 0.002);
   const KeepOut k({ball, plane({0.0, -0.03, 0.0}, {0.0, 1.0, 0.0}, 0.003)}, b.model.rod.tip_radius, b.set);
   const std::vector<Vec3> fine = directions_in_set(*b.set, 120, 240);
   std::vector<Vec3> allowed;
@@ -179,12 +186,7 @@ TEST(KeepOut, MovesATargetNoFurtherThanTheNearestAllowedDirection) {
 TEST(KeepOut, AStomachKeepsTheCapsuleInside) {
   // An ellipsoid lived in: allowed exactly where the capsule stays inside by the margin.
   const Robot& b = robot();
-  KeepOutRegion stomach;
-  stomach.surface.type = SurfaceType::kEllipsoid;
-  stomach.surface.point = {0.0, 0.0, 0.06};
-  stomach.surface.radii = {0.045, 0.06, 0.05};
-  stomach.surface.inside = true;
-  stomach.margin = 0.002;
+  const KeepOutRegion stomach = body(SurfaceType::kEllipsoid, {0.0, 0.0, 0.06}, {0.045, 0.06, 0.05}, 0.002, true);
   const KeepOut k({stomach}, b.model.rod.tip_radius, b.set);
   control::ActuatedModel m(b.model);
   int out_count = 0;
@@ -212,14 +214,9 @@ TEST(KeepOut, RefusesBrokenRegionsNamingTheKey) {
   refused(plane({NAN, 0, 0}, {1, 0, 0}, 0.0), "keep_out[1]/point");
   refused(plane({0, 0, 0}, {0, 0, 0}, 0.0), "keep_out[1]/normal");
   refused(plane({0, 0, 0}, {1, 0, 0}, -0.001), "keep_out[1]/margin");
-  KeepOutRegion ball;
-  ball.surface.type = SurfaceType::kSphere;
-  ball.surface.radii = Vec3::Zero();
-  refused(ball, "keep_out[1]/radius");
+  refused(body(SurfaceType::kSphere, Vec3::Zero(), Vec3::Zero(), 0.002), "keep_out[1]/radius");
   // A region that holds every direction the robot reaches: refused, not a robot that cannot move.
-  ball.surface.radii = Vec3::Constant(0.5);
-  ball.surface.point = {0, 0, 0.05};
-  refused(ball, "keep_out");
+  refused(body(SurfaceType::kSphere, {0, 0, 0.05}, Vec3::Constant(0.5), 0.002), "keep_out");
 }
 
 TEST(KeepOut, AReferenceFollowingAPathNeverEntersTheRegion) {
@@ -251,10 +248,7 @@ TEST(KeepOut, AReferenceFollowingAPathNeverEntersTheRegion) {
 // target clips it at once.
 TEST(KeepOut, TheMovingReferenceSlidesAlongTheEdge) {
   const Robot& b = robot();
-  KeepOutRegion ball;
-  ball.surface.type = SurfaceType::kSphere;
-  ball.surface.radii = Vec3::Constant(0.008);
-  ball.margin = 0.002;
+  KeepOutRegion ball = body(SurfaceType::kSphere, Vec3::Zero(), Vec3::Constant(0.008), 0.002);
   const Vec3 c = b.set->center();
   const Vec3 start = (c + 0.5 * Vec3::UnitY()).normalized(), goal = (c - 0.5 * Vec3::UnitY()).normalized();
   const KeepOut probe({}, b.model.rod.tip_radius, b.set);
