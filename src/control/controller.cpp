@@ -588,7 +588,7 @@ void Controller::begin_probe(double t, const rod::RodSolution& sol, const Actuat
   probe_.begin(t, previous_command_, turns, model_.lower(), model_.upper(), sol.tip_rotation, modes.frequency(0));
 }
 
-// A cycle of the probe: its inputs, the record; at its end the fit, the law told, and the path's clock.
+// A cycle of the probe: its inputs, the record; at its end the fit and the law told.
 void Controller::probe(const ControllerInputs& in, const rod::RodSolution& sol, ControllerOutput& out) {
   out.approaching = true;
   if (probe_.active()) {
@@ -596,8 +596,7 @@ void Controller::probe(const ControllerInputs& in, const rod::RodSolution& sol, 
     if (probe_.done(in.t)) {
       identification::ModeRecord r = probe_.finish(options_.safety.sample_period, latency_.latency());
       if (fit_inline_) {
-        adopt_mode_fit(identification::fit_mode(r, probe_.omega_guess()), in.t);
-        out.approaching = false;
+        adopt_mode_fit(identification::fit_mode(r, probe_.omega_guess()));
       } else {
         record_ = std::move(r);
         record_ready_ = fit_waiting_ = true;
@@ -607,8 +606,7 @@ void Controller::probe(const ControllerInputs& in, const rod::RodSolution& sol, 
   } else if (fit_delivered_ || in.t - fit_wait_start_ > 2.0) {  // waiting for the owner's fit
     identification::ModeFit fit = delivered_fit_;
     if (!fit_delivered_) fit.ok = false, fit.error = "no fit came back within 2 s";
-    adopt_mode_fit(fit, in.t);
-    out.approaching = false;
+    adopt_mode_fit(fit);
   }
   out.jet_force_command = probe_.active() ? probe_.inputs(in.t) : previous_command_;
   previous_command_ = out.jet_force_command;
@@ -629,8 +627,9 @@ void Controller::deliver_mode_fit(const identification::ModeFit& fit) {
   fit_delivered_ = true;
 }
 
-// The probe's fit: the capsule's fill and the damping time the law takes (or why not), then the path.
-void Controller::adopt_mode_fit(const identification::ModeFit& fit, double t) {
+// The probe's fit: the capsule's fill and the damping time the law takes (or why not); the path's
+// clock starts once the tip has settled again (approach), the chirp's ringing and the law's reset over.
+void Controller::adopt_mode_fit(const identification::ModeFit& fit) {
   fit_waiting_ = record_ready_ = fit_delivered_ = false;
   identity_.mode_identified = fit.ok;
   identity_.mode_error = fit.ok ? "" : "probe: " + fit.error;
@@ -641,7 +640,7 @@ void Controller::adopt_mode_fit(const identification::ModeFit& fit, double t) {
   }
   law_->adopt(identity_, lead_time_);
   law_->reset();
-  reference_.begin_path(t);
+  approach_.reset();
 }
 
 // The mode about the present equilibrium: the model's with the identified fill (the probe's

@@ -147,7 +147,7 @@ class Controller {
   bool at_bound(const InputVector& command) const;
   void begin_probe(double t, const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin);
   void probe(const ControllerInputs& in, const rod::RodSolution& sol, ControllerOutput& out);
-  void adopt_mode_fit(const identification::ModeFit& fit, double t);
+  void adopt_mode_fit(const identification::ModeFit& fit);
   ModalOptions mode_options() const;
   std::string command_inputs(const ControllerInputs& in, const rod::RodSolution& sol,
                              const ActuatedModel::Linearisation& lin, double dt, ControllerOutput& out);
