@@ -210,6 +210,31 @@ TEST(ModalLaw, TheGainsKeepTheCrossoversPhaseLagUnderLatency) {
     EXPECT_LT(g.kp, none.kp);
   }
   EXPECT_DOUBLE_EQ(hydrojet::control::modal_gains(o, T, -1.0).kp, o.kp);  // no latency below zero
+  // A flow loop slower than the tuning's actuator_lag adds its excess to the delay; a faster one, none.
+  for (double flow_lag : {0.06, 0.09}) {
+    const auto g = hydrojet::control::modal_gains(o, T, 0.02, flow_lag);
+    EXPECT_NEAR(g.kp * (T + flow_lag + 0.02), o.kp * own, 1e-12) << flow_lag;
+    EXPECT_NEAR(g.ki / (g.kp * g.kp), o.ki / (o.kp * o.kp), 1e-12) << flow_lag;
+  }
+  EXPECT_DOUBLE_EQ(hydrojet::control::modal_gains(o, T, 0.0, 0.5 * o.actuator_lag).kp, o.kp);
+}
+
+// The schedule moves from the paper's gains toward the modal law's, and never below the paper's.
+TEST(ModalLaw, TheScheduledGainsNeverFallBelowThePapers) {
+  hydrojet::control::PdOptions pd, top;
+  pd.kp = 3.0, pd.ki = 6.0;
+  top.kp = 5.0, top.ki = 12.0;
+  auto g = hydrojet::control::scheduled_gains(pd, top, 0.5);
+  EXPECT_DOUBLE_EQ(g.kp, 4.0);
+  EXPECT_DOUBLE_EQ(g.ki, 9.0);
+  top.kp = 2.5, top.ki = 3.9;  // the modal law's gains at 30 ms of latency: below the paper's
+  g = hydrojet::control::scheduled_gains(pd, top, 1.0);
+  EXPECT_DOUBLE_EQ(g.kp, pd.kp);
+  EXPECT_DOUBLE_EQ(g.ki, pd.ki);
+  top.kp = 4.0;  // one above, one below
+  g = hydrojet::control::scheduled_gains(pd, top, 1.0);
+  EXPECT_DOUBLE_EQ(g.kp, 4.0);
+  EXPECT_DOUBLE_EQ(g.ki, pd.ki);
 }
 
 TEST(ModalLaw, TheDampingGainOpposesTheEstimatedRateRelativeToThePath) {

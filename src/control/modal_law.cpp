@@ -102,12 +102,20 @@ void ModalLaw::reset() {
   calm_for_ = saturated_for_ = 0.0;
 }
 
-void ModalLaw::adopt(const PlantIdentity& identity, double /*lead_time*/) {
+void ModalLaw::adopt(const PlantIdentity& identity, double lead_time) {
   if (std::isfinite(identity.tracker_latency_s) && identity.tracker_latency_s >= 0.0)
     latency_ = identity.tracker_latency_s;
-  // The valves' lags are measured and reported but not yet taken: in closed loop their estimates
-  // scatter (±30-50 %), and the shaping's τ_a from them cost plant A at 30° 0.0321 -> 0.0417 rad
-  // (docs/controller.md); modal/actuator_lag stays until they hold.
+  // The valves' lags lower the PD's gains (modal_gains), never below the paper's: in closed loop
+  // their estimates scatter (±30-50 %), which only forgoes some of the gains' rise. The shaping's
+  // τ_a stays modal/actuator_lag (from them it cost plant A at 30° 0.0321 -> 0.0417 rad).
+  flow_lag_ = 0.0;
+  if (identity.valves_identified) {
+    double sum = 0.0;
+    int jets = 0;
+    for (double tau : identity.valve_time_constants_s)
+      if (std::isfinite(tau) && tau > 0.0) sum += tau, ++jets;
+    if (jets > 0) flow_lag_ = std::max(0.0, sum / jets - std::max(lead_time, 0.0));
+  }
   if (identity.mode_identified) {
     options_.tip_mass_scale = identity.tip_mass_scale;
     options_.damping_time = identity.damping_time;
@@ -123,22 +131,27 @@ double ModalLaw::gain_weight() const {
 // ζ of the first mode: Kelvin–Voigt damping of time τ gives 2ζω = τω².
 double ModalLaw::damping_ratio() const { return 0.5 * omega_ * options_.damping_time; }
 
-PdOptions modal_gains(const ModalLawOptions& o, double sample_period, double latency) {
-  const double own = sample_period + o.actuator_lag, r = own / (own + std::max(latency, 0.0));
+PdOptions modal_gains(const ModalLawOptions& o, double sample_period, double latency, double flow_lag) {
+  const double own = sample_period + o.actuator_lag;
+  const double r = own / (sample_period + std::max(o.actuator_lag, flow_lag) + std::max(latency, 0.0));
   PdOptions g;
   g.kp = r * o.kp;
   g.ki = r * r * o.ki;
   return g;
 }
 
+PdOptions scheduled_gains(const PdOptions& pd, const PdOptions& top, double weight) {
+  PdOptions g = pd;
+  g.kp += weight * std::max(top.kp - pd.kp, 0.0);
+  g.ki += weight * std::max(top.ki - pd.ki, 0.0);
+  return g;
+}
+
 Vec3 ModalLaw::correction(const LawCycle& c) {
   estimate(c);
   PdOptions gains = pd_options_;
-  if (const double w = gain_weight(); w > 0.0) {
-    const PdOptions top = modal_gains(options_, sample_period_, latency_);
-    gains.kp = pd_options_.kp + w * (top.kp - pd_options_.kp);
-    gains.ki = pd_options_.ki + w * (top.ki - pd_options_.ki);
-  }
+  if (const double w = gain_weight(); w > 0.0)
+    gains = scheduled_gains(pd_options_, modal_gains(options_, sample_period_, latency_, flow_lag_), w);
   const Vec3 shaping = shaping_step(c);  // weighted by the speed over the last step, before this one's
   return pd_.correction(c.observed, c.desired, c.dt, gains) + shaping;
 }

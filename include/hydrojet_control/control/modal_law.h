@@ -38,7 +38,8 @@ namespace control {
 struct ModalLawOptions : ModalOptions {
   ModalLawOptions() { tip_mass_scale = 3.0; }  ///< water fills the capsule (the plants: ×1.5–4)
   /// K_p of the PD under the modal law on a plant whose tracker has no latency [1/s]; a latency L
-  /// (identified) scales it by (T + τ_a)/(T + τ_a + L) (T the sample period, τ_a actuator_lag) ...
+  /// and a flow lag τ (identified) scale it by (T + τ_a)/(T + max(τ_a, τ) + L) (T the sample
+  /// period, τ_a actuator_lag; modal_gains), never below the paper's ...
   double kp = 5.0;
   double ki = 12.0;  ///< ... and K_i, by that ratio squared [1/s²]
   /// v_s [rad/s]: the PD's gains move from the paper's law's (gains/*) to kp, ki with the weight
@@ -89,10 +90,15 @@ class ModalEstimator {
 };
 
 /// The PD's gains at full speed (kp, ki; the rest default) on a loop whose tracker lags by `latency`
-/// [s]: the loop's own delay D₀ = T + τ_a (sample_period, actuator_lag) over D₀ + latency scales kp,
-/// so the crossover's phase lag k_p·D stays that of the latency-free tuning, and ki by its square, so
-/// the PI's zero keeps its place under the crossover.
-PdOptions modal_gains(const ModalLawOptions& o, double sample_period, double latency);
+/// [s] and whose flow loop lags by `flow_lag` [s] (identified; below actuator_lag counts as it): the
+/// tuning's delay D₀ = T + τ_a (sample_period, actuator_lag) over the loop's D = T + max(τ_a,
+/// flow_lag) + latency scales kp, so the crossover's phase lag k_p·D stays that of the tuning, and ki
+/// by its square, so the PI's zero keeps its place under the crossover.
+PdOptions modal_gains(const ModalLawOptions& o, double sample_period, double latency, double flow_lag = 0.0);
+
+/// The PD's gains at the gain schedule's `weight` in [0, 1]: from the paper's `pd` toward `top`
+/// (modal_gains), never below the paper's (a loop too late for the modal law's rise keeps them).
+PdOptions scheduled_gains(const PdOptions& pd, const PdOptions& top, double weight);
 
 /// The (A, B) of one component's (y, v, d) over dt [s] with s held (exact: the exponential of the
 /// augmented generator).
@@ -153,6 +159,7 @@ class ModalLaw : public DirectionLaw {
   Vec3 previous_damping_ = Vec3::Zero();      ///< m's damping at the last step
   Vec3 previous_feedforward_ = Vec3::Zero();  ///< m's feedforward at the last step
   double latency_ = 0.0;                      ///< the tracker's latency identified [s] (adopt)
+  double flow_lag_ = 0.0;                     ///< the jets' mean lag identified, less the regulators' lead [s]
   double omega_ = 0.0;                        ///< the first mode at the current equilibrium [rad/s] (0: none yet)
   double swing_ = 0.0;                        ///< [rad] (swing())
   double band_power_ = 0.0;                   ///< the band-passed error's mean square over ~0.1 s
