@@ -114,33 +114,40 @@ TEST(ModeFit, SaysWhenThereIsNoMode) {
 }
 
 TEST(ValveLag, RecoversTheLagBehindAnUnknownCurveInClosedLoop) {
-  // A first-order valve (the plant's: dead zone, exponent, saturation) under a PI flow loop following
-  // a path's setpoint after the probe's chirp, measured with the flow sensors' noise. Goal: τ within 20 %.
+  // A first-order valve (the plant's: dead zone, exponent, play, saturation) under a PI flow loop
+  // following a path's setpoint after the probe's chirp, measured with the flow sensors' noise. Goal:
+  // τ within 20 %.
   for (const double tau : {0.03, 0.05, 0.1})
-    for (const double exponent : {0.65, 1.0}) {
-      const double dt = 0.01, max_flow = 1.6e-5, dead = 0.08;
-      std::mt19937 rng(9);
-      std::normal_distribution<double> n(0.0, 5e-8);
-      ValveLagEstimator e(0.04, max_flow);
-      double flow = 0.0, measured = 0.0, integral = 0.0;
-      for (int k = 0; k < 3000; ++k) {
-        const double t = k * dt;
-        // a path's slow motion, and the probe's chirp at its start (t < 2 s)
-        const double setpoint = max_flow * (0.45 + 0.3 * std::sin(2 * M_PI * 0.4 * t) * std::sin(2 * M_PI * 0.05 * t) +
-                                            0.1 * hydrojet::identification::chirp(t, 3.5));
-        const double error = setpoint - measured;
-        integral += 312500.0 * error * dt;
-        const double duty = std::clamp(setpoint / max_flow + 18750.0 * error + integral, 0.0, 1.0);
-        const double u = std::max(0.0, (duty - dead) / (1.0 - dead));
-        const double steady = std::min(1.5e-5, max_flow * std::pow(u, exponent));
-        flow += (1.0 - std::exp(-dt / tau)) * (steady - flow);
-        const double next = std::max(0.0, flow + n(rng));
-        e.add(measured, duty, next, dt);
-        measured = next;
+    for (const double exponent : {0.65, 1.0})
+      for (const double play : {0.0, 0.025}) {
+        const double dt = 0.01, max_flow = 1.6e-5, dead = 0.08;
+        std::mt19937 rng(9);
+        std::normal_distribution<double> n(0.0, 5e-8);
+        ValveLagEstimator e(0.04, max_flow);
+        double flow = 0.0, measured = 0.0, integral = 0.0, effective = 0.0;
+        for (int k = 0; k < 3000; ++k) {
+          const double t = k * dt;
+          // a path's slow motion, and the probe's chirp at its start (t < 2 s)
+          const double setpoint =
+              max_flow * (0.45 + 0.3 * std::sin(2 * M_PI * 0.4 * t) * std::sin(2 * M_PI * 0.05 * t) +
+                          0.1 * hydrojet::identification::chirp(t, 3.5));
+          const double error = setpoint - measured;
+          integral += 312500.0 * error * dt;
+          const double duty = std::clamp(setpoint / max_flow + 18750.0 * error + integral, 0.0, 1.0);
+          if (duty > effective + 0.5 * play) effective = duty - 0.5 * play;
+          if (duty < effective - 0.5 * play) effective = duty + 0.5 * play;
+          const double u = std::max(0.0, (effective - dead) / (1.0 - dead));
+          const double steady = std::min(1.5e-5, max_flow * std::pow(u, exponent));
+          flow += (1.0 - std::exp(-dt / tau)) * (steady - flow);
+          const double next = std::max(0.0, flow + n(rng));
+          e.add(measured, duty, next, dt);
+          measured = next;
+        }
+        EXPECT_TRUE(e.identified()) << tau;
+        EXPECT_NEAR(e.time_constant() / tau, 1.0, 0.2) << "τ " << tau << " exponent " << exponent << " play " << play;
+        EXPECT_NEAR(e.play(), play, 0.0101)  // within two steps of its grid (τ carries the goal)
+            << "τ " << tau << " exponent " << exponent;
       }
-      EXPECT_TRUE(e.identified()) << tau;
-      EXPECT_NEAR(e.time_constant() / tau, 1.0, 0.2) << "τ " << tau << " exponent " << exponent;
-    }
 }
 
 TEST(Latency, IsTheMedianDelayOfTheStamps) {

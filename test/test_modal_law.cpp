@@ -219,6 +219,16 @@ TEST(ModalLaw, TheGainsKeepTheCrossoversPhaseLagUnderLatency) {
   EXPECT_DOUBLE_EQ(hydrojet::control::modal_gains(o, T, 0.0, 0.5 * o.actuator_lag).kp, o.kp);
 }
 
+// The flow loop's lag: the valve's, shortened by the regulator's proportional loop gain and its lead.
+TEST(ModalLaw, TheFlowLoopsLagIsTheValvesUnderItsRegulator) {
+  hydrojet::actuation::FlowRegulatorOptions flow;
+  flow.kp = 18750.0, flow.feedforward = 62500.0, flow.lead_time = 0.01;  // loop gain 0.3
+  EXPECT_NEAR(hydrojet::control::flow_loop_lag(0.065, flow), 0.065 / 1.3 - 0.01, 1e-15);
+  flow.feedforward = 0.0;  // no feedforward: no loop gain known
+  EXPECT_NEAR(hydrojet::control::flow_loop_lag(0.065, flow), 0.055, 1e-15);
+  EXPECT_EQ(hydrojet::control::flow_loop_lag(0.005, flow), 0.0);  // a lead longer than the lag
+}
+
 // The schedule moves from the paper's gains toward the modal law's, and never below the paper's.
 TEST(ModalLaw, TheScheduledGainsNeverFallBelowThePapers) {
   hydrojet::control::PdOptions pd, top;

@@ -102,19 +102,18 @@ void ModalLaw::reset() {
   calm_for_ = saturated_for_ = 0.0;
 }
 
-void ModalLaw::adopt(const PlantIdentity& identity, double lead_time) {
+void ModalLaw::adopt(const PlantIdentity& identity, const actuation::FlowRegulatorOptions& flow) {
   if (std::isfinite(identity.tracker_latency_s) && identity.tracker_latency_s >= 0.0)
     latency_ = identity.tracker_latency_s;
-  // The valves' lags lower the PD's gains (modal_gains), never below the paper's: in closed loop
-  // their estimates scatter (±30-50 %), which only forgoes some of the gains' rise. The shaping's
-  // τ_a stays modal/actuator_lag (from them it cost plant A at 30° 0.0321 -> 0.0417 rad).
+  // The valves' lags lower the PD's gains (modal_gains), never below the paper's; the shaping's τ_a
+  // stays modal/actuator_lag (from them it cost plant A at 30° 0.0321 -> 0.0417 rad).
   flow_lag_ = 0.0;
   if (identity.valves_identified) {
     double sum = 0.0;
     int jets = 0;
     for (double tau : identity.valve_time_constants_s)
       if (std::isfinite(tau) && tau > 0.0) sum += tau, ++jets;
-    if (jets > 0) flow_lag_ = std::max(0.0, sum / jets - std::max(lead_time, 0.0));
+    if (jets > 0) flow_lag_ = flow_loop_lag(sum / jets, flow);
   }
   if (identity.mode_identified) {
     options_.tip_mass_scale = identity.tip_mass_scale;
@@ -138,6 +137,11 @@ PdOptions modal_gains(const ModalLawOptions& o, double sample_period, double lat
   g.kp = r * o.kp;
   g.ki = r * r * o.ki;
   return g;
+}
+
+double flow_loop_lag(double valve_lag, const actuation::FlowRegulatorOptions& flow) {
+  const double loop_gain = flow.feedforward > 0.0 ? std::max(flow.kp, 0.0) / flow.feedforward : 0.0;
+  return std::max(0.0, valve_lag / (1.0 + loop_gain) - std::max(flow.lead_time, 0.0));
 }
 
 PdOptions scheduled_gains(const PdOptions& pd, const PdOptions& top, double weight) {

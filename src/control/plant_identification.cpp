@@ -31,7 +31,10 @@ namespace {
 constexpr double kForgetting =
     0.99995;  // per step: a memory of ~20000 steps (200 s at 100 Hz): a valve does not change
 constexpr double kMovingFraction = 0.005;
-constexpr double kPrior = 1e4;  // the prior's variance: weak (a stronger one pulls a slow valve's τ to the prior)
+double lag_at(int l) {
+  using E = ValveLagEstimator;
+  return E::kMinLag * std::pow(E::kMaxLag / E::kMinLag, static_cast<double>(l) / (E::kLags - 1));
+}
 }  // namespace
 
 ValveLagEstimator::ValveLagEstimator(double prior_lag, double max_flow) : prior_lag_(prior_lag), scale_(max_flow) {
@@ -39,16 +42,15 @@ ValveLagEstimator::ValveLagEstimator(double prior_lag, double max_flow) : prior_
 }
 
 void ValveLagEstimator::reset() {
-  const double a = std::exp(-dt_ / prior_lag_);
-  for (Fit& f : fits_) {
-    f.theta(0) = a;
-    for (int j = 0; j < kKnots; ++j) f.theta(j + 1) = (1.0 - a) * std::pow(kKnotDuty[j], 0.8);
-    f.P = Mat::Identity() * kPrior;
-    f.effective = 0.0;
-    f.error = 0.0;
-    f.simulated = 0.0;
-  }
-  best_ = 0;
+  plays_.assign(kPlays, Play());
+  for (int l = 0; l < kLags; ++l) decay_[l] = std::exp(-dt_ / lag_at(l));
+  sum_ff_ = weight_ = 0.0;
+  growth_ = 1.0;
+  next_refresh_ = refreshed_ = calls_ = 0;
+  fitted_ = false;
+  tau_ = prior_lag_;
+  tau_sd_ = 1.0;
+  best_play_ = 0;
   moving_steps_ = 0;
 }
 
@@ -58,55 +60,80 @@ void ValveLagEstimator::add(double previous_flow, double duty, double flow, doub
     dt_ = dt;
     reset();
   }
-  const double y = flow / scale_;
+  const double y = flow / scale_, d = std::clamp(duty, 0.0, 1.0);
+  // Forgetting as a growing weight of the new sample (the sums are λ^-k times the forgotten ones):
+  // no pass over the sums to scale them; brought back to scale before it overflows.
+  growth_ /= kForgetting;
+  if (growth_ > 1e100) rescale();
+  sum_ff_ += growth_ * y * y;
+  weight_ += growth_;
   for (int p = 0; p < kPlays; ++p) {
-    Fit& f = fits_[p];
-    const double half = 0.005 * p, d = std::clamp(duty, 0.0, 1.0);
-    if (d > f.effective + half) f.effective = d - half;
-    if (d < f.effective - half) f.effective = d + half;
-    Vec phi = Vec::Zero();
-    phi(0) = previous_flow / scale_;
-    const int j = static_cast<int>(std::upper_bound(kKnotDuty, kKnotDuty + kKnots - 1, f.effective) - kKnotDuty) - 1;
-    const double x = (f.effective - kKnotDuty[j]) / (kKnotDuty[j + 1] - kKnotDuty[j]);
-    phi(j + 1) = 1.0 - x;
-    phi(j + 2) = x;
-    // Instrumental variables: the regressor f[k] carries the sensor's noise, which the equation's
-    // error f[k+1] − a f[k] shares (least squares would bias a low, τ short); the fit's own
-    // noise-free simulation of the flow does not, and follows f[k] closely.
-    Vec z = phi;
-    z(0) = f.simulated;
-    const double e = y - phi.dot(f.theta);
-    f.error = kForgetting * f.error + (1.0 - kForgetting) * e * e;
-    const Vec Pz = f.P * z;
-    const Eigen::Matrix<double, 1, kKnots + 1> phiP = phi.transpose() * f.P;
-    const Vec k = Pz / (kForgetting + phiP.dot(z));
-    f.theta += k * e;
-    f.P = (f.P - k * phiP) / kForgetting;
-    phi(0) = f.simulated;
-    f.simulated = std::max(0.0, phi.dot(f.theta));
-    if (const double trace = std::abs(f.P.trace()); trace > kPrior * (kKnots + 1)) f.P *= kPrior * (kKnots + 1) / trace;
+    Play& play = plays_[p];
+    const double half = 0.0025 * p;
+    if (d > play.effective + half) play.effective = d - half;
+    if (d < play.effective - half) play.effective = d + half;
+    const int j = static_cast<int>(std::upper_bound(kKnotDuty, kKnotDuty + kKnots - 1, play.effective) - kKnotDuty) - 1;
+    const double w = (play.effective - kKnotDuty[j]) / (kKnotDuty[j + 1] - kKnotDuty[j]);
+    for (int l = 0; l < kLags; ++l) {
+      Fit& f = play.lags[l];
+      const double a = decay_[l];
+      f.x *= a;
+      f.x(j) += (1.0 - a) * (1.0 - w);
+      f.x(j + 1) += (1.0 - a) * w;
+      f.M.selfadjointView<Eigen::Lower>().rankUpdate(f.x, growth_);
+      f.b += growth_ * y * f.x;
+    }
   }
-  for (int p = 0; p < kPlays; ++p)
-    if (fits_[p].error < fits_[best_].error) best_ = p;
   if (std::abs(flow - previous_flow) > kMovingFraction * scale_) ++moving_steps_;
+  if (++calls_ % kRefreshEvery != 0) return;
+  refresh(next_refresh_);
+  next_refresh_ = (next_refresh_ + 1) % kPlays;
+  if (++refreshed_ >= kPlays) estimate();
 }
 
-namespace {
-/// τ of a and its standard deviation for a's variance.
-double lag_of(double a, double dt) { return -dt / std::log(std::clamp(a, 1e-3, 0.999)); }
-}  // namespace
-
-bool ValveLagEstimator::identified() const {
-  if (moving_steps_ < 50) return false;
-  const Fit& f = fits_[best_];
-  const double a = std::clamp(f.theta(0), 1e-3, 0.999), log_a = std::log(a);
-  const double sd_a = std::sqrt(std::max(0.0, f.P(0, 0) * f.error));
-  const double sd_tau = dt_ / (a * log_a * log_a) * sd_a;
-  return sd_tau <= 0.1 * lag_of(a, dt_);
+void ValveLagEstimator::rescale() {
+  const double s = 1.0 / growth_;
+  for (Play& play : plays_)
+    for (Fit& f : play.lags) f.M *= s, f.b *= s;
+  sum_ff_ *= s, weight_ *= s;
+  growth_ = 1.0;
 }
 
-double ValveLagEstimator::time_constant() const {
-  return identified() ? lag_of(fits_[best_].theta(0), dt_) : prior_lag_;
+// One play's least squares at every lag: the residual sum f² − bᵀc at c = M⁻¹b (a light ridge for
+// the knots the duty has not visited).
+void ValveLagEstimator::refresh(int p) {
+  Play& play = plays_[p];
+  for (int l = 0; l < kLags; ++l) {
+    const Fit& f = play.lags[l];
+    Mat M = f.M.selfadjointView<Eigen::Lower>();
+    M.diagonal().array() += 1e-9 * (M.trace() / kKnots) + 1e-12;
+    const Vec c = M.ldlt().solve(f.b);
+    play.residual[l] = std::max(0.0, sum_ff_ - f.b.dot(c));
+  }
+}
+
+// The play and lag of least residual; τ from a parabola through it and its neighbours in log τ, its
+// spread from the parabola's curvature against the residual's variance (one standard deviation
+// raises the residual sum by about that variance).
+void ValveLagEstimator::estimate() {
+  int bp = 0, bl = 0;
+  for (int p = 0; p < kPlays; ++p)
+    for (int l = 0; l < kLags; ++l)
+      if (plays_[p].residual[l] < plays_[bp].residual[bl]) bp = p, bl = l;
+  best_play_ = bp;
+  fitted_ = bl > 0 && bl < kLags - 1 && weight_ > 0.0;
+  if (!fitted_) return;
+  const auto& r = plays_[bp].residual;
+  const double h = std::log(kMaxLag / kMinLag) / (kLags - 1);  // the grid's step in log τ
+  const double curvature = (r[bl - 1] - 2.0 * r[bl] + r[bl + 1]) / (h * h);
+  if (!(curvature > 0.0)) {
+    fitted_ = false;
+    return;
+  }
+  const double shift = std::clamp(-0.5 * h * (r[bl + 1] - r[bl - 1]) / (h * h * curvature), -0.5 * h, 0.5 * h);
+  tau_ = lag_at(bl) * std::exp(shift);
+  const double variance = r[bl] / weight_;  // the sums' growth cancels here, not in the curvature
+  tau_sd_ = std::sqrt(2.0 * variance * growth_ / curvature);
 }
 
 }  // namespace control

@@ -56,9 +56,9 @@ class DirectionLaw {
   void set_pd(const PdOptions& pd);
   const PdOptions& pd() const { return pd_options_; }
   virtual ControlLaw kind() const = 0;
-  /// What has been measured of the plant (the controller, every cycle); lead_time [s]: the flow
-  /// regulators' (flow_regulator/lead_time). The paper's law assumes nothing of it.
-  virtual void adopt(const PlantIdentity& /*identity*/, double /*lead_time*/) {}
+  /// What has been measured of the plant (the controller, every cycle), and the flow regulators
+  /// that close the loop on the valves (flow_regulator/*). The paper's law assumes nothing of it.
+  virtual void adopt(const PlantIdentity& /*identity*/, const actuation::FlowRegulatorOptions& /*flow*/) {}
   /// The supervisor's share of the law's own terms in [0, 1] (0: the paper's law acts), and the mode's
   /// swing it watches [rad]; the paper's law has neither.
   virtual double supervisor_weight() const { return 1.0; }

@@ -96,6 +96,12 @@ class ModalEstimator {
 /// by its square, so the PI's zero keeps its place under the crossover.
 PdOptions modal_gains(const ModalLawOptions& o, double sample_period, double latency, double flow_lag = 0.0);
 
+/// The lag [s] left of a valve of lag `valve_lag` [s] under its flow regulator: the proportional
+/// part's loop gain K = kp / feedforward (a valve whose flow is linear in its duty up to 1 /
+/// feedforward at full duty) shortens it to valve_lag / (1 + K), and the feedforward's lead takes
+/// lead_time off.
+double flow_loop_lag(double valve_lag, const actuation::FlowRegulatorOptions& flow);
+
 /// The PD's gains at the gain schedule's `weight` in [0, 1]: from the paper's `pd` toward `top`
 /// (modal_gains), never below the paper's (a loop too late for the modal law's rise keeps them).
 PdOptions scheduled_gains(const PdOptions& pd, const PdOptions& top, double weight);
@@ -130,7 +136,7 @@ class ModalLaw : public DirectionLaw {
   ControlLaw kind() const override { return ControlLaw::kModal; }
   /// The identified fill and damping time replace modal/tip_mass_scale and modal/damping_time (their
   /// first guesses).
-  void adopt(const PlantIdentity& identity, double lead_time) override;
+  void adopt(const PlantIdentity& identity, const actuation::FlowRegulatorOptions& flow) override;
   const ModalLawOptions& options() const { return options_; }
   const ModalEstimator& estimator() const { return estimator_; }
   /// The tracking error's swing at the mode's frequency [rad] (the supervisor's measure).
@@ -159,7 +165,7 @@ class ModalLaw : public DirectionLaw {
   Vec3 previous_damping_ = Vec3::Zero();      ///< m's damping at the last step
   Vec3 previous_feedforward_ = Vec3::Zero();  ///< m's feedforward at the last step
   double latency_ = 0.0;                      ///< the tracker's latency identified [s] (adopt)
-  double flow_lag_ = 0.0;                     ///< the jets' mean lag identified, less the regulators' lead [s]
+  double flow_lag_ = 0.0;                     ///< the flow loop's lag from the valves' identified lags [s] (adopt)
   double omega_ = 0.0;                        ///< the first mode at the current equilibrium [rad/s] (0: none yet)
   double swing_ = 0.0;                        ///< [rad] (swing())
   double band_power_ = 0.0;                   ///< the band-passed error's mean square over ~0.1 s
