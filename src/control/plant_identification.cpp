@@ -99,8 +99,9 @@ void ValveLagEstimator::rescale() {
   growth_ = 1.0;
 }
 
-// One play's least squares at every lag: the residual sum f² − bᵀc at c = M⁻¹b (a light ridge for
-// the knots the duty has not visited).
+// One play's least squares at every lag: the residual's mean square (f² − bᵀc at c = M⁻¹b, over the
+// sums' weight: plays refreshed at different samples compare) with a light ridge for the knots the
+// duty has not visited.
 void ValveLagEstimator::refresh(int p) {
   Play& play = plays_[p];
   for (int l = 0; l < kLags; ++l) {
@@ -108,13 +109,13 @@ void ValveLagEstimator::refresh(int p) {
     Mat M = f.M.selfadjointView<Eigen::Lower>();
     M.diagonal().array() += 1e-9 * (M.trace() / kKnots) + 1e-12;
     const Vec c = M.ldlt().solve(f.b);
-    play.residual[l] = std::max(0.0, sum_ff_ - f.b.dot(c));
+    play.residual[l] = std::max(0.0, sum_ff_ - f.b.dot(c)) / weight_;
   }
 }
 
 // The play and lag of least residual; τ from a parabola through it and its neighbours in log τ, its
 // spread from the parabola's curvature against the residual's variance (one standard deviation
-// raises the residual sum by about that variance).
+// raises the residual sum, the samples' count times its mean square, by about that variance).
 void ValveLagEstimator::estimate() {
   int bp = 0, bl = 0;
   for (int p = 0; p < kPlays; ++p)
@@ -132,8 +133,8 @@ void ValveLagEstimator::estimate() {
   }
   const double shift = std::clamp(-0.5 * h * (r[bl + 1] - r[bl - 1]) / (h * h * curvature), -0.5 * h, 0.5 * h);
   tau_ = lag_at(bl) * std::exp(shift);
-  const double variance = r[bl] / weight_;  // the sums' growth cancels here, not in the curvature
-  tau_sd_ = std::sqrt(2.0 * variance * growth_ / curvature);
+  const double samples = weight_ / growth_;  // the forgotten count
+  tau_sd_ = std::sqrt(2.0 * r[bl] / (samples * curvature));
 }
 
 }  // namespace control

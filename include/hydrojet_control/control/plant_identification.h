@@ -104,7 +104,7 @@ class ValveLagEstimator {
   struct Play {
     double effective = 0.0;  ///< the duty past the play
     std::array<Fit, kLags> lags;
-    std::array<double, kLags> residual{};  ///< the least squares' residual sum, at the last refresh
+    std::array<double, kLags> residual{};  ///< the least squares' residual mean square, at the last refresh
   };
   void refresh(int play);
   void estimate();
