@@ -76,7 +76,6 @@ Controller::Controller(const RobotModel& model, const ControllerOptions& options
                      : sweep_reachable_set(model, options, options.limits.reachable_force_fraction)),
       reference_(options.limits.max_angular_rate, reachable_, path_reachable_),
       approach_(options.approach),
-      flow_regulator_(model.flow),
       previous_duty_(jets_.zeros()),
       previous_flows_(jets_.zeros()),
       contact_(options.contact, jets_.input_count(), model_.upper().size() ? model_.upper().maxCoeff() : 1.0),
@@ -91,7 +90,7 @@ Controller::Controller(const RobotModel& model, const ControllerOptions& options
   for (int i = 0; i < jets_.input_count(); ++i)
     valve_lags_.emplace_back(known_valves && known.valve_time_constants_s[i] > 0.0
                                  ? known.valve_time_constants_s[i]
-                                 : options.modal.actuator_lag + flow_regulator_.lead_time,
+                                 : options.modal.actuator_lag + model.flow.lead_time,
                              std::max(top_flows[i], 1e-9));
   identity_.valve_time_constants_s.assign(jets_.input_count(), 0.0);
   identity_.tip_mass_scale = options.modal.tip_mass_scale;
@@ -450,7 +449,7 @@ void Controller::observe_plant(const ControllerInputs& in, double dt) {
     identified = identified && valve_lags_[i].identified();
   }
   identity_.valves_identified = identified || known_valves_;
-  law_->adopt(identity_, flow_regulator_);
+  law_->adopt(identity_, jets_.flow_regulator());
 }
 
 // The reach the jets show (closed loop, not while probing): a jet at its top with the error staying
@@ -638,7 +637,7 @@ void Controller::adopt_mode_fit(const identification::ModeFit& fit) {
     identity_.tip_mass_scale /= scale * scale;
     identity_.damping_time = 2.0 * fit.zeta / fit.omega;
   }
-  law_->adopt(identity_, flow_regulator_);
+  law_->adopt(identity_, jets_.flow_regulator());
   law_->reset();
   approach_.reset();
 }

@@ -31,6 +31,7 @@ namespace {
 constexpr double kForgetting =
     0.99995;  // per step: a memory of ~20000 steps (200 s at 100 Hz): a valve does not change
 constexpr double kMovingFraction = 0.005;
+constexpr int kMovingSteps = 50;  // moving steps identified() asks for
 double lag_at(int l) {
   using E = ValveLagEstimator;
   return E::kMinLag * std::pow(E::kMaxLag / E::kMinLag, static_cast<double>(l) / (E::kLags - 1));
@@ -84,11 +85,15 @@ void ValveLagEstimator::add(double previous_flow, double duty, double flow, doub
       f.b += growth_ * y * f.x;
     }
   }
-  if (std::abs(flow - previous_flow) > kMovingFraction * scale_) ++moving_steps_;
-  if (++calls_ % kRefreshEvery != 0) return;
+  // The counters stop where they matter: no overflow on a controller that runs for months.
+  if (std::abs(flow - previous_flow) > kMovingFraction * scale_)
+    moving_steps_ = std::min(moving_steps_ + 1, kMovingSteps);
+  calls_ = (calls_ + 1) % kRefreshEvery;
+  if (calls_ != 0) return;
   refresh(next_refresh_);
   next_refresh_ = (next_refresh_ + 1) % kPlays;
-  if (++refreshed_ >= kPlays) estimate();
+  refreshed_ = std::min(refreshed_ + 1, kPlays);
+  if (refreshed_ == kPlays) estimate();
 }
 
 void ValveLagEstimator::rescale() {
@@ -98,6 +103,8 @@ void ValveLagEstimator::rescale() {
   sum_ff_ *= s, weight_ *= s;
   growth_ = 1.0;
 }
+
+bool ValveLagEstimator::identified() const { return moving_steps_ >= kMovingSteps && fitted_ && tau_sd_ <= 0.1; }
 
 // One play's least squares at every lag: the residual's mean square (f² − bᵀc at c = M⁻¹b, over the
 // sums' weight: plays refreshed at different samples compare) with a light ridge for the knots the

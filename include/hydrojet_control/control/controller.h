@@ -179,11 +179,10 @@ class Controller {
   // Identification of the plant present (plant_identification.h, mode_probe.h).
   PlantIdentity identity_;
   LatencyEstimator latency_;
-  std::vector<ValveLagEstimator> valve_lags_;       ///< per actuator (used by the jets)
-  actuation::FlowRegulatorOptions flow_regulator_;  ///< flow_regulator/* (the law's flow loop)
-  InputVector previous_duty_, previous_flows_;      ///< the last cycle's valve command and measured flows
-  bool duty_known_ = false;                         ///< previous_duty_ was commanded and held since
-  double last_stamp_ = -1e300;                      ///< the tracker stamp last seen [s]
+  std::vector<ValveLagEstimator> valve_lags_;   ///< per actuator (used by the jets)
+  InputVector previous_duty_, previous_flows_;  ///< the last cycle's valve command and measured flows
+  bool duty_known_ = false;                     ///< previous_duty_ was commanded and held since
+  double last_stamp_ = -1e300;                  ///< the tracker stamp last seen [s]
   ModeProbe probe_;
   bool probe_pending_ = false;  ///< an approached path settled: the probe starts this cycle
   bool probed_ = false;         ///< the probe has run (once per controller), or the file gave the mode

@@ -37,6 +37,8 @@ class JetActuation {
                        double dt);
   /// Zeroes the regulators' integrators.
   void reset();
+  /// The jets' flow regulator (the same for every actuator).
+  const actuation::FlowRegulatorOptions& flow_regulator() const { return regulators_.front().options(); }
 
  private:
   actuation::Nozzle nozzle_;

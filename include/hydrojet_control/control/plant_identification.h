@@ -91,7 +91,7 @@ class ValveLagEstimator {
   double play() const { return best_play_ * 0.005; }  ///< the play's width that fits best [duty]
   /// Enough data: 50 steps where the flow moved by at least 0.5 % of max_flow, the least residual
   /// inside the lag grid, and τ's standard deviation (from the residual's curvature) within 10 % of τ.
-  bool identified() const { return moving_steps_ >= 50 && fitted_ && tau_sd_ <= 0.1; }
+  bool identified() const;
 
  private:
   using Vec = Eigen::Matrix<double, kKnots, 1>;
