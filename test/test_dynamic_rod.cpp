@@ -9,14 +9,14 @@
 #include <stdexcept>
 #include <vector>
 
-#include "hydrojet_control/plant/dynamic_rod.h"
+#include "hydrojet_control/rod/dynamic_rod.h"
 #include "hydrojet_control/rod/rod_solver.h"
 #include "hydrojet_control/rod/rod_solver.h"
 #include "hydrojet_control/rod/so3.h"
 
 using namespace hydrojet;
-using plant::DynamicRod;
-using plant::DynamicRodModel;
+using rod::DynamicRod;
+using rod::DynamicRodModel;
 using rod::Mat3;
 using rod::Vec3;
 

@@ -1,6 +1,6 @@
 // The rod's lowest lateral modes (control/modal_model.h) against independent truths: the closed form
 // of a cantilever with a tip mass (and Rayleigh's 33/140 of its own mass), and the free vibration of
-// the plant's dynamic Cosserat rod (plant/dynamic_rod.h) about a loaded, precurved equilibrium.
+// the plant's dynamic Cosserat rod (rod/dynamic_rod.h) about a loaded, precurved equilibrium.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "hydrojet_control/control/modal_model.h"
-#include "hydrojet_control/plant/dynamic_rod.h"
+#include "hydrojet_control/rod/dynamic_rod.h"
 #include "test_helpers.h"
 
 namespace {
@@ -75,9 +75,9 @@ TEST(ModalModel, FromTheCyclesComplianceMatchesTheSolvesModes) {
 
 /// The dynamic rod released from a static push along mode 1: the period of its tip's motion along
 /// that mode's displacement, from upward zero crossings over about four periods.
-double released_frequency(const plant::DynamicRodModel& p, const control::ModalModel& mm, const Vec3& tip_dir_base,
+double released_frequency(const rod::DynamicRodModel& p, const control::ModalModel& mm, const Vec3& tip_dir_base,
                           double push) {
-  plant::DynamicRod rod(p);
+  rod::DynamicRod rod(p);
   EXPECT_TRUE(rod.last_error().empty()) << rod.last_error();
   const Vec3 p_eq = rod.tip_position();  // at rest, unloaded (the constructor's equilibrium)
   rod::TipWrench w;
@@ -108,7 +108,7 @@ TEST(ModalModel, FirstModeMatchesTheDynamicRodsFreeVibration) {
   } cases[] = {{"hydrojet_0deg", 3.0}, {"hydrojet_30deg", 1.0}, {"two_segment_thrusters", 1.0}};
   for (const Case& c : cases) {
     SCOPED_TRACE(c.scene);
-    plant::DynamicRodModel p;
+    rod::DynamicRodModel p;
     p.rod = test::scene(c.scene).rod;
     p.rod.tip_mass *= c.tip_mass_scale;
     p.kelvin_voigt_time = 0.0;

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "hydrojet_control/identification/free_vibration.h"
+
 namespace hydrojet {
 namespace control {
 
@@ -101,6 +103,8 @@ Controller::Controller(const RobotModel& model, const ControllerOptions& options
     identity_.damping_time = known.damping_time;
     probed_ = true;
   }
+  identity_.rod_tip_mass_scale = identity_.tip_mass_scale;
+  identity_.rod_damping_time = identity_.damping_time;
   known_valves_ = known_valves && known.valves_identified;
   reference_.set_max_path_rate(options.limits.max_path_rate);
   tip_map_ = make_keep_out({});
@@ -131,7 +135,7 @@ void Controller::start(double t) {
   contact_.reset();
   was_in_contact_ = false;
   if (fit_waiting_) probed_ = false;  // a start before the fit came back: probe again
-  fit_waiting_ = record_ready_ = fit_delivered_ = false;
+  fit_waiting_ = job_ready_ = fit_delivered_ = false;
   if (!commands_pending_) start_configured_path(t);
   commands_pending_ = false;
 }
@@ -584,6 +588,7 @@ void Controller::begin_probe(double t, const rod::RodSolution& sol, const Actuat
     reference_.begin_path(t);
     return;
   }
+  probe_inputs_ = last_inputs_;
   probe_.begin(t, previous_command_, turns, model_.lower(), model_.upper(), sol.tip_rotation, modes.frequency(0));
 }
 
@@ -593,59 +598,76 @@ void Controller::probe(const ControllerInputs& in, const rod::RodSolution& sol, 
   if (probe_.active()) {
     probe_.record(sol.tip_rotation.col(2), out.measured_direction);
     if (probe_.done(in.t)) {
-      identification::ModeRecord r = probe_.finish(options_.safety.sample_period, latency_.latency());
+      ProbeJob job;
+      job.record = probe_.finish(options_.safety.sample_period, latency_.latency());
+      job.omega_guess = probe_.omega_guess();
+      job.robot = model_.rod();
+      job.inputs = probe_inputs_;
+      job.tip_mass_scale = identity_.tip_mass_scale;
       if (fit_inline_) {
-        adopt_mode_fit(identification::fit_mode(r, probe_.omega_guess()));
+        adopt_probe_result(job.run());
       } else {
-        record_ = std::move(r);
-        record_ready_ = fit_waiting_ = true;
+        job_ = std::move(job);
+        job_ready_ = fit_waiting_ = true;
         fit_wait_start_ = in.t;
       }
     }
   } else if (fit_delivered_ || in.t - fit_wait_start_ > 2.0) {  // waiting for the owner's fit
-    identification::ModeFit fit = delivered_fit_;
-    if (!fit_delivered_) fit.ok = false, fit.error = "no fit came back within 2 s";
-    adopt_mode_fit(fit);
+    ProbeJob::Result result = delivered_result_;
+    if (!fit_delivered_) result.mode.ok = false, result.mode.error = "no fit came back within 2 s";
+    adopt_probe_result(result);
   }
   out.jet_force_command = probe_.active() ? probe_.inputs(in.t) : previous_command_;
   previous_command_ = out.jet_force_command;
   out.wrench_command = model_.tip_wrench(out.jet_force_command);
 }
 
-bool Controller::take_mode_record(identification::ModeRecord* record, double* omega_guess) {
-  if (!record_ready_) return false;
-  *record = std::move(record_);
-  *omega_guess = probe_.omega_guess();
-  record_ready_ = false;
+bool Controller::take_probe_job(ProbeJob* job) {
+  if (!job_ready_) return false;
+  *job = std::move(job_);
+  job_ready_ = false;
   return true;
 }
 
-void Controller::deliver_mode_fit(const identification::ModeFit& fit) {
+void Controller::deliver_probe_result(const ProbeJob::Result& result) {
   if (!fit_waiting_) return;  // a restart since: the fit is of nothing now
-  delivered_fit_ = fit;
+  delivered_result_ = result;
   fit_delivered_ = true;
 }
 
-// The probe's fit: the capsule's fill and the damping time the law takes (or why not); the path's
-// clock starts once the tip has settled again (approach), the chirp's ringing and the law's reset over.
-void Controller::adopt_mode_fit(const identification::ModeFit& fit) {
-  fit_waiting_ = record_ready_ = fit_delivered_ = false;
+// The probe's fit: the capsule's fill and the damping time the law takes (or why not), and the
+// dynamic rod's; the path's clock starts once the tip has settled again (approach), the chirp's
+// ringing and the law's reset over.
+void Controller::adopt_probe_result(const ProbeJob::Result& result) {
+  const identification::ModeFit& fit = result.mode;
+  fit_waiting_ = job_ready_ = fit_delivered_ = false;
   identity_.mode_identified = fit.ok;
   identity_.mode_error = fit.ok ? "" : "probe: " + fit.error;
   if (fit.ok) {
     const double scale = fit.omega / probe_.omega_guess();
     identity_.tip_mass_scale /= scale * scale;
     identity_.damping_time = 2.0 * fit.zeta / fit.omega;
+    identity_.rod_tip_mass_scale = result.rod_ok ? result.rod_tip_mass_scale : identity_.tip_mass_scale;
+    identity_.rod_damping_time = result.rod_ok ? result.rod_damping_time : identity_.damping_time;
+    if (!result.rod_ok) identity_.mode_error = "probe: " + result.rod_error;
   }
   law_->adopt(identity_, jets_.flow_regulator());
   law_->reset();
   approach_.reset();
 }
 
-// The mode about the present equilibrium: the model's with the identified fill (the probe's
-// frequency scale carried to here), its damping ratio the identified Kelvin–Voigt time's.
+// The mode about the present equilibrium: the robot's dynamic rod's free vibration at the jets'
+// forces, with the fill and damping time that reproduce the probe's fit (or the first guesses); the
+// modal model's where the rod has none.
 PlantIdentity Controller::identity() const {
   PlantIdentity id = identity_;
+  const identification::ModeFit free = identification::free_vibration_mode(
+      robot_dynamics(model_.rod(), id.rod_tip_mass_scale, id.rod_damping_time), last_inputs_);
+  if (free.ok) {
+    id.mode_hz = free.hz();
+    id.damping_ratio = free.zeta;
+    return id;
+  }
   const ModalModel modes = has_body_mass(model_.rod())
                                ? lateral_modes(model_.solver(), last_inputs_, rod::TipWrench(), mode_options())
                                : lateral_modes(model_.rod(), last_compliance_, mode_options());

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "hydrojet_control/identification/free_vibration.h"
 #include "hydrojet_control/util/format.h"
 
 namespace hydrojet {
@@ -142,6 +143,37 @@ void ValveLagEstimator::estimate() {
   tau_ = lag_at(bl) * std::exp(shift);
   const double samples = weight_ / growth_;  // the forgotten count
   tau_sd_ = std::sqrt(2.0 * r[bl] / (samples * curvature));
+}
+
+rod::DynamicRodModel robot_dynamics(const rod::RodModel& robot, double tip_mass_scale, double damping_time) {
+  rod::DynamicRodModel d;
+  d.rod = robot;
+  d.rod.tip_mass *= tip_mass_scale;
+  d.kelvin_voigt_time = damping_time;
+  return d;
+}
+
+ProbeJob::Result ProbeJob::run() const {
+  Result r;
+  r.mode = identification::fit_mode(record, omega_guess);
+  if (!r.mode.ok) return r;
+  const double scale = r.mode.omega / omega_guess;
+  double fill = tip_mass_scale / (scale * scale), tau = 2.0 * r.mode.zeta / r.mode.omega;
+  for (int round = 0; round < 6; ++round) {
+    const identification::ModeFit m = identification::free_vibration_mode(robot_dynamics(robot, fill, tau), inputs);
+    if (!m.ok) return r.rod_error = "the robot's dynamic rod: " + m.error, r;
+    const double wr = m.omega / r.mode.omega, zr = m.zeta / r.mode.zeta;
+    if (std::abs(wr - 1.0) < 0.005 && std::abs(zr - 1.0) < 0.02) {
+      r.rod_ok = true;
+      r.rod_tip_mass_scale = fill;
+      r.rod_damping_time = tau;
+      return r;
+    }
+    fill = std::clamp(fill * wr * wr, 0.1, 100.0);
+    tau = std::clamp(tau / zr, 1e-4, 1.0);
+  }
+  r.rod_error = "the robot's dynamic rod does not reach the probe's mode in six rounds";
+  return r;
 }
 
 }  // namespace control

@@ -67,7 +67,7 @@ Plant::Plant(const PlantModel& p, unsigned seed)
     valve_of_.push_back(jet_[i] ? valve++ : -1);
     drive_scale_[i] = std::max(std::abs(a.min_force), std::abs(a.max_force));
   }
-  rod_.reset(new DynamicRod(model_.rod));
+  rod_.reset(new rod::DynamicRod(model_.rod));
   reset();
 }
 

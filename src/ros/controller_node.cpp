@@ -698,15 +698,13 @@ class ControllerNode {
       autostarted_ = true;
     }
     follow_path_->before_cycle(now);
-    if (std::optional<identification::ModeFit> fit = mode_fits_.take()) controller_->deliver_mode_fit(*fit);
+    if (std::optional<control::ProbeJob::Result> fit = probe_results_.take()) controller_->deliver_probe_result(*fit);
     const auto t0 = std::chrono::steady_clock::now();
     const control::ControllerOutput out = controller_->update(in);
     const double cycle_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    identification::ModeRecord record;
-    double guess = 0.0;
-    if (controller_->take_mode_record(&record, &guess))  // the probe's fit, off the loop
-      background_.post(
-          [this, record = std::move(record), guess] { mode_fits_.put(identification::fit_mode(record, guess)); });
+    control::ProbeJob job;
+    if (controller_->take_probe_job(&job))  // the probe's fit, off the loop
+      background_.post([this, job = std::move(job)] { probe_results_.put(job.run()); });
     if (out.state == control::ControllerState::kAborted && last_state_ != control::ControllerState::kAborted)
       ROS_ERROR("controller: ABORT, jets off: %s", out.reason.c_str());
     last_state_ = out.state;
@@ -913,7 +911,7 @@ class ControllerNode {
   ros::ServiceServer keep_out_srv_;
   // Last: destroyed first, so that no background job outlives what it uses.
   /// The probe's fit, from the background thread (declared before it: the thread stops first).
-  ros_bridge::Mailbox<identification::ModeFit> mode_fits_;
+  ros_bridge::Mailbox<control::ProbeJob::Result> probe_results_;
   ros_bridge::Background background_;
 };
 

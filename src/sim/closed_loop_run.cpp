@@ -1,6 +1,6 @@
 #include "hydrojet_control/sim/closed_loop_run.h"
 
-#include "hydrojet_control/identification/mode_fit.h"
+#include "hydrojet_control/identification/free_vibration.h"
 #include "hydrojet_control/util/json_writer.h"
 
 #include <algorithm>
@@ -248,35 +248,10 @@ control::PlantIdentity plant_truth(const plant::Plant& plant) {
   truth.valve_time_constants_s.assign(plant.input_count(), 0.0);
   for (int i = 0; i < plant.input_count(); ++i)
     if (plant.is_jet(i)) truth.valve_time_constants_s[i] = m.valves[plant.valve_of(i) % m.valves.size()].time_constant;
-  // The free vibration: the rod at rest at the jets' forces, pushed for 20 ms by 2 mN along its tip's
-  // x axis, then free for 1.2 s, its tip direction in that frame every 4 ms.
-  plant::DynamicRod rod(m.rod);
-  rod.set_inputs(plant.jet_forces());
   rod::TipWrench w;
   w.force = m.external_tip_force;
   w.moment = m.external_tip_moment;
-  if (!rod.reset_to_static(w)) return truth;
-  const Eigen::Matrix3d frame = rod.tip_rotation();
-  rod::TipWrench push = w;
-  push.force.x() += 0.002;
-  for (int k = 0; k < 10; ++k)
-    if (!rod.step(push, 0.002)) return truth;
-  identification::ModeRecord record;
-  record.dt = 0.004;
-  for (int k = 0; k < 300; ++k) {
-    record.output.push_back((frame.transpose() * rod.tip_rotation().col(2)).head<2>());
-    if (!rod.step(w, 0.002) || !rod.step(w, 0.002)) return truth;
-  }
-  // The guess from the crossings of its mean by the larger component.
-  const Eigen::Vector2d swing = (record.output[10] - record.output.back()).cwiseAbs();
-  const int c = swing(0) >= swing(1) ? 0 : 1;
-  int crossings = 0;
-  for (size_t k = 1; k < record.output.size(); ++k)
-    crossings +=
-        (record.output[k](c) - record.output.back()(c)) * (record.output[k - 1](c) - record.output.back()(c)) < 0;
-  const double guess = M_PI * std::max(crossings, 2) / (record.dt * record.output.size());
-  const identification::ModeFit fit = identification::fit_mode(record, guess);
-
+  const identification::ModeFit fit = identification::free_vibration_mode(m.rod, plant.jet_forces(), w);
   if (!fit.ok) return truth;
   truth.mode_identified = true;
   truth.mode_hz = fit.hz();

@@ -104,15 +104,16 @@ class Controller {
   /// What the controller has measured of the plant (the mode at the last cycle's equilibrium).
   PlantIdentity identity() const;
 
-  // The probe's fit (a Ceres solve of some 30 ms) off the control loop: an owner with a thread of its
-  // own (the node) calls set_fit_inline(false), takes each record the probe leaves and hands its fit
-  // back; meanwhile the jets hold and the path waits (2 s at most, then it starts with the first
-  // guesses). By default the controller fits in the cycle the probe ends (the experiment, tests).
+  // The probe's fit (Ceres, then the dynamic rod: some 0.2 s) off the control loop: an owner with a
+  // thread of its own (the node) calls set_fit_inline(false), takes each job the probe leaves, runs
+  // it and hands its result back; meanwhile the jets hold and the path waits (2 s at most, then it
+  // starts with the first guesses). By default the controller fits in the cycle the probe ends (the
+  // experiment, tests).
   void set_fit_inline(bool inline_fit) { fit_inline_ = inline_fit; }
-  /// A record waits for its fit: moved into *record with the mode it was guessed at [rad/s].
-  bool take_mode_record(identification::ModeRecord* record, double* omega_guess);
-  /// The fit of the record taken last (identification::fit_mode); used on the next cycle.
-  void deliver_mode_fit(const identification::ModeFit& fit);
+  /// A probe's record waits for its fit: moved into *job (run it with job->run()).
+  bool take_probe_job(ProbeJob* job);
+  /// The result of the job taken last; used on the next cycle.
+  void deliver_probe_result(const ProbeJob::Result& result);
   /// Number of jets (entries of every InputVector in and out).
   int input_count() const { return jets_.input_count(); }
 
@@ -147,7 +148,7 @@ class Controller {
   bool at_bound(const InputVector& command) const;
   void begin_probe(double t, const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin);
   void probe(const ControllerInputs& in, const rod::RodSolution& sol, ControllerOutput& out);
-  void adopt_mode_fit(const identification::ModeFit& fit);
+  void adopt_probe_result(const ProbeJob::Result& result);
   ModalOptions mode_options() const;
   std::string command_inputs(const ControllerInputs& in, const rod::RodSolution& sol,
                              const ActuatedModel::Linearisation& lin, double dt, ControllerOutput& out);
@@ -190,10 +191,11 @@ class Controller {
   bool fit_inline_ = true;      ///< set_fit_inline
   bool fit_waiting_ = false;    ///< the probe is over, its fit not yet adopted
   double fit_wait_start_ = 0.0;
-  bool record_ready_ = false;  ///< record_ waits for take_mode_record
-  identification::ModeRecord record_;
+  bool job_ready_ = false;  ///< job_ waits for take_probe_job
+  ProbeJob job_;
+  InputVector probe_inputs_;  ///< the jets' measured forces as the probe began
   bool fit_delivered_ = false;
-  identification::ModeFit delivered_fit_;
+  ProbeJob::Result delivered_result_;
   // Contact (contact.h).
   ContactEstimator contact_;
   bool new_tracker_sample_ = false;                ///< this cycle's tracker sample is new

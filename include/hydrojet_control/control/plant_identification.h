@@ -1,8 +1,8 @@
 // What the controller measures of the plant it has, online and in closed loop, instead of assuming
 // it: the tracker's latency (its stamps), each jet's flow-loop lag (commanded duty against measured
 // flow), and the first lateral mode's frequency and damping (the tip's motion against the model's
-// quasi-static direction). The modal law uses them (modal_law.h); the experiment reports them
-// (`identified`). ROS-free (Eigen).
+// quasi-static direction), carried to any equilibrium by the robot's dynamic rod. The modal law uses
+// them (modal_law.h); the experiment reports them (`identified`). ROS-free (Eigen, Ceres).
 #pragma once
 
 #include <array>
@@ -12,6 +12,8 @@
 #include <Eigen/Core>
 
 #include "hydrojet_control/control/task_space.h"
+#include "hydrojet_control/identification/mode_fit.h"
+#include "hydrojet_control/rod/dynamic_rod.h"
 
 namespace hydrojet {
 namespace control {
@@ -25,11 +27,39 @@ struct PlantIdentity {
   std::vector<double> valve_time_constants_s;  ///< per actuator: the flow's lag behind the duty [s] (0: not a jet)
   double tracker_latency_s = 0.0;              ///< from a pose's measurement to its arrival [s]
   // What the modal law takes from them.
-  bool mode_identified = false;    ///< the probe's fit holds (else: the first guess)
-  std::string mode_error;          ///< why the probe's fit did not hold (empty: it did, or no probe yet)
-  double tip_mass_scale = 0.0;     ///< the capsule's effective fill: the model's mode equals the one measured [-]
-  double damping_time = 0.0;       ///< τ_kv = 2ζ/ω [s]
-  bool valves_identified = false;  ///< every jet's lag has enough data
+  bool mode_identified = false;  ///< the probe's fit holds (else: the first guess)
+  std::string mode_error;        ///< why the probe's fit did not hold (empty: it did, or no probe yet)
+  double tip_mass_scale = 0.0;   ///< the capsule's effective fill: the model's mode equals the one measured [-]
+  double damping_time = 0.0;     ///< τ_kv = 2ζ/ω [s]
+  // What the robot's dynamic rod takes (robot_dynamics): the same mode at the probe's equilibrium.
+  double rod_tip_mass_scale = 0.0;  ///< its capsule's fill [-]
+  double rod_damping_time = 0.0;    ///< its Kelvin–Voigt time [s]
+  bool valves_identified = false;   ///< every jet's lag has enough data
+};
+
+/// The robot's dynamic rod: its model's statics (segments, capsule, jets, gravity), the capsule's
+/// mass times `tip_mass_scale`, Kelvin–Voigt damping of time `damping_time`, DynamicRodModel's
+/// defaults for the rest (no drag). Its free vibration (identification::free_vibration_mode) gives
+/// the mode about any equilibrium, the follower load's effect on its damping included.
+rod::DynamicRodModel robot_dynamics(const rod::RodModel& robot, double tip_mass_scale, double damping_time);
+
+/// The probe's fit, off the control loop (Controller::take_probe_job): the record's mode
+/// (identification::fit_mode), then the fill and damping time with which the robot's dynamic rod
+/// vibrates so at the probe's equilibrium (`inputs`): from the modal model's, rescaled by
+/// ω² ∝ 1/fill and ζ ∝ τ for at most six rounds, until within 0.5 % and 2 %.
+struct ProbeJob {
+  identification::ModeRecord record;
+  double omega_guess = 0.0;     ///< the model's mode where the probe ran [rad/s]
+  rod::RodModel robot;          ///< the controller's model
+  rod::InputVector inputs;      ///< the jets' measured forces as the probe began [N]
+  double tip_mass_scale = 0.0;  ///< the fill omega_guess was computed with
+  struct Result {
+    identification::ModeFit mode;  ///< the record's
+    bool rod_ok = false;           ///< the dynamic rod reproduces it (else: why, in rod_error)
+    std::string rod_error;
+    double rod_tip_mass_scale = 0.0, rod_damping_time = 0.0;
+  };
+  Result run() const;
 };
 
 /// The identification (`identification/` in the controller file).

@@ -13,7 +13,7 @@
 
 #include "hydrojet_control/actuation/jet_map.h"
 #include "hydrojet_control/actuation/thrust.h"
-#include "hydrojet_control/plant/dynamic_rod.h"
+#include "hydrojet_control/rod/dynamic_rod.h"
 #include "hydrojet_control/plant/environment.h"
 #include "hydrojet_control/plant/hydraulics.h"
 #include "hydrojet_control/plant/sensors.h"
@@ -36,7 +36,7 @@ struct ModelMismatch {
 struct PlantModel {
   /// The true robot (its rod.gravity is set from base_tilt): segments, point loads and actuators;
   /// its jets each have a valve (valves in turn), its force actuators a drive.
-  DynamicRodModel rod;
+  rod::DynamicRodModel rod;
   actuation::Nozzle nozzle;
   std::vector<ValveModel> valves = hydrojet_valves();  ///< jet i's is valves[i], in turn when fewer
   TrackerNoise tracker;
@@ -121,7 +121,7 @@ class Plant {
   double contact_mass() const;
 
   PlantModel model_;
-  std::unique_ptr<DynamicRod> rod_;
+  std::unique_ptr<rod::DynamicRod> rod_;
   std::vector<bool> jet_;         ///< per actuator: a jet (else a force actuator)
   std::vector<int> valve_of_;     ///< per actuator: its valve in hydraulics_ (jets), or −1
   rod::InputVector drive_scale_;  ///< force actuators: force per unit drive [N]

@@ -73,12 +73,7 @@
 #include "hydrojet_control/rod/rod_solver.h"
 
 namespace hydrojet {
-namespace plant {
-
-using rod::Mat3;
-using rod::Mat6;
-using rod::Vec3;
-using rod::Vec6;
+namespace rod {
 
 /// The dynamic rod: its statics and what the dynamics add (damping, drag, inertia), and the
 /// numerics of its time stepping. SI units. Defaults a plant file can set: config/plant.yaml. The RodModel supplies L,
@@ -274,5 +269,5 @@ class DynamicRod {
   std::string last_error_;
 };
 
-}  // namespace plant
+}  // namespace rod
 }  // namespace hydrojet

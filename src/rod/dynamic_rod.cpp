@@ -1,6 +1,6 @@
 // Dynamic Cosserat rod (Till, Aloi & Rucker, IJRR 2019): BDF-α in time, shooting in space.
-// See include/hydrojet_control/plant/dynamic_rod.h for the model and the numerical scheme.
-#include "hydrojet_control/plant/dynamic_rod.h"
+// See include/hydrojet_control/rod/dynamic_rod.h for the model and the numerical scheme.
+#include "hydrojet_control/rod/dynamic_rod.h"
 
 #include <algorithm>
 #include <cmath>
@@ -15,7 +15,7 @@
 #include "hydrojet_control/util/format.h"
 
 namespace hydrojet {
-namespace plant {
+namespace rod {
 
 namespace {
 
@@ -683,5 +683,5 @@ std::vector<Vec3> DynamicRod::backbone() const {
 Vec3 DynamicRod::base_force() const { return nodes_.front().segment<3>(12); }
 Vec3 DynamicRod::base_moment() const { return nodes_.front().segment<3>(15); }
 
-}  // namespace plant
+}  // namespace rod
 }  // namespace hydrojet
