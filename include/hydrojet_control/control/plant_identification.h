@@ -28,9 +28,10 @@ struct PlantIdentity {
   double tracker_latency_s = 0.0;              ///< from a pose's measurement to its arrival [s]
   // What the modal law takes from them.
   bool mode_identified = false;  ///< the probe's fit holds (else: the first guess)
-  std::string mode_error;        ///< why the probe's fit did not hold (empty: it did, or no probe yet)
-  double tip_mass_scale = 0.0;   ///< the capsule's effective fill: the model's mode equals the one measured [-]
-  double damping_time = 0.0;     ///< τ_kv = 2ζ/ω [s]
+  std::string
+      mode_error;  ///< why the probe's fit, or the dynamic rod's, did not hold (empty: both did, or no probe yet)
+  double tip_mass_scale = 0.0;  ///< the capsule's effective fill: the model's mode equals the one measured [-]
+  double damping_time = 0.0;    ///< τ_kv = 2ζ/ω [s]
   // What the robot's dynamic rod takes (robot_dynamics): the same mode at the probe's equilibrium.
   double rod_tip_mass_scale = 0.0;  ///< its capsule's fill [-]
   double rod_damping_time = 0.0;    ///< its Kelvin–Voigt time [s]
