@@ -191,9 +191,10 @@ TEST(LearnedReach, LimitsWhereTheJetsSaturateGraduallyAndRelaxesWhenTheyDoNot) {
   for (int k = 0; k < 20; ++k) reach.update(true, measured, desired, 0.01);
   ASSERT_TRUE(reach.learned());
   EXPECT_NEAR(reach.learned_limit(desired), 0.5, 1e-9);
-  EXPECT_NEAR(reach.limit(desired), 0.6, 0.0011);  // from where the target was (one step tightened)
-  for (int k = 0; k < 50; ++k) reach.update(true, measured, desired, 0.01);
-  EXPECT_NEAR(reach.limit(desired), 0.55, 0.0011);  // 0.1 rad/s for 0.5 s
+  EXPECT_NEAR(reach.limit(desired), 0.6 - 0.01 * reach.options().tighten_rate,
+              1e-9);  // from where the target was (one step tightened)
+  for (int k = 0; k < 25; ++k) reach.update(true, measured, desired, 0.01);
+  EXPECT_NEAR(reach.limit(desired), 0.6 - 0.26 * reach.options().tighten_rate, 1e-9);  // for 0.26 s
   for (int k = 0; k < 60; ++k) reach.update(true, measured, desired, 0.01);
   EXPECT_NEAR(reach.limit(desired), 0.5, 1e-9);  // there, and no further
   double moved = 0.0;
@@ -211,6 +212,17 @@ TEST(LearnedReach, LimitsWhereTheJetsSaturateGraduallyAndRelaxesWhenTheyDoNot) {
   for (int k = 0; k < 100; ++k) other.update(true, desired, measured, 0.01);
   for (int k = 0; k < 100; ++k) other.update(true, measured, control::direction(0.51, 0.3), 0.01);
   EXPECT_FALSE(other.learned());
+  // A second azimuth, 2 rad round: where the first bin's limit, widened, lies far beyond the target,
+  // the new limit still takes effect from where the target is (not from 2.5 rad).
+  control::LearnedReach two(Vec3::UnitZ(), 72);
+  for (int k = 0; k < 200; ++k) two.update(true, measured, desired, 0.01);
+  const Vec3 measured2 = control::direction(0.5, 2.3), desired2 = control::direction(0.6, 2.3);
+  two.update(false, measured2, desired2, 0.01);
+  EXPECT_GT(two.limit(desired2), 2.0);
+  for (int k = 0; k < 20; ++k) two.update(true, measured2, desired2, 0.01);
+  EXPECT_NEAR(two.limit(desired2), 0.6 - 0.01 * two.options().tighten_rate, 1e-9);
+  for (int k = 0; k < 100; ++k) two.update(true, measured2, desired2, 0.01);
+  EXPECT_NEAR(two.limit(desired2), 0.5, 1e-9);
   // Relaxes: 1 s without saturation gives back 0.02 rad.
   for (int k = 0; k < 100; ++k) reach.update(false, measured, measured, 0.01);
   EXPECT_NEAR(reach.limit(desired), 0.52, 1e-9);

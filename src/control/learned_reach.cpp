@@ -64,8 +64,8 @@ void LearnedReach::update(bool saturated, const Vec3& measured, const Vec3& desi
   if (saturated_for_ >= options_.hold_time) {
     const int k = bin_of(measured);
     limits_[k] = std::min(limits_[k], reached);
-    if (effective_[k] == kNone)
-      effective_[k] = std::max(reached, limit(desired) == kNone ? angle_from_center(desired) : limit(desired));
+    if (effective_[k] == kNone)  // from where the target is (other bins' widened limits may lie far beyond it)
+      effective_[k] = std::max(reached, std::min(angle_from_center(desired), limit(desired)));
   } else if (!saturated) {
     for (double& l : limits_)
       if (l < kNone) l = l + options_.relax_rate * dt > M_PI ? kNone : l + options_.relax_rate * dt;

@@ -21,7 +21,7 @@ struct LearnedReachOptions {
   double min_error = 0.02;    ///< [rad] the error that must stay, outward, while saturated ...
   double hold_time = 0.2;     ///< [s] ... this long before the reach is learned there
   double relax_rate = 0.02;   ///< [rad/s] a learned limit moves back out at this rate while no jet saturates
-  double tighten_rate = 0.1;  ///< [rad/s] a new limit takes effect from where the target was at this rate
+  double tighten_rate = 0.2;  ///< [rad/s] a new limit takes effect from where the target was at this rate
   double slope = 1.0;         ///< [rad/rad] a bin's limit widens by this per radian of azimuth away from it
 };
 
