@@ -644,9 +644,8 @@ void Controller::adopt_probe_result(const ProbeJob::Result& result) {
   identity_.mode_identified = fit.ok;
   identity_.mode_error = fit.ok ? "" : "probe: " + fit.error;
   if (fit.ok) {
-    const double scale = fit.omega / probe_.omega_guess();
-    identity_.tip_mass_scale /= scale * scale;
-    identity_.damping_time = 2.0 * fit.zeta / fit.omega;
+    identity_.tip_mass_scale = result.tip_mass_scale;
+    identity_.damping_time = result.damping_time;
     identity_.rod_tip_mass_scale = result.rod_ok ? result.rod_tip_mass_scale : identity_.tip_mass_scale;
     identity_.rod_damping_time = result.rod_ok ? result.rod_damping_time : identity_.damping_time;
     if (!result.rod_ok) identity_.mode_error = "probe: " + result.rod_error;

@@ -158,7 +158,9 @@ ProbeJob::Result ProbeJob::run() const {
   r.mode = identification::fit_mode(record, omega_guess);
   if (!r.mode.ok) return r;
   const double scale = r.mode.omega / omega_guess;
-  double fill = tip_mass_scale / (scale * scale), tau = 2.0 * r.mode.zeta / r.mode.omega;
+  r.tip_mass_scale = tip_mass_scale / (scale * scale);
+  r.damping_time = 2.0 * r.mode.zeta / r.mode.omega;
+  double fill = r.tip_mass_scale, tau = r.damping_time;
   for (int round = 0; round < 6; ++round) {
     const identification::ModeFit m = identification::free_vibration_mode(robot_dynamics(robot, fill, tau), inputs);
     if (!m.ok) return r.rod_error = "the robot's dynamic rod: " + m.error, r;

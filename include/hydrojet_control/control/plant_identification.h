@@ -28,8 +28,8 @@ struct PlantIdentity {
   double tracker_latency_s = 0.0;              ///< from a pose's measurement to its arrival [s]
   // What the modal law takes from them.
   bool mode_identified = false;  ///< the probe's fit holds (else: the first guess)
-  std::string
-      mode_error;  ///< why the probe's fit, or the dynamic rod's, did not hold (empty: both did, or no probe yet)
+  /// Why the probe's fit, or the dynamic rod's, did not hold (empty: both did, or no probe yet).
+  std::string mode_error;
   double tip_mass_scale = 0.0;  ///< the capsule's effective fill: the model's mode equals the one measured [-]
   double damping_time = 0.0;    ///< τ_kv = 2ζ/ω [s]
   // What the robot's dynamic rod takes (robot_dynamics): the same mode at the probe's equilibrium.
@@ -56,7 +56,9 @@ struct ProbeJob {
   double tip_mass_scale = 0.0;  ///< the fill omega_guess was computed with
   struct Result {
     identification::ModeFit mode;  ///< the record's
-    bool rod_ok = false;           ///< the dynamic rod reproduces it (else: why, in rod_error)
+    /// What the modal law takes when the mode holds: the fill and damping time of the modal model.
+    double tip_mass_scale = 0.0, damping_time = 0.0;
+    bool rod_ok = false;  ///< the dynamic rod reproduces it (else: why, in rod_error)
     std::string rod_error;
     double rod_tip_mass_scale = 0.0, rod_damping_time = 0.0;
   };

@@ -102,8 +102,8 @@ struct RunResult {
 
 /// The plant's truth, to compare with what a controller identified: the first lateral mode about the
 /// equilibrium at the plant's present jet forces (identification::free_vibration_mode on the plant's
-/// own dynamic rod), each jet's valve lag and the tracker's latency. mode_hz stays 0 when the rod's vibration could not
-/// be fitted.
+/// own dynamic rod), each jet's valve lag and the tracker's latency. mode_hz stays 0 when the rod's
+/// vibration could not be fitted.
 control::PlantIdentity plant_truth(const plant::Plant& plant);
 
 /// An identity as the experiment's and identify's JSON carry it (`identified`, `plant_truth`): mode_hz
