@@ -12,10 +12,15 @@ namespace control {
 
 namespace {
 constexpr double kPriorForce = 0.05;  ///< [N] the σ of a force along an axis not observed (a stomach's contact forces)
-constexpr double kObservable = 0.005;     ///< [N] an axis is observed when one sample's σ along it is below this
-constexpr double kPriorMismatch = 100.0;  ///< the mismatch model's initial P (in residual variances): σ ≈ 0.1 N
-constexpr double kVarianceTime = 10.0;    ///< [s] the residual variance's averaging time
-constexpr double kHistory = 0.5;          ///< [s] of model poses kept for the tracker's latency
+constexpr double kObservable = 0.005;  ///< [N] an axis is observed when one sample's σ along it is below this
+// The mismatch model's prior σ per coefficient [N]: what calibration leaves (docs/contact.md). It
+// bounds the model's covariance, so the nearly collinear regressors of a nearly straight rod cannot
+// learn large coefficients that cancel where they were learned and not where the path goes next.
+constexpr double kPriorConstant = 0.03;  ///< a force fixed in the tip frame
+constexpr double kPriorRotation = 0.01;  ///< per entry of the tip frame (a gravity tilted wrongly)
+constexpr double kPriorInputs = 0.015;   ///< per input at its scale (a stiffness or a jet's direction off)
+constexpr double kVarianceTime = 10.0;   ///< [s] the residual variance's averaging time
+constexpr double kHistory = 0.5;         ///< [s] of model poses kept for the tracker's latency
 }  // namespace
 
 const char* to_string(ContactReaction r) {
@@ -48,8 +53,14 @@ std::string ContactOptions::validate() const {
 ContactEstimator::ContactEstimator(const ContactOptions& options, int inputs, double input_scale)
     : options_(options), input_scale_(input_scale > 0.0 ? input_scale : 1.0) {
   theta_ = Eigen::MatrixXd::Zero(10 + inputs, 3);
-  p_ = kPriorMismatch * Eigen::MatrixXd::Identity(10 + inputs, 10 + inputs);
   residual_var_ = Vec3::Constant(std::pow(options.force_threshold / 3.0, 2));
+  Eigen::VectorXd prior(10 + inputs);
+  prior[0] = kPriorConstant * kPriorConstant;
+  prior.segment<9>(1).setConstant(kPriorRotation * kPriorRotation);
+  prior.tail(inputs).setConstant(kPriorInputs * kPriorInputs);
+  info0_ = (residual_var_[0] * prior.cwiseInverse()).asDiagonal();  // in 1 / residual variances
+  info_ = info0_;
+  p_ = info_.inverse();
 }
 
 void ContactEstimator::reset() {
@@ -57,6 +68,9 @@ void ContactEstimator::reset() {
   last_sample_t_ = -1.0;
   first_sample_t_ = -1.0;
   learning_load_ = false;
+  load_held_ = false;
+  load_.setZero();
+  rising_ = false;
   below_since_ = -1.0;
   load_since_ = -1.0;
   above_ = 0;
@@ -71,8 +85,18 @@ void ContactEstimator::take_as_load(double t) {
   state_.since = 0.0;
   free_since_ = t - kRelearnDelay;
   learning_load_ = true;
-  p_ += kPriorMismatch *
-        Eigen::MatrixXd::Identity(p_.rows(), p_.cols());  // the model is unsure again: it learns the load fast
+  load_held_ = true;
+  if (rising_) {  // what the mismatch model learned since the force rose was the load
+    theta_ = rise_theta_;
+    info_ = rise_info_;
+    p_ = info_.inverse();
+  }
+  load_ += filtered_;  // what is beyond the load now joins it; it settles over kLoadSettle
+  filtered_.setZero();
+  state_.force = load_;
+  state_.load = load_;
+  state_.deflection.setZero();
+  rising_ = false;
   above_ = 0;
 }
 
@@ -113,27 +137,37 @@ const ContactState& ContactEstimator::update(const ContactCycle& c) {
   const double dt = last_sample_t_ < 0.0 ? 0.0 : std::clamp(c.t - last_sample_t_, 0.0, 1.0);
   last_sample_t_ = c.t;
   if (first_sample_t_ < 0.0) first_sample_t_ = c.t;
-  const Eigen::VectorXd phi = regressor(pose->rotation, pose->inputs);
-  const Vec3 error = raw - theta_.transpose() * phi;  // the external force, tip frame
-  const double spread = phi.dot(p_ * phi);            // the mismatch model's uncertainty here, in residual variances
-  // Free space, and long enough after a contact: the mismatch is learned.
-  if (!state_.in_contact && c.t - free_since_ >= kRelearnDelay && dt > 0.0) learn(phi, error, spread, dt);
+  const Mat3& R = pose->rotation;
+  const Eigen::VectorXd phi = regressor(R, pose->inputs);
+  const Vec3 error = raw - theta_.transpose() * phi - R.transpose() * load_;  // beyond mismatch and load, tip frame
+  const double spread = phi.dot(p_ * phi);  // the mismatch model's uncertainty here, in residual variances
+  // Free space: a load being settled follows what is left (the mismatch frozen meanwhile), then is
+  // kept; long enough after a contact the mismatch is learned beside it.
+  const bool settling = load_held_ && c.t - load_since_ < kLoadSettle;
+  if (!state_.in_contact && dt > 0.0) {
+    if (settling) load_ += dt / (kLoadTime + dt) * (R * error);
+    if (load_held_ && !settling && load_.norm() < 0.5 * options_.force_threshold) {
+      load_held_ = false;  // the load went away
+      load_.setZero();
+    }
+    if (!settling && c.t - free_since_ >= kRelearnDelay) learn(phi, error, dt);
+  }
 
   // The estimate: low-passed, in the base frame.
-  const Mat3& R = pose->rotation;
   const double alpha = dt > 0.0 ? dt / (kFilterTime + dt) : 1.0;
   filtered_ += alpha * (R * error - filtered_);
   last_rotation_ = R;
   last_compliance_ = pose->compliance;
   const Mat3 mismatch_cov = (residual_var_ * spread).asDiagonal();
-  state_.force = filtered_;
+  state_.force = load_ + filtered_;
+  state_.load = load_;
   state_.covariance = R * (raw_cov * (alpha / (2.0 - alpha)) + mismatch_cov) * R.transpose();
   // The threshold, or 3σ of what the mismatch model leaves (its residual, wider where it has not
   // seen the configuration): a plant far from its model is read less finely rather than falsely.
   state_.threshold = std::max(options_.force_threshold, 3.0 * std::sqrt(residual_var_.maxCoeff() * (1.0 + spread)));
   state_.deflection = deflection(filtered_);
   state_.ready = true;
-  detect(c.t, alpha, c.pressing);
+  detect(c.t, alpha, c.pressing, c.measured_rotation.col(2), R.col(2));
   return state_;
 }
 
@@ -176,29 +210,55 @@ bool ContactEstimator::deflection_force(const ContactCycle& c, const ModelPose& 
   return force->allFinite() && cov->allFinite();
 }
 
-// Recursive least squares with exponential forgetting (kMemory) on the mismatch model, and the
+// Recursive least squares on the mismatch model with forgetting (kMemory) toward the prior's
+// information rather than toward none (no wind-up where nothing moves), and the
 // residual's variance (the threshold's floor): slow, and each sample counts at most the threshold
 // squared, so that a contact's onset does not lift the threshold ahead of itself.
-void ContactEstimator::learn(const Eigen::VectorXd& phi, const Vec3& error, double spread, double dt) {
+void ContactEstimator::learn(const Eigen::VectorXd& phi, const Vec3& error, double dt) {
   const double lambda = std::exp(-dt / kMemory);
-  const Eigen::VectorXd k = p_ * phi / (lambda + spread);
-  theta_ += k * error.transpose();
-  p_ = (p_ - k * (phi.transpose() * p_)) / lambda;
-  const double trace_max = kPriorMismatch * p_.rows();
-  if (p_.trace() > trace_max) p_ *= trace_max / p_.trace();  // no wind-up where nothing moves
+  info_ = lambda * info_ + (1.0 - lambda) * info0_;  // forgetting toward the prior's information
+  info_.noalias() += phi * phi.transpose();
+  p_ = info_.ldlt().solve(Eigen::MatrixXd::Identity(info_.rows(), info_.cols()));
+  theta_ += (p_ * phi) * error.transpose();
   const double a = std::min(1.0, dt / kVarianceTime);
   const double cap = options_.force_threshold * options_.force_threshold;
   residual_var_ += a * (error.cwiseAbs2().cwiseMin(cap) - residual_var_);
 }
 
-// Two samples above the threshold in a row (once armed) flag a contact. A surface only pushes: the
-// force along the contact's normal below the release level for kReleaseTime (kHeldRelease while the
-// reference is held back) releases it; the normal follows the force while the push is clear.
-void ContactEstimator::detect(double t, double alpha, bool pressing) {
+// Two samples above the threshold in a row (once armed) flag a contact, unless the tip has given way
+// along the force's turn since the force rose while the model stayed: a load (a surface stops the
+// tip, or throws it back, while the model goes on into it; a load moves the tip). A
+// surface only pushes: the force along the contact's normal below the release level for kReleaseTime
+// (kHeldRelease while the reference is held back) releases it; the normal follows the force while
+// the push is clear.
+void ContactEstimator::detect(double t, double alpha, bool pressing, const Vec3& measured_direction,
+                              const Vec3& model_direction) {
   if (!state_.in_contact) {
     if (learning_load_ && (filtered_.norm() < 0.5 * options_.force_threshold || t - load_since_ > kLoadLearnTime))
       learning_load_ = false;
-    above_ = filtered_.norm() > state_.threshold && t - first_sample_t_ >= kArmTime && !learning_load_ ? above_ + 1 : 0;
+    if (filtered_.norm() > 0.5 * options_.force_threshold) {
+      if (!rising_) {
+        rising_ = true;
+        rise_direction_ = measured_direction;
+        rise_deflection_ = state_.deflection;
+        rise_model_ = model_direction;
+        rise_theta_ = theta_;
+        rise_info_ = info_;
+      }
+    } else {
+      rising_ = false;
+    }
+    const bool armed = t - first_sample_t_ >= kArmTime && !learning_load_;
+    if (rising_ && armed) {
+      const Vec3 growth = state_.deflection - rise_deflection_;
+      const double turn = growth.norm();
+      if (turn >= kMinGiveTurn && (measured_direction - rise_direction_).dot(growth) >= kGiveFraction * turn * turn &&
+          (model_direction - rise_model_).dot(growth) >= -kPressFraction * turn * turn) {
+        take_as_load(t);
+        return;
+      }
+    }
+    above_ = filtered_.norm() > state_.threshold && armed ? above_ + 1 : 0;
     if (above_ >= 2) {
       state_.in_contact = true;
       state_.since = t;

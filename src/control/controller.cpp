@@ -497,7 +497,7 @@ void Controller::learn_keep_out_offset(const ControllerInputs& in, const Control
 // the turn the estimated normal makes, than comply's push would put it; tangentially it is free
 // (the tip slides). hold and retreat aim at or off the surface and end a path. A push under which
 // the tip gives way (half the turn it makes in free space, since the onset) is a load, not a
-// surface: it is handed to the estimator's mismatch and the law compensates it as before.
+// surface: it is handed to the estimator's load and the law compensates it as before.
 void Controller::react_to_contact(ControllerOutput& out) {
   const ContactState& c = out.contact;
   const bool onset = c.in_contact && !was_in_contact_;
@@ -510,7 +510,7 @@ void Controller::react_to_contact(ControllerOutput& out) {
   if (!(compliance > 1e-9)) return;            // a force along the tip's axis: nothing to turn away from
   const Vec3 d = free_side / compliance;
   const double target = ContactOptions::kComplyFraction * options_.contact.max_force;
-  const double push = std::max(c.force.dot(c.normal), 0.0);
+  const double push = std::max((c.force - c.load).dot(c.normal), 0.0);
   if (onset) {
     contact_onset_ = x;
     if (options_.contact.reaction != ContactReaction::kComply) {

@@ -6,9 +6,11 @@
 //   reads as a force too, but it is slow and follows the configuration: a model linear in the inputs
 //   q and the tip frame's entries, learned by recursive least squares in free space and frozen in
 //   contact, is taken off.
-//   Detect: |f| above the threshold (or the mismatch model's own 3σ where it has not yet seen the
-//   configuration) on two samples in a row; released when the push along the contact's normal stays
-//   below its release level. A force along a straight rod's axis is not observed.
+//   A load is not a mismatch: a push that appears at once (the tip gives way to it) is kept as a
+//   steady load, apart from the mismatch model, and reported with the rest of the force.
+//   Detect: |f| beyond the load above the threshold (or the mismatch model's own 3σ where it has not
+//   yet seen the configuration) on two samples in a row; released when the push along the contact's
+//   normal stays below its release level. A force along a straight rod's axis is not observed.
 // ROS-free (Eigen).
 #pragma once
 
@@ -49,12 +51,13 @@ struct ContactOptions {
 /// The estimate and the detector's verdict of one cycle (base frame).
 struct ContactState {
   Vec3 force = Vec3::Zero();       ///< external tip force, the model's mismatch taken off [N]
+  Vec3 load = Vec3::Zero();        ///< the steady load in `force` (a tether, a fold: not a surface) [N]
   Mat3 covariance = Mat3::Zero();  ///< of `force` [N^2]: the tracker's noise and the mismatch model's
   double threshold = 0.0;          ///< the detector's threshold this cycle [N]
   bool in_contact = false;         ///< the detector's flag
   double since = 0.0;              ///< [s] when the present contact was detected
   Vec3 normal = Vec3::Zero();      ///< unit, the force's direction while in contact (free side)
-  Vec3 deflection = Vec3::Zero();  ///< how far the force turns the tip direction (base) [rad]
+  Vec3 deflection = Vec3::Zero();  ///< how far the force beyond the load turns the tip direction (base) [rad]
   bool ready = false;              ///< a tracker sample has been compared with the model
 };
 
@@ -79,9 +82,9 @@ class ContactEstimator {
   /// input_scale [N]: the inputs' scale (the largest q_max) for the mismatch model's regressors.
   ContactEstimator(const ContactOptions& options, int inputs, double input_scale);
   void set_options(const ContactOptions& options) { options_ = options; }
-  /// The present contact is a load, not a surface: released and learned with the mismatch (its
-  /// uncertainty reset, so it learns fast); no new flag until the estimate has come down below half
-  /// the threshold (kLoadLearnTime at most).
+  /// The present contact is a load, not a surface: released, and the force beyond the load so far
+  /// added to the load (settled over kLoadSettle, the mismatch model frozen meanwhile); no new flag
+  /// until the force beyond the load has come down below half the threshold (kLoadLearnTime at most).
   void take_as_load(double t);
   /// Forgets the present contact and the filters; the learned mismatch is kept (a restart on the same rig).
   void reset();
@@ -103,6 +106,15 @@ class ContactEstimator {
   static constexpr double kArmTime = 0.5;                        ///< [s] of samples before the detector may flag
   static constexpr double kLoadLearnTime = 2.0;  ///< [s] take_as_load keeps the detector down at most this long
   static constexpr double kRelearnDelay = 1.0;   ///< [s] after a release before the mismatch learns again
+  static constexpr double kLoadSettle = 1.0;     ///< [s] after take_as_load the load follows the force, then is kept
+  static constexpr double kLoadTime = 0.2;       ///< [s] the load's averaging time while it settles
+  /// A flag where the tip has given way along the force's turn by at least this fraction of the turn's
+  /// growth since the force rose, the model having gone against it by at most kPressFraction (a
+  /// surface stops the tip or throws it back while the model goes on into it; a load moves the tip
+  /// while the model stays) is a load.
+  static constexpr double kGiveFraction = 0.5;
+  static constexpr double kPressFraction = 0.25;
+  static constexpr double kMinGiveTurn = 0.01;  ///< [rad] ... when the turn grew by at least this much
 
  private:
   struct ModelPose {
@@ -115,24 +127,33 @@ class ContactEstimator {
   const ModelPose* pose_at(double stamp) const;
   Eigen::VectorXd regressor(const Mat3& rotation, const InputVector& q) const;
   bool deflection_force(const ContactCycle& c, const ModelPose& pose, Vec3* force, Mat3* cov) const;
-  void learn(const Eigen::VectorXd& phi, const Vec3& error, double spread, double dt);
-  void detect(double t, double alpha, bool pressing);
+  void learn(const Eigen::VectorXd& phi, const Vec3& error, double dt);
+  void detect(double t, double alpha, bool pressing, const Vec3& measured_direction, const Vec3& model_direction);
 
   ContactOptions options_;
   double input_scale_;
   std::deque<ModelPose> history_;  ///< the model's poses of the last 0.5 s
   // The mismatch model: f_tip ≈ Θᵀ φ, φ = regressor(); recursive least squares.
   Eigen::MatrixXd theta_;                     ///< (10 + inputs) × 3
-  Eigen::MatrixXd p_;                         ///< (10 + inputs)², the regressors' information inverse
+  Eigen::MatrixXd info_;                      ///< (10 + inputs)², the regressors' information
+  Eigen::MatrixXd info0_;                     ///< its prior's (what calibration leaves), to which it forgets
+  Eigen::MatrixXd p_;                         ///< info_'s inverse
   Vec3 residual_var_ = Vec3::Constant(1e-4);  ///< the fit's residual variance per axis [N^2]
   double last_sample_t_ = -1.0;
-  double first_sample_t_ = -1.0;  ///< [s] the first sample compared since reset
-  double free_since_ = -1e300;    ///< [s] the last release (learning waits kRelearnDelay)
-  double below_since_ = -1.0;     ///< [s] the force fell below the release level
-  int above_ = 0;                 ///< samples in a row above the threshold
-  double load_since_ = -1.0;      ///< [s] take_as_load's time
-  bool learning_load_ = false;    ///< take_as_load: no flag until the estimate has come down
-  Vec3 filtered_ = Vec3::Zero();
+  double first_sample_t_ = -1.0;            ///< [s] the first sample compared since reset
+  double free_since_ = -1e300;              ///< [s] the last release (learning waits kRelearnDelay)
+  double below_since_ = -1.0;               ///< [s] the force fell below the release level
+  int above_ = 0;                           ///< samples in a row above the threshold
+  double load_since_ = -1.0;                ///< [s] take_as_load's time
+  bool learning_load_ = false;              ///< take_as_load: no flag until the estimate has come down
+  Vec3 load_ = Vec3::Zero();                ///< the steady load [N, base]
+  bool load_held_ = false;                  ///< a load was taken and has not gone away
+  bool rising_ = false;                     ///< the force beyond the load is above half the threshold
+  Vec3 rise_direction_ = Vec3::Zero();      ///< the measured tip direction when it rose
+  Vec3 rise_deflection_ = Vec3::Zero();     ///< the force's turn then [rad, base]
+  Vec3 rise_model_ = Vec3::Zero();          ///< the model's tip direction then
+  Eigen::MatrixXd rise_theta_, rise_info_;  ///< the mismatch model then (what it learned since was the load)
+  Vec3 filtered_ = Vec3::Zero();            ///< the force beyond the mismatch and the load [N, base]
   Mat3 last_rotation_ = Mat3::Identity();
   rod::Mat6 last_compliance_ = rod::Mat6::Zero();
   ContactState state_;
