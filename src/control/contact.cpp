@@ -71,6 +71,7 @@ void ContactEstimator::reset() {
   load_held_ = false;
   load_.setZero();
   rising_ = false;
+  looks_.clear();
   below_since_ = -1.0;
   load_since_ = -1.0;
   above_ = 0;
@@ -141,6 +142,10 @@ const ContactState& ContactEstimator::update(const ContactCycle& c) {
   const Eigen::VectorXd phi = regressor(R, pose->inputs);
   const Vec3 error = raw - theta_.transpose() * phi - R.transpose() * load_;  // beyond mismatch and load, tip frame
   const double spread = phi.dot(p_ * phi);  // the mismatch model's uncertainty here, in residual variances
+  // The threshold, or 3σ of what the mismatch model leaves (its residual, wider where it has not
+  // seen the configuration): a plant far from its model is read less finely rather than falsely.
+  const double threshold =
+      std::max(options_.force_threshold, 3.0 * std::sqrt(residual_var_.maxCoeff() * (1.0 + spread)));
   // Free space: a load being settled follows what is left (the mismatch frozen meanwhile), then is
   // kept; long enough after a contact the mismatch is learned beside it.
   const bool settling = load_held_ && c.t - load_since_ < kLoadSettle;
@@ -150,7 +155,8 @@ const ContactState& ContactEstimator::update(const ContactCycle& c) {
       load_held_ = false;  // the load went away
       load_.setZero();
     }
-    if (!settling && c.t - free_since_ >= kRelearnDelay) learn(phi, error, dt);
+    // A sample above the threshold counts toward a flag (a contact, or a load to be told apart): not learned.
+    if (!settling && error.norm() <= threshold && c.t - free_since_ >= kRelearnDelay) learn(phi, error, dt);
   }
 
   // The estimate: low-passed, in the base frame.
@@ -162,9 +168,7 @@ const ContactState& ContactEstimator::update(const ContactCycle& c) {
   state_.force = load_ + filtered_;
   state_.load = load_;
   state_.covariance = R * (raw_cov * (alpha / (2.0 - alpha)) + mismatch_cov) * R.transpose();
-  // The threshold, or 3σ of what the mismatch model leaves (its residual, wider where it has not
-  // seen the configuration): a plant far from its model is read less finely rather than falsely.
-  state_.threshold = std::max(options_.force_threshold, 3.0 * std::sqrt(residual_var_.maxCoeff() * (1.0 + spread)));
+  state_.threshold = threshold;
   state_.deflection = deflection(filtered_);
   state_.ready = true;
   detect(c.t, alpha, c.pressing, c.measured_rotation.col(2), R.col(2));
@@ -239,15 +243,19 @@ void ContactEstimator::detect(double t, double alpha, bool pressing, const Vec3&
     if (filtered_.norm() > 0.5 * options_.force_threshold) {
       if (!rising_) {
         rising_ = true;
-        rise_direction_ = measured_direction;
-        rise_deflection_ = state_.deflection;
-        rise_model_ = model_direction;
+        const Look& before =
+            looks_.empty() ? Look{t, measured_direction, state_.deflection, model_direction} : looks_.front();
+        rise_direction_ = before.measured;
+        rise_deflection_ = before.deflection;
+        rise_model_ = before.model;
         rise_theta_ = theta_;
         rise_info_ = info_;
       }
     } else {
       rising_ = false;
     }
+    looks_.push_back({t, measured_direction, state_.deflection, model_direction});
+    while (looks_.size() > 1 && looks_.front().t < t - kGiveLookBack) looks_.pop_front();
     const bool armed = t - first_sample_t_ >= kArmTime && !learning_load_;
     if (rising_ && armed) {
       const Vec3 growth = state_.deflection - rise_deflection_;

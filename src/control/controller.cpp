@@ -134,6 +134,7 @@ void Controller::start(double t) {
   probe_pending_ = false;
   contact_.reset();
   was_in_contact_ = false;
+  wall_since_ = -1.0;
   if (fit_waiting_) probed_ = false;  // a start before the fit came back: probe again
   fit_waiting_ = job_ready_ = fit_delivered_ = false;
   if (!commands_pending_) start_configured_path(t);
@@ -502,7 +503,10 @@ void Controller::react_to_contact(ControllerOutput& out) {
   const ContactState& c = out.contact;
   const bool onset = c.in_contact && !was_in_contact_;
   was_in_contact_ = c.in_contact;
-  if (!c.in_contact) return;
+  if (!c.in_contact) {
+    remember_wall(out);
+    return;
+  }
   const Vec3 x = out.measured_direction;
   const Vec3 turn = contact_.deflection(c.normal);  // how a unit force along the normal turns the tip
   const Vec3 free_side = turn - turn.dot(x) * x;
@@ -528,18 +532,40 @@ void Controller::react_to_contact(ControllerOutput& out) {
     contact_.take_as_load(t_last_);
     out.contact = contact_.state();
     was_in_contact_ = false;
+    wall_since_ = -1.0;
     return;
   }
   if (options_.mode == LoopMode::kClosed) out.observed_direction = (x - c.deflection).normalized();
-  const double allowed = compliance * target;
-  const double depth = (x - out.desired_direction).dot(d);  // the reference's, past the tip
-  if (depth > allowed) {
-    const Vec3 before = out.desired_direction;
-    out.desired_direction = (out.desired_direction + (depth - allowed) * d).normalized();
-    out.contact_clip_angle = geodesic_error(before, out.desired_direction);
-    out.error_geodesic = geodesic_error(out.desired_direction, out.measured_direction);
-    out.error_pitch_yaw = pitch_yaw_error(out.desired_direction, out.measured_direction);
+  wall_x_ = x;
+  wall_d_ = d;
+  wall_allowed_ = compliance * target;
+  wall_since_ = t_last_;
+  hold_off_wall(out);
+}
+
+// After a release the reference stays off the surface where it was met (no deeper past the tip's
+// last direction in contact than comply's push, the allowance growing at kWallRelax) until it needs
+// no holding: a path still behind the wall neither presses into it again at once nor jumps back.
+void Controller::remember_wall(ControllerOutput& out) {
+  if (wall_since_ < 0.0) return;
+  wall_allowed_ += kWallRelax * std::max(t_last_ - wall_since_, 0.0);
+  wall_since_ = t_last_;
+  if ((wall_x_ - out.desired_direction).dot(wall_d_) <= wall_allowed_) {
+    wall_since_ = -1.0;  // the reference is free of it
+    return;
   }
+  hold_off_wall(out);
+}
+
+// The reference no deeper past wall_x_ along wall_d_ than wall_allowed_ (tangentially free: the tip slides).
+void Controller::hold_off_wall(ControllerOutput& out) {
+  const double depth = (wall_x_ - out.desired_direction).dot(wall_d_);  // the reference's, past the tip
+  if (depth <= wall_allowed_) return;
+  const Vec3 before = out.desired_direction;
+  out.desired_direction = (out.desired_direction + (depth - wall_allowed_) * wall_d_).normalized();
+  out.contact_clip_angle = geodesic_error(before, out.desired_direction);
+  out.error_geodesic = geodesic_error(out.desired_direction, out.measured_direction);
+  out.error_pitch_yaw = pitch_yaw_error(out.desired_direction, out.measured_direction);
 }
 
 // A jet commanded to the learned reach's saturation (97 % of its q_max) or more: the forces have no

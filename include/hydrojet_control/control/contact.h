@@ -102,7 +102,7 @@ class ContactEstimator {
   static constexpr double kMemory = 5.0;                         ///< [s] the mismatch model's forgetting time
   static constexpr double kFilterTime = 0.03;                    ///< [s] the force's low-pass
   static constexpr double kReleaseTime = 0.15;                   ///< [s] below the release level before a release
-  static constexpr double kHeldRelease = 0.5;                    ///< [s] the same while the reference is held back
+  static constexpr double kHeldRelease = 0.3;                    ///< [s] the same while the reference is held back
   static constexpr double kArmTime = 0.5;                        ///< [s] of samples before the detector may flag
   static constexpr double kLoadLearnTime = 2.0;  ///< [s] take_as_load keeps the detector down at most this long
   static constexpr double kRelearnDelay = 1.0;   ///< [s] after a release before the mismatch learns again
@@ -113,8 +113,11 @@ class ContactEstimator {
   /// surface stops the tip or throws it back while the model goes on into it; a load moves the tip
   /// while the model stays) is a load.
   static constexpr double kGiveFraction = 0.5;
-  static constexpr double kPressFraction = 0.25;
+  static constexpr double kPressFraction = 0.5;
   static constexpr double kMinGiveTurn = 0.01;  ///< [rad] ... when the turn grew by at least this much
+  /// [s] the give is counted from this long before the force rose past half the threshold (a small
+  /// load has moved the tip most of its way by then)
+  static constexpr double kGiveLookBack = 0.1;
 
  private:
   struct ModelPose {
@@ -140,18 +143,23 @@ class ContactEstimator {
   Eigen::MatrixXd p_;                         ///< info_'s inverse
   Vec3 residual_var_ = Vec3::Constant(1e-4);  ///< the fit's residual variance per axis [N^2]
   double last_sample_t_ = -1.0;
-  double first_sample_t_ = -1.0;            ///< [s] the first sample compared since reset
-  double free_since_ = -1e300;              ///< [s] the last release (learning waits kRelearnDelay)
-  double below_since_ = -1.0;               ///< [s] the force fell below the release level
-  int above_ = 0;                           ///< samples in a row above the threshold
-  double load_since_ = -1.0;                ///< [s] take_as_load's time
-  bool learning_load_ = false;              ///< take_as_load: no flag until the estimate has come down
-  Vec3 load_ = Vec3::Zero();                ///< the steady load [N, base]
-  bool load_held_ = false;                  ///< a load was taken and has not gone away
-  bool rising_ = false;                     ///< the force beyond the load is above half the threshold
-  Vec3 rise_direction_ = Vec3::Zero();      ///< the measured tip direction when it rose
-  Vec3 rise_deflection_ = Vec3::Zero();     ///< the force's turn then [rad, base]
-  Vec3 rise_model_ = Vec3::Zero();          ///< the model's tip direction then
+  double first_sample_t_ = -1.0;         ///< [s] the first sample compared since reset
+  double free_since_ = -1e300;           ///< [s] the last release (learning waits kRelearnDelay)
+  double below_since_ = -1.0;            ///< [s] the force fell below the release level
+  int above_ = 0;                        ///< samples in a row above the threshold
+  double load_since_ = -1.0;             ///< [s] take_as_load's time
+  bool learning_load_ = false;           ///< take_as_load: no flag until the estimate has come down
+  Vec3 load_ = Vec3::Zero();             ///< the steady load [N, base]
+  bool load_held_ = false;               ///< a load was taken and has not gone away
+  bool rising_ = false;                  ///< the force beyond the load is above half the threshold
+  Vec3 rise_direction_ = Vec3::Zero();   ///< the measured tip direction when it rose
+  Vec3 rise_deflection_ = Vec3::Zero();  ///< the force's turn then [rad, base]
+  Vec3 rise_model_ = Vec3::Zero();       ///< the model's tip direction then
+  struct Look {
+    double t;
+    Vec3 measured, deflection, model;
+  };
+  std::deque<Look> looks_;                  ///< the last kGiveLookBack of samples: where the give is counted from
   Eigen::MatrixXd rise_theta_, rise_info_;  ///< the mismatch model then (what it learned since was the load)
   Vec3 filtered_ = Vec3::Zero();            ///< the force beyond the mismatch and the load [N, base]
   Mat3 last_rotation_ = Mat3::Identity();
