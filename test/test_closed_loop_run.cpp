@@ -3,11 +3,14 @@
 // modal law against the paper's, and its rounding force on a path through the centre.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <vector>
 
 #include "hydrojet_control/config/controller_config.h"
 #include "hydrojet_control/config/plant_config.h"
@@ -216,9 +219,11 @@ TEST(ClosedLoopRun, ComplyHoldsAWallBelowMaxForce) {
   EXPECT_GT(ignored.contact.max_contact_force_n, 3.0 * comply.contact.max_contact_force_after_detection_n);
 }
 
-// A steady 30 mN push on the tip from t = 5 s (a tether's drag): flagged at first, but it stays
-// while the tip gives way, so it is taken for a load and the law compensates it: the run completes
-// and errs little more than with contact ignored (measured 1.35x; the reaction alone aborted it).
+// A steady 30 mN push on the tip from t = 5 s (a tether's drag): the tip gives way to it, so it is
+// taken for a load (at once, or after a short flag), the estimate reads it (within 6 mN from 1 s
+// after the onset, where the settled estimate errs 2-3 mN; a surface would be learned away before),
+// and the run is the contact-ignored run's (before the load state: 1.35x it; the reaction alone
+// aborted it).
 TEST(ClosedLoopRun, ASteadyLoadIsNotTakenForASurface) {
   const ShippedSetup setup = shipped("hydrojet_0deg");
   const plant::PlantModel loaded = config::make_plant(
@@ -233,13 +238,26 @@ TEST(ClosedLoopRun, ASteadyLoadIsNotTakenForASurface) {
   const sim::RunResult ignored = sim::run_path(setup.model, c, loaded, 1, on);
   ASSERT_TRUE(reacting.completed) << reacting.reason;
   ASSERT_TRUE(ignored.completed) << ignored.reason;
-  bool flagged = false;
-  for (const sim::RunSample& sample : reacting.samples) flagged = flagged || sample.contact_flag;
-  std::printf("steady load: RMS %.4f rad (contact ignored %.4f), flagged %d, at the end %d\n", reacting.rms,
-              ignored.rms, flagged, reacting.samples.back().contact_flag);
-  EXPECT_TRUE(flagged) << "the push was never flagged: nothing was taken for a load";
+  double flagged = 0.0, onset = -1.0;
+  std::vector<double> misses;
+  for (std::size_t k = 0; k < reacting.samples.size(); ++k) {
+    const sim::RunSample& sample = reacting.samples[k];
+    const double dt = k > 0 ? sample.t - reacting.samples[k - 1].t : 0.0;
+    if (sample.contact_flag) flagged += dt;
+    if (onset < 0.0 && sample.external_force.norm() > 0.0) onset = sample.t;
+    if (onset >= 0.0 && sample.t >= onset + 1.0)
+      misses.push_back((sample.external_force_estimate - sample.external_force).norm());
+  }
+  ASSERT_GE(onset, 0.0) << "the load never came";
+  ASSERT_FALSE(misses.empty());
+  std::sort(misses.begin(), misses.end());
+  const double median = misses[misses.size() / 2];
+  std::printf("steady load: RMS %.4f rad (contact ignored %.4f), flagged %.2f s, the estimate's median error %.4f N\n",
+              reacting.rms, ignored.rms, flagged, median);
   EXPECT_FALSE(reacting.samples.back().contact_flag) << "the push was still taken for a surface at the end";
-  EXPECT_LT(reacting.rms, 1.6 * ignored.rms);
+  EXPECT_LE(flagged, 0.5);
+  EXPECT_LT(median, 0.006);
+  EXPECT_LT(reacting.rms, 1.1 * ignored.rms);
 }
 
 // What the controller identifies on the shipped plant, against the plant's own truth: the tracker's
