@@ -243,11 +243,7 @@ void ContactEstimator::detect(double t, double alpha, bool pressing, const Vec3&
     if (filtered_.norm() > 0.5 * options_.force_threshold) {
       if (!rising_) {
         rising_ = true;
-        const Look& before =
-            looks_.empty() ? Look{t, measured_direction, state_.deflection, model_direction} : looks_.front();
-        rise_direction_ = before.measured;
-        rise_deflection_ = before.deflection;
-        rise_model_ = before.model;
+        rise_ = looks_.empty() ? Look{t, measured_direction, state_.deflection, model_direction} : looks_.front();
         rise_theta_ = theta_;
         rise_info_ = info_;
       }
@@ -258,10 +254,10 @@ void ContactEstimator::detect(double t, double alpha, bool pressing, const Vec3&
     while (looks_.size() > 1 && looks_.front().t < t - kGiveLookBack) looks_.pop_front();
     const bool armed = t - first_sample_t_ >= kArmTime && !learning_load_;
     if (rising_ && armed) {
-      const Vec3 growth = state_.deflection - rise_deflection_;
+      const Vec3 growth = state_.deflection - rise_.deflection;
       const double turn = growth.norm();
-      if (turn >= kMinGiveTurn && (measured_direction - rise_direction_).dot(growth) >= kGiveFraction * turn * turn &&
-          (model_direction - rise_model_).dot(growth) >= -kPressFraction * turn * turn) {
+      if (turn >= kMinGiveTurn && (measured_direction - rise_.measured).dot(growth) >= kGiveFraction * turn * turn &&
+          (model_direction - rise_.model).dot(growth) >= -kPressFraction * turn * turn) {
         take_as_load(t);
         return;
       }

@@ -550,22 +550,20 @@ void Controller::remember_wall(ControllerOutput& out) {
   if (wall_since_ < 0.0) return;
   wall_allowed_ += kWallRelax * std::max(t_last_ - wall_since_, 0.0);
   wall_since_ = t_last_;
-  if ((wall_x_ - out.desired_direction).dot(wall_d_) <= wall_allowed_) {
-    wall_since_ = -1.0;  // the reference is free of it
-    return;
-  }
-  hold_off_wall(out);
+  if (!hold_off_wall(out)) wall_since_ = -1.0;  // the reference is free of it
 }
 
-// The reference no deeper past wall_x_ along wall_d_ than wall_allowed_ (tangentially free: the tip slides).
-void Controller::hold_off_wall(ControllerOutput& out) {
+// The reference no deeper past wall_x_ along wall_d_ than wall_allowed_ (tangentially free: the tip
+// slides); false when it needed no holding.
+bool Controller::hold_off_wall(ControllerOutput& out) {
   const double depth = (wall_x_ - out.desired_direction).dot(wall_d_);  // the reference's, past the tip
-  if (depth <= wall_allowed_) return;
+  if (depth <= wall_allowed_) return false;
   const Vec3 before = out.desired_direction;
   out.desired_direction = (out.desired_direction + (depth - wall_allowed_) * wall_d_).normalized();
   out.contact_clip_angle = geodesic_error(before, out.desired_direction);
   out.error_geodesic = geodesic_error(out.desired_direction, out.measured_direction);
   out.error_pitch_yaw = pitch_yaw_error(out.desired_direction, out.measured_direction);
+  return true;
 }
 
 // A jet commanded to the learned reach's saturation (97 % of its q_max) or more: the forces have no

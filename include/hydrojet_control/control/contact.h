@@ -143,22 +143,22 @@ class ContactEstimator {
   Eigen::MatrixXd p_;                         ///< info_'s inverse
   Vec3 residual_var_ = Vec3::Constant(1e-4);  ///< the fit's residual variance per axis [N^2]
   double last_sample_t_ = -1.0;
-  double first_sample_t_ = -1.0;         ///< [s] the first sample compared since reset
-  double free_since_ = -1e300;           ///< [s] the last release (learning waits kRelearnDelay)
-  double below_since_ = -1.0;            ///< [s] the force fell below the release level
-  int above_ = 0;                        ///< samples in a row above the threshold
-  double load_since_ = -1.0;             ///< [s] take_as_load's time
-  bool learning_load_ = false;           ///< take_as_load: no flag until the estimate has come down
-  Vec3 load_ = Vec3::Zero();             ///< the steady load [N, base]
-  bool load_held_ = false;               ///< a load was taken and has not gone away
-  bool rising_ = false;                  ///< the force beyond the load is above half the threshold
-  Vec3 rise_direction_ = Vec3::Zero();   ///< the measured tip direction when it rose
-  Vec3 rise_deflection_ = Vec3::Zero();  ///< the force's turn then [rad, base]
-  Vec3 rise_model_ = Vec3::Zero();       ///< the model's tip direction then
+  double first_sample_t_ = -1.0;  ///< [s] the first sample compared since reset
+  double free_since_ = -1e300;    ///< [s] the last release (learning waits kRelearnDelay)
+  double below_since_ = -1.0;     ///< [s] the force fell below the release level
+  int above_ = 0;                 ///< samples in a row above the threshold
+  double load_since_ = -1.0;      ///< [s] take_as_load's time
+  bool learning_load_ = false;    ///< take_as_load: no flag until the estimate has come down
+  Vec3 load_ = Vec3::Zero();      ///< the steady load [N, base]
+  bool load_held_ = false;        ///< a load was taken and has not gone away
+  bool rising_ = false;           ///< the force beyond the load is above half the threshold
   struct Look {
     double t;
-    Vec3 measured, deflection, model;
+    Vec3 measured;    ///< the measured tip direction
+    Vec3 deflection;  ///< the force's turn [rad, base]
+    Vec3 model;       ///< the model's tip direction
   };
+  Look rise_{0.0, Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};  ///< where the give is counted from
   std::deque<Look> looks_;                  ///< the last kGiveLookBack of samples: where the give is counted from
   Eigen::MatrixXd rise_theta_, rise_info_;  ///< the mismatch model then (what it learned since was the load)
   Vec3 filtered_ = Vec3::Zero();            ///< the force beyond the mismatch and the load [N, base]

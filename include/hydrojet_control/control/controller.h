@@ -143,7 +143,7 @@ class Controller {
                      ControllerOutput& out);
   void react_to_contact(ControllerOutput& out);
   void remember_wall(ControllerOutput& out);
-  void hold_off_wall(ControllerOutput& out);
+  bool hold_off_wall(ControllerOutput& out);
   void learn_keep_out_offset(const ControllerInputs& in, const ControllerOutput& out, double dt);
   static constexpr double kKeepOutOffsetTime = 1.0;  ///< [s] the tip offset's low-pass
   static constexpr double kMaxKeepOutOffset = 0.02;  ///< [m] larger: a tracker fault, not a model error
