@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include <yaml-cpp/yaml.h>
@@ -246,6 +247,33 @@ TEST(ContactEstimator, TheMismatchIsLearnedInFreeSpaceAndFrozenInContact) {
   ASSERT_TRUE(e.state().in_contact);
   EXPECT_LT((e.state().force - last.measured_rotation * push).norm(), 0.006)
       << "estimate " << e.state().force.transpose();
+}
+
+// A cycle with a non-finite input or model pose (a flow sensor's NaN, a solve gone wrong) is not
+// compared or remembered: the estimate stays finite and, the cycles good again, reads a push as before.
+TEST(ContactEstimator, ANonFiniteCycleLeavesTheEstimateFinite) {
+  Rig rig;
+  std::mt19937 rng(9);
+  ContactEstimator e(ContactOptions(), 3, 0.15);
+  const control::InputVector q = inputs(0.04, 0.02, 0.03);
+  const double dt = 0.01;
+  double t = 0.0;
+  for (; t < 2.0; t += dt) e.update(rig.cycle(t, q, Vec3::Zero(), &rng));
+  for (const double end = t + 0.5; t < end; t += dt) {
+    ContactCycle c = rig.cycle(t, q, Vec3::Zero(), &rng);
+    if (static_cast<int>(t / dt) % 2)
+      c.inputs[1] = std::nan("");
+    else
+      c.model_rotation(0, 0) = std::numeric_limits<double>::infinity();
+    const control::ContactState& s = e.update(c);
+    ASSERT_TRUE(s.force.allFinite() && s.load.allFinite() && s.covariance.allFinite()) << "at t = " << t;
+    EXPECT_FALSE(s.in_contact);
+  }
+  const Vec3 push(0.0, 0.03, 0.0);
+  ContactCycle last;
+  for (const double end = t + 1.0; t < end; t += dt) e.update(last = rig.against(t, q, push, Vec3::Zero(), &rng));
+  ASSERT_TRUE(e.state().in_contact);
+  EXPECT_LT((e.state().force - last.measured_rotation * push).norm(), 0.006) << e.state().force.transpose();
 }
 
 // The controller file's `contact:` group: the defaults, each key read, and bad values refused naming the key.

@@ -72,6 +72,7 @@ void ContactEstimator::reset() {
   load_.setZero();
   rising_ = false;
   looks_.clear();
+  direction_known_ = false;
   below_since_ = -1.0;
   load_since_ = -1.0;
   above_ = 0;
@@ -98,6 +99,7 @@ void ContactEstimator::take_as_load(double t) {
   state_.load = load_;
   state_.deflection.setZero();
   rising_ = false;
+  looks_.clear();
   above_ = 0;
 }
 
@@ -127,7 +129,7 @@ Vec3 ContactEstimator::deflection(const Vec3& force) const {
 
 const ContactState& ContactEstimator::update(const ContactCycle& c) {
   if (c.model_rotation.allFinite() && c.model_position.allFinite() && c.compliance.allFinite() &&
-      c.inputs.size() + 10 == theta_.rows())
+      c.inputs.size() + 10 == theta_.rows() && c.inputs.allFinite())
     history_.push_back({c.t, c.model_rotation, c.model_position, c.compliance, c.inputs});
   while (!history_.empty() && history_.front().t < c.t - kHistory) history_.pop_front();
   const ModelPose* pose = c.new_sample ? pose_at(c.stamp) : nullptr;
@@ -171,7 +173,12 @@ const ContactState& ContactEstimator::update(const ContactCycle& c) {
   state_.threshold = threshold;
   state_.deflection = deflection(filtered_);
   state_.ready = true;
-  detect(c.t, alpha, c.pressing, c.measured_rotation.col(2), R.col(2));
+  // The tip's direction for the give, low-passed as the force is: one sample's noise (0.3° per axis)
+  // is as large as the give that tells a small load, and turned a wall's onset into a load.
+  if (!direction_known_) measured_direction_ = c.measured_rotation.col(2);
+  direction_known_ = true;
+  measured_direction_ += alpha * (c.measured_rotation.col(2) - measured_direction_);
+  detect(c.t, alpha, c.pressing, measured_direction_, R.col(2));
   return state_;
 }
 
@@ -241,7 +248,7 @@ void ContactEstimator::detect(double t, double alpha, bool pressing, const Vec3&
     if (learning_load_ && (filtered_.norm() < 0.5 * options_.force_threshold || t - load_since_ > kLoadLearnTime))
       learning_load_ = false;
     if (filtered_.norm() > 0.5 * options_.force_threshold) {
-      if (!rising_) {
+      if (!rising_ || t - rise_.t > kMaxRiseAge) {  // a rise long past without a flag or a give: counted afresh
         rising_ = true;
         rise_ = looks_.empty() ? Look{t, measured_direction, state_.deflection, model_direction} : looks_.front();
         rise_theta_ = theta_;
@@ -278,6 +285,8 @@ void ContactEstimator::detect(double t, double alpha, bool pressing, const Vec3&
     if (below_since_ < 0.0) below_since_ = t;
     if (t - below_since_ >= (pressing ? kHeldRelease : kReleaseTime)) {
       state_.in_contact = false;
+      rising_ = false;  // a give is counted from a look after the contact
+      looks_.clear();
       state_.normal.setZero();
       state_.since = 0.0;
       free_since_ = t;

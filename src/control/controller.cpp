@@ -135,6 +135,7 @@ void Controller::start(double t) {
   contact_.reset();
   was_in_contact_ = false;
   wall_since_ = -1.0;
+  held_ = false;
   if (fit_waiting_) probed_ = false;  // a start before the fit came back: probe again
   fit_waiting_ = job_ready_ = fit_delivered_ = false;
   if (!commands_pending_) start_configured_path(t);
@@ -237,6 +238,7 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
 
   track_reference(in, sol, dt, out);
   react_to_contact(out);
+  rejoin_reference(out, dt);
   if (std::string why = monitor_.check_oscillation(out.error_geodesic); !why.empty()) return abort(out, why);
   last_compliance_ = lin.body_compliance;
   last_inputs_ = out.jet_force_observed;
@@ -541,6 +543,12 @@ void Controller::react_to_contact(ControllerOutput& out) {
   wall_allowed_ = compliance * target;
   wall_since_ = t_last_;
   hold_off_wall(out);
+  // Whatever the normal's estimate (an uncalibrated model reads it turned), the reference leads the
+  // tip by no more than max_force would turn it, in any direction.
+  const Vec3 axis = x.cross(out.desired_direction);
+  const double lead = std::atan2(axis.norm(), x.dot(out.desired_direction)),
+               most = compliance * options_.contact.max_force;
+  if (lead > most && axis.norm() > 1e-12) set_desired(out, Eigen::AngleAxisd(most, axis.normalized()) * x);
 }
 
 // After a release the reference stays off the surface where it was met (no deeper past the tip's
@@ -558,12 +566,38 @@ void Controller::remember_wall(ControllerOutput& out) {
 bool Controller::hold_off_wall(ControllerOutput& out) {
   const double depth = (wall_x_ - out.desired_direction).dot(wall_d_);  // the reference's, past the tip
   if (depth <= wall_allowed_) return false;
-  const Vec3 before = out.desired_direction;
-  out.desired_direction = (out.desired_direction + (depth - wall_allowed_) * wall_d_).normalized();
-  out.contact_clip_angle = geodesic_error(before, out.desired_direction);
+  set_desired(out, (out.desired_direction + (depth - wall_allowed_) * wall_d_).normalized());
+  return true;
+}
+
+// Once the contact no longer holds the reference, it returns to where its source (path, operator)
+// has gone meanwhile at kRejoinRate instead of jumping there: a wall whose normal was read wrongly
+// (an uncalibrated model) held it along the wrong side, and the jump at the release rang the rod
+// into the abort.
+void Controller::rejoin_reference(ControllerOutput& out, double dt) {
+  if (out.contact.in_contact || out.contact_clip_angle > 0.0) {
+    held_ = true;
+    held_direction_ = out.desired_direction;
+    return;
+  }
+  if (!held_) return;
+  const Vec3 axis = held_direction_.cross(out.desired_direction);
+  const double gap = std::atan2(axis.norm(), held_direction_.dot(out.desired_direction));
+  const double step = kRejoinRate * std::max(dt, 0.0);
+  if (gap <= step || !(axis.norm() > 1e-12)) {
+    held_ = false;
+    return;
+  }
+  set_desired(out, Eigen::AngleAxisd(step, axis.normalized()) * held_direction_);
+  held_direction_ = out.desired_direction;
+}
+
+// The reference moved by the contact's handling: how far, and the errors against it.
+void Controller::set_desired(ControllerOutput& out, const Vec3& direction) {
+  out.contact_clip_angle += geodesic_error(out.desired_direction, direction);
+  out.desired_direction = direction;
   out.error_geodesic = geodesic_error(out.desired_direction, out.measured_direction);
   out.error_pitch_yaw = pitch_yaw_error(out.desired_direction, out.measured_direction);
-  return true;
 }
 
 // A jet commanded to the learned reach's saturation (97 % of its q_max) or more: the forces have no

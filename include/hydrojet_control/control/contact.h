@@ -118,6 +118,9 @@ class ContactEstimator {
   /// [s] the give is counted from this long before the force rose past half the threshold (a small
   /// load has moved the tip most of its way by then)
   static constexpr double kGiveLookBack = 0.1;
+  /// [s] a rise older than this (the force above half the threshold, neither flagged nor given way
+  /// to) is counted afresh: the give and the rollback are of the last moments, not of seconds ago
+  static constexpr double kMaxRiseAge = 0.5;
 
  private:
   struct ModelPose {
@@ -159,9 +162,11 @@ class ContactEstimator {
     Vec3 model;       ///< the model's tip direction
   };
   Look rise_{0.0, Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};  ///< where the give is counted from
-  std::deque<Look> looks_;                  ///< the last kGiveLookBack of samples: where the give is counted from
-  Eigen::MatrixXd rise_theta_, rise_info_;  ///< the mismatch model then (what it learned since was the load)
-  Vec3 filtered_ = Vec3::Zero();            ///< the force beyond the mismatch and the load [N, base]
+  std::deque<Look> looks_;                   ///< the last kGiveLookBack of samples: where the give is counted from
+  Eigen::MatrixXd rise_theta_, rise_info_;   ///< the mismatch model then (what it learned since was the load)
+  Vec3 filtered_ = Vec3::Zero();             ///< the force beyond the mismatch and the load [N, base]
+  Vec3 measured_direction_ = Vec3::UnitZ();  ///< the tracker's tip direction, low-passed as filtered_
+  bool direction_known_ = false;
   Mat3 last_rotation_ = Mat3::Identity();
   rod::Mat6 last_compliance_ = rod::Mat6::Zero();
   ContactState state_;

@@ -144,6 +144,8 @@ class Controller {
   void react_to_contact(ControllerOutput& out);
   void remember_wall(ControllerOutput& out);
   bool hold_off_wall(ControllerOutput& out);
+  void rejoin_reference(ControllerOutput& out, double dt);
+  static void set_desired(ControllerOutput& out, const Vec3& direction);
   void learn_keep_out_offset(const ControllerInputs& in, const ControllerOutput& out, double dt);
   static constexpr double kKeepOutOffsetTime = 1.0;  ///< [s] the tip offset's low-pass
   static constexpr double kMaxKeepOutOffset = 0.02;  ///< [m] larger: a tracker fault, not a model error
@@ -204,12 +206,16 @@ class Controller {
   bool was_in_contact_ = false;         ///< the detector's flag at the last cycle
   Vec3 contact_onset_ = Vec3::UnitZ();  ///< the tip's direction when the present contact was flagged
   // Where the last contact held the reference back (hold_off_wall), relaxed after a release.
-  Vec3 wall_x_ = Vec3::UnitZ();                    ///< the tip's direction in contact
-  Vec3 wall_d_ = Vec3::UnitX();                    ///< the surface's free side as a turn of the tip (unit)
-  double wall_allowed_ = 0.0;                      ///< [rad] how deep past wall_x_ the reference may go
-  double wall_since_ = -1.0;                       ///< [s] the allowance's last update (negative: no wall)
-  static constexpr double kWallRelax = 0.25;       ///< [rad/s] the allowance's growth after a release
-  static constexpr double kLoadTravel = 0.03;      ///< [rad] the least give that can tell a load (react_to_contact)
+  Vec3 wall_x_ = Vec3::UnitZ();                ///< the tip's direction in contact
+  Vec3 wall_d_ = Vec3::UnitX();                ///< the surface's free side as a turn of the tip (unit)
+  double wall_allowed_ = 0.0;                  ///< [rad] how deep past wall_x_ the reference may go
+  double wall_since_ = -1.0;                   ///< [s] the allowance's last update (negative: no wall)
+  static constexpr double kWallRelax = 0.25;   ///< [rad/s] the allowance's growth after a release
+  static constexpr double kLoadTravel = 0.03;  ///< [rad] the least give that can tell a load (react_to_contact)
+  // Where the contact last held the reference (rejoin_reference): it returns to its source from there.
+  bool held_ = false;
+  Vec3 held_direction_ = Vec3::UnitZ();
+  static constexpr double kRejoinRate = 1.0;  ///< [rad/s] faster than a path the law follows, slow enough not to ring
   rod::Mat6 last_compliance_ = rod::Mat6::Zero();  ///< C^b at the last cycle's equilibrium
   InputVector last_inputs_;                        ///< q_obs there [N]
 };

@@ -74,7 +74,8 @@ struct ControllerOutput {
   bool kept_out = false;
   /// The external tip force estimated and the contact detector's verdict (contact.h).
   ContactState contact;
-  /// In contact, the reference was kept from going deeper than contact/max_force allows, by this much [rad].
+  /// In contact, the reference was kept from going deeper than contact/max_force allows, or after it
+  /// returns to its source at a bounded rate: by this much [rad].
   double contact_clip_angle = 0.0;
 };
 
