@@ -141,6 +141,27 @@ TEST(ContactEstimator, TheDetectorFlagsAPushAndReleasesWithHysteresis) {
   EXPECT_LE(released - end, 0.4);
 }
 
+// While the law's supervisor has stepped in (the tip rings: its swing reads as a force) a push
+// is flagged only above kRingingThreshold times the threshold: 15 mN (1.25x) is not, 25 mN is.
+TEST(ContactEstimator, WhileTheTipRingsOnlyAStrongerPushIsFlagged) {
+  Rig rig;
+  const control::InputVector q = inputs(0.05, 0.01, 0.03);
+  const double dt = 0.01, threshold = ContactOptions().force_threshold;
+  for (const double size : {1.25 * threshold, 2.0 * threshold}) {
+    std::mt19937 rng(4);
+    ContactEstimator e(ContactOptions(), 3, 0.15);
+    double t = 0.0;
+    for (; t < 3.0; t += dt) e.update(rig.cycle(t, q, Vec3::Zero(), &rng));
+    bool flagged = false;
+    for (const double push = t; t < push + 0.5; t += dt) {
+      ContactCycle c = rig.against(t, q, Vec3(size, 0.0, 0.0), Vec3::Zero(), &rng);
+      c.ringing = true;
+      flagged = flagged || e.update(c).in_contact;
+    }
+    EXPECT_EQ(flagged, size > ContactEstimator::kRingingThreshold * threshold) << size << " N";
+  }
+}
+
 // While the reference is held back from the surface a weak estimate releases only after
 // kHeldRelease; a push handed over as a load is kept as the load: no flag while it stays, and the
 // estimate reads it (not learned away as mismatch).

@@ -178,7 +178,7 @@ const ContactState& ContactEstimator::update(const ContactCycle& c) {
   if (!direction_known_) measured_direction_ = c.measured_rotation.col(2);
   direction_known_ = true;
   measured_direction_ += alpha * (c.measured_rotation.col(2) - measured_direction_);
-  detect(c.t, alpha, c.pressing, measured_direction_, R.col(2));
+  detect(c.t, alpha, c, measured_direction_, R.col(2));
   return state_;
 }
 
@@ -242,7 +242,7 @@ void ContactEstimator::learn(const Eigen::VectorXd& phi, const Vec3& error, doub
 // surface only pushes: the force along the contact's normal below the release level for kReleaseTime
 // (kHeldRelease while the reference is held back) releases it; the normal follows the force while
 // the push is clear.
-void ContactEstimator::detect(double t, double alpha, bool pressing, const Vec3& measured_direction,
+void ContactEstimator::detect(double t, double alpha, const ContactCycle& c, const Vec3& measured_direction,
                               const Vec3& model_direction) {
   if (!state_.in_contact) {
     if (learning_load_ && (filtered_.norm() < 0.5 * options_.force_threshold || t - load_since_ > kLoadLearnTime))
@@ -269,7 +269,8 @@ void ContactEstimator::detect(double t, double alpha, bool pressing, const Vec3&
         return;
       }
     }
-    above_ = filtered_.norm() > state_.threshold && armed ? above_ + 1 : 0;
+    const double threshold = c.ringing ? kRingingThreshold * state_.threshold : state_.threshold;
+    above_ = filtered_.norm() > threshold && armed ? above_ + 1 : 0;
     if (above_ >= 2) {
       state_.in_contact = true;
       state_.since = t;
@@ -283,7 +284,7 @@ void ContactEstimator::detect(double t, double alpha, bool pressing, const Vec3&
   const double push = filtered_.dot(state_.normal);
   if (push < release) {
     if (below_since_ < 0.0) below_since_ = t;
-    if (t - below_since_ >= (pressing ? kHeldRelease : kReleaseTime)) {
+    if (t - below_since_ >= (c.pressing ? kHeldRelease : kReleaseTime)) {
       state_.in_contact = false;
       rising_ = false;  // a give is counted from a look after the contact
       looks_.clear();

@@ -480,6 +480,7 @@ void Controller::sense_contact(const ControllerInputs& in, const rod::RodSolutio
   c.compliance = lin.ok ? lin.body_compliance : rod::Mat6::Constant(std::nan(""));
   c.inputs = out.jet_force_observed;
   c.pressing = last_output_.contact_clip_angle > 0.0;
+  c.ringing = law_->supervisor_weight() < 1.0;
   out.contact = contact_.update(c);
 }
 

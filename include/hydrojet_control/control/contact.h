@@ -75,6 +75,9 @@ struct ContactCycle {
   /// The reference was held back from the surface last cycle (the tip still presses on: a weak
   /// estimate then does not release the contact before kHeldRelease).
   bool pressing = false;
+  /// The law's supervisor has stepped in (the mode rings, or a jet is held at its bound): the tip's
+  /// swing reads as a force, so a contact is flagged above kRingingThreshold times the threshold.
+  bool ringing = false;
 };
 
 class ContactEstimator {
@@ -103,6 +106,7 @@ class ContactEstimator {
   static constexpr double kFilterTime = 0.03;                    ///< [s] the force's low-pass
   static constexpr double kReleaseTime = 0.15;                   ///< [s] below the release level before a release
   static constexpr double kHeldRelease = 0.3;                    ///< [s] the same while the reference is held back
+  static constexpr double kRingingThreshold = 1.5;               ///< the threshold's factor while ringing
   static constexpr double kArmTime = 0.5;                        ///< [s] of samples before the detector may flag
   static constexpr double kLoadLearnTime = 2.0;  ///< [s] take_as_load keeps the detector down at most this long
   static constexpr double kRelearnDelay = 1.0;   ///< [s] after a release before the mismatch learns again
@@ -134,7 +138,8 @@ class ContactEstimator {
   Eigen::VectorXd regressor(const Mat3& rotation, const InputVector& q) const;
   bool deflection_force(const ContactCycle& c, const ModelPose& pose, Vec3* force, Mat3* cov) const;
   void learn(const Eigen::VectorXd& phi, const Vec3& error, double dt);
-  void detect(double t, double alpha, bool pressing, const Vec3& measured_direction, const Vec3& model_direction);
+  void detect(double t, double alpha, const ContactCycle& c, const Vec3& measured_direction,
+              const Vec3& model_direction);
 
   ContactOptions options_;
   double input_scale_;
