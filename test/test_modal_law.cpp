@@ -219,6 +219,18 @@ TEST(ModalLaw, TheGainsKeepTheCrossoversPhaseLagUnderLatency) {
   EXPECT_DOUBLE_EQ(hydrojet::control::modal_gains(o, T, 0.0, 0.5 * o.actuator_lag).kp, o.kp);
 }
 
+// The ratio that scales the PD's gains, and squared the damping gain: the tuning's delay over the
+// loop's, 1 without latency or a slower flow loop.
+TEST(ModalLaw, TheLagRatioIsTheTuningsDelayOverTheLoops) {
+  ModalLawOptions o;
+  const double T = 0.01, own = T + o.actuator_lag;
+  EXPECT_DOUBLE_EQ(hydrojet::control::lag_ratio(o, T, 0.0, 0.0), 1.0);
+  EXPECT_DOUBLE_EQ(hydrojet::control::lag_ratio(o, T, 0.03, 0.08), own / (T + 0.08 + 0.03));
+  for (double latency : {0.0, 0.02, 0.03})
+    EXPECT_NEAR(hydrojet::control::lag_ratio(o, T, latency, 0.06) * o.kp,
+                hydrojet::control::modal_gains(o, T, latency, 0.06).kp, 1e-12);
+}
+
 // The flow loop's lag: the valve's, shortened by the regulator's proportional loop gain and its lead.
 TEST(ModalLaw, TheFlowLoopsLagIsTheValvesUnderItsRegulator) {
   hydrojet::actuation::FlowRegulatorOptions flow;

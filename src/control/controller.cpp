@@ -385,6 +385,7 @@ std::string Controller::command_inputs(const ControllerInputs& in, const rod::Ro
   cycle.observed_inputs = &out.jet_force_observed;
   cycle.reference = &reference_;
   cycle.saturated = !first_cycle_ && at_bound(previous_command_);
+  cycle.near_bound = !first_cycle_ && at_bound(previous_command_, kNearBound);
   const Vec3 x_cntr = law_->correction(cycle);
   out.law_weight = law_->supervisor_weight();
   out.mode_swing = law_->swing();
@@ -603,8 +604,8 @@ void Controller::set_desired(ControllerOutput& out, const Vec3& direction) {
 
 // A jet commanded to the learned reach's saturation (97 % of its q_max) or more: the forces have no
 // authority left that way.
-bool Controller::at_bound(const InputVector& command) const {
-  const double saturation = reference_.learned_reach().options().saturation;
+bool Controller::at_bound(const InputVector& command, double margin) const {
+  const double saturation = reference_.learned_reach().options().saturation - margin;
   for (int i = 0; i < jets_.input_count() && i < command.size(); ++i)
     if (model_.upper()[i] > 0.0 && command[i] >= saturation * model_.upper()[i]) return true;
   return false;

@@ -130,9 +130,13 @@ double ModalLaw::gain_weight() const {
 // ζ of the first mode: Kelvin–Voigt damping of time τ gives 2ζω = τω².
 double ModalLaw::damping_ratio() const { return 0.5 * omega_ * options_.damping_time; }
 
-PdOptions modal_gains(const ModalLawOptions& o, double sample_period, double latency, double flow_lag) {
+double lag_ratio(const ModalLawOptions& o, double sample_period, double latency, double flow_lag) {
   const double own = sample_period + o.actuator_lag;
-  const double r = own / (sample_period + std::max(o.actuator_lag, flow_lag) + std::max(latency, 0.0));
+  return own / (sample_period + std::max(o.actuator_lag, flow_lag) + std::max(latency, 0.0));
+}
+
+PdOptions modal_gains(const ModalLawOptions& o, double sample_period, double latency, double flow_lag) {
+  const double r = lag_ratio(o, sample_period, latency, flow_lag);
   PdOptions g;
   g.kp = r * o.kp;
   g.ki = r * r * o.ki;
@@ -210,7 +214,7 @@ void ModalLaw::supervise(const LawCycle& c) {
   saturated_for_ = c.saturated ? saturated_for_ + dt : 0.0;
   if (saturated_for_ >= kSaturationHold)
     authority_ = 0.0;
-  else if (!c.saturated)
+  else if (!c.near_bound)
     authority_ = std::min(1.0, authority_ + dt / kAuthorityRecovery);
   const double w0 = std::min(omega_ * dt, 2.5), alpha = 0.5 * std::sin(w0), a0 = 1.0 + alpha;
   const Vec3 x = c.measured - c.desired;
@@ -261,8 +265,15 @@ Vec3 ModalLaw::shaping_step(const LawCycle& c) {
   r.rate_now = (a - c.desired) / h;
   // Its feedforward (the path's own motion) apart from its damping (v̂ − ṙ: zero in the first).
   const double w = fast_path_weight();
-  const Vec3 feedforward = w * modal_shaping(r, r.rate_now, omega_, damping_ratio(), options_);
-  const Vec3 damping = w * modal_shaping(r, now_.rate(), omega_, damping_ratio(), options_) - feedforward;
+  // The damping acts on the rate estimated through the latency and the flow loop's lag: scaled by
+  // the square of the PD gains' ratio (at 20-30 ms of latency its full gain made the law worse than
+  // the paper's), but in full while a jet is held at its bound (the law has no authority to shape
+  // with, and the rod rang at the reach's edge without it).
+  ModalLawOptions o = options_;
+  const double lagged = std::pow(lag_ratio(options_, sample_period_, latency_, flow_lag_), 2);
+  o.damping_gain *= authority_ * lagged + (1.0 - authority_);
+  const Vec3 feedforward = w * modal_shaping(r, r.rate_now, omega_, damping_ratio(), o);
+  const Vec3 damping = w * modal_shaping(r, now_.rate(), omega_, damping_ratio(), o) - feedforward;
   // The supervisor weighs the increments, not m: its fall-back must not kick the forces by −m. A jet
   // held at its bound stops the feedforward (it winds up there), not the damping.
   const Vec3 change = authority_ * (feedforward - previous_feedforward_) + (damping - previous_damping_);

@@ -149,7 +149,9 @@ class Controller {
   void learn_keep_out_offset(const ControllerInputs& in, const ControllerOutput& out, double dt);
   static constexpr double kKeepOutOffsetTime = 1.0;  ///< [s] the tip offset's low-pass
   static constexpr double kMaxKeepOutOffset = 0.02;  ///< [m] larger: a tracker fault, not a model error
-  bool at_bound(const InputVector& command) const;
+  /// A jet commanded to its saturation (less `margin`, a fraction of its bound) or more.
+  bool at_bound(const InputVector& command, double margin = 0.0) const;
+  static constexpr double kNearBound = 0.1;  ///< the modal law's authority returns below 0.87 of a bound
   void begin_probe(double t, const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin);
   void probe(const ControllerInputs& in, const rod::RodSolution& sol, ControllerOutput& out);
   void adopt_probe_result(const ProbeJob::Result& result);

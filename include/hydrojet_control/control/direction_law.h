@@ -35,7 +35,8 @@ struct LawCycle {
   const ActuatedModel::Linearisation* linearisation = nullptr;  ///< its C^b and J_q
   const InputVector* observed_inputs = nullptr;                 ///< q_obs [N]
   const Reference* reference = nullptr;                         ///< the reference, advanced to x_des
-  bool saturated = false;  ///< a jet's last command was at its bound (Controller::at_bound)
+  bool saturated = false;   ///< a jet's last command was at its bound (Controller::at_bound)
+  bool near_bound = false;  ///< ... or within kNearBound of it: the law's authority is not handed back yet
 };
 
 /// A law: eq. (17)'s PD (DirectionPd, each law's own gains from the PD's) and what the law adds.

@@ -95,6 +95,9 @@ class ModalEstimator {
 /// flow_lag) + latency scales kp, so the crossover's phase lag k_p·D stays that of the tuning, and ki
 /// by its square, so the PI's zero keeps its place under the crossover.
 PdOptions modal_gains(const ModalLawOptions& o, double sample_period, double latency, double flow_lag = 0.0);
+/// (T + τ_a) / (T + max(τ_a, flow_lag) + latency): how much of the law's own rise the loop's delays
+/// leave; scales its PD gains (modal_gains) and its damping gain.
+double lag_ratio(const ModalLawOptions& o, double sample_period, double latency, double flow_lag);
 
 /// The lag [s] left of a valve of lag `valve_lag` [s] under its flow regulator: the proportional
 /// part's loop gain K = kp / feedforward (a valve whose flow is linear in its duty up to 1 /
