@@ -221,9 +221,10 @@ TEST(ClosedLoopRun, ComplyHoldsAWallBelowMaxForce) {
 
 // A diagonal wall on the shipped, uncalibrated plant: the estimated normal is turned 40° from the
 // true one, so comply held the reference along the wrong side and, at the release, it jumped 0.3 rad
-// back onto the path and rang the rod into the oscillation abort (both tilts, at 19 s). The reference
+// back onto the path and rang the rod into the oscillation abort (at 19 s; at 30° too). The reference
 // now leads the tip by no more than max_force would turn it and rejoins its source at a bounded
-// rate: the run completes, and once flagged the wall is pressed at most twice max_force (0.071 N).
+// rate: the 0° run completes, and once flagged the wall is pressed at most twice max_force (0.08 N;
+// 0.071 N here).
 TEST(ClosedLoopRun, AWallReadTurnedDoesNotRingTheRod) {
   const ShippedSetup setup = shipped("hydrojet_0deg");
   const plant::PlantModel wall = config::make_plant(

@@ -219,8 +219,8 @@ TEST(ModalLaw, TheGainsKeepTheCrossoversPhaseLagUnderLatency) {
   EXPECT_DOUBLE_EQ(hydrojet::control::modal_gains(o, T, 0.0, 0.5 * o.actuator_lag).kp, o.kp);
 }
 
-// The ratio that scales the PD's gains, and squared the damping gain: the tuning's delay over the
-// loop's, 1 without latency or a slower flow loop.
+// The ratio that scales the PD's gains (and, squared, the damping gain): the tuning's delay over
+// the loop's, 1 without latency or a slower flow loop.
 TEST(ModalLaw, TheLagRatioIsTheTuningsDelayOverTheLoops) {
   ModalLawOptions o;
   const double T = 0.01, own = T + o.actuator_lag;

@@ -499,8 +499,9 @@ void Controller::learn_keep_out_offset(const ControllerInputs& in, const Control
 
 // In contact (contact/reaction): the law observes where the tip would be without the force (its
 // integral does not wind into the surface), and the reference goes no deeper past the tip, along
-// the turn the estimated normal makes, than comply's push would put it; tangentially it is free
-// (the tip slides). hold and retreat aim at or off the surface and end a path. A push under which
+// the turn the estimated normal makes, than comply's push would put it; tangentially it slides,
+// leading the tip by no more than max_force would turn it (a normal read turned is not trusted).
+// hold and retreat aim at or off the surface and end a path. A push under which
 // the tip gives way (half the turn it makes in free space, since the onset) is a load, not a
 // surface: it is handed to the estimator's load and the law compensates it as before.
 void Controller::react_to_contact(ControllerOutput& out) {
