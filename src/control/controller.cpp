@@ -549,8 +549,7 @@ void Controller::react_to_contact(ControllerOutput& out) {
   // Whatever the normal's estimate (an uncalibrated model reads it turned), the reference leads the
   // tip by no more than max_force would turn it, in any direction.
   const Vec3 axis = x.cross(out.desired_direction);
-  const double lead = std::atan2(axis.norm(), x.dot(out.desired_direction)),
-               most = compliance * options_.contact.max_force;
+  const double lead = geodesic_error(x, out.desired_direction), most = compliance * options_.contact.max_force;
   if (lead > most && axis.norm() > 1e-12) set_desired(out, Eigen::AngleAxisd(most, axis.normalized()) * x);
 }
 
@@ -585,7 +584,7 @@ void Controller::rejoin_reference(ControllerOutput& out, double dt) {
   }
   if (!held_) return;
   const Vec3 axis = held_direction_.cross(out.desired_direction);
-  const double gap = std::atan2(axis.norm(), held_direction_.dot(out.desired_direction));
+  const double gap = geodesic_error(held_direction_, out.desired_direction);
   const double step = kRejoinRate * std::max(dt, 0.0);
   if (gap <= step || !(axis.norm() > 1e-12)) {
     held_ = false;
