@@ -14,6 +14,7 @@
 
 #include "hydrojet_control/config/controller_config.h"
 #include "hydrojet_control/config/plant_config.h"
+#include "hydrojet_control/control/mode_probe.h"
 #include "hydrojet_control/control/path.h"
 #include "hydrojet_control/sim/closed_loop_run.h"
 #include "cli_helpers.h"
@@ -312,6 +313,40 @@ TEST(ClosedLoopRun, IdentifiesThePlantPresent) {
   ASSERT_GT(r.truth.mode_hz, 0.0);
   EXPECT_NEAR(r.identified.mode_hz / r.truth.mode_hz, 1.0, 0.05);
   EXPECT_NEAR(r.identified.damping_ratio / r.truth.damping_ratio, 1.0, 0.3);
+}
+
+// A plant whose tip rings on the law's first guesses (a drawn plant: a capsule filled x3.7, its
+// first mode nearly undamped, every valve with a dead zone of 6-8 %): the approach never settles
+// before the probe, so without it the path fails; with it the probe measures the plant half the
+// approach's timeout in, the law takes the fit and the tip settles, and the path runs.
+TEST(ClosedLoopRun, AnApproachThatRingsIsProbedAsItIs) {
+  const ShippedSetup setup = shipped("hydrojet_0deg");
+  const plant::PlantModel ringing = config::make_plant(
+      test::scene("hydrojet_0deg"),
+      "plant: {mismatch: {precurvature_offset: [-1.533, -0.184, 0.0], bending_stiffness_scale: 0.81, "
+      "torsional_stiffness_scale: 0.872, misalignment_offset: [-0.0306, 0.0256, -0.0014], tip_mass_scale: 3.737, "
+      "base_tilt_offset: -0.1183}, dynamics: {kelvin_voigt_time: 0.0112}, valves: ["
+      "{max_flow: 1.632e-5, dead_zone: 0.0778, exponent: 0.771, hysteresis: 0.0049, time_constant: 0.0343},"
+      "{max_flow: 1.555e-5, dead_zone: 0.0796, exponent: 0.975, hysteresis: 0.0238, time_constant: 0.0315},"
+      "{max_flow: 1.684e-5, dead_zone: 0.0633, exponent: 0.762, hysteresis: 0.0052, time_constant: 0.068}], "
+      "tracker: {latency: 0.0}}");
+  control::ControllerOptions c = setup.controller;
+  c.path.duration = 10.0;
+  sim::RunPlan on;
+  on.start = sim::RunStart::kOnPath;
+  c.identification.probe = false;
+  const sim::RunResult unprobed = sim::run_path(setup.model, c, ringing, 1, on);
+  c.identification.probe = true;
+  const sim::RunResult probed = sim::run_path(setup.model, c, ringing, 1, on);
+  std::printf("ringing approach: without the probe %s; with it %s after %.2f s, mode %.3f Hz (truth %.3f), RMS %.4f\n",
+              unprobed.reason.c_str(), probed.completed ? "completed" : probed.reason.c_str(), probed.approach_time,
+              probed.identified.mode_hz, probed.truth.mode_hz, probed.rms);
+  ASSERT_FALSE(unprobed.completed);
+  EXPECT_NE(unprobed.reason.find("approach"), std::string::npos) << unprobed.reason;
+  ASSERT_TRUE(probed.completed) << probed.reason;
+  EXPECT_TRUE(probed.identified.mode_identified) << probed.identified.mode_error;
+  EXPECT_GE(probed.approach_time, 0.5 * c.approach.timeout + control::ModeProbe::kSeconds);
+  EXPECT_LT(probed.rms, 0.03);
 }
 
 // The rig's first day: identify on the shipped plant writes the identification file, its mode within

@@ -72,6 +72,7 @@ void ContactEstimator::reset() {
   load_.setZero();
   rising_ = false;
   looks_.clear();
+  snapshots_.clear();
   direction_known_ = false;
   below_since_ = -1.0;
   load_since_ = -1.0;
@@ -164,6 +165,11 @@ const ContactState& ContactEstimator::update(const ContactCycle& c) {
   // The estimate: low-passed, in the base frame.
   const double alpha = dt > 0.0 ? dt / (kFilterTime + dt) : 1.0;
   filtered_ += alpha * (R * error - filtered_);
+  // The mismatch model's snapshots (in free space), for unlearn().
+  if (!state_.in_contact && (snapshots_.empty() || c.t - snapshots_.back().t >= kSnapshotPeriod))
+    snapshots_.push_back({c.t, theta_, info_});
+  while (!snapshots_.empty() && snapshots_.front().t < c.t - kUnlearnLookBack) snapshots_.pop_front();
+  phi_ = phi;
   last_rotation_ = R;
   last_compliance_ = pose->compliance;
   const Mat3 mismatch_cov = (residual_var_ * spread).asDiagonal();
@@ -236,6 +242,24 @@ void ContactEstimator::learn(const Eigen::VectorXd& phi, const Vec3& error, doub
   residual_var_ += a * (error.cwiseAbs2().cwiseMin(cap) - residual_var_);
 }
 
+// A push that the mismatch model of a snapshot reads as free space (under half the threshold) is
+// what the model learned since (a surface grazed under the threshold, learned, and left): the model
+// goes back to the latest such snapshot, and the push with it.
+bool ContactEstimator::unlearn() {
+  const Mat3& R = last_rotation_;
+  for (auto s = snapshots_.rbegin(); s != snapshots_.rend(); ++s) {
+    const Vec3 then = filtered_ + R * ((theta_ - s->theta).transpose() * phi_);
+    if (!(then.norm() <= 0.5 * options_.force_threshold)) continue;
+    theta_ = s->theta;
+    info_ = s->info;
+    p_ = info_.inverse();
+    snapshots_.erase(s.base(), snapshots_.end());
+    filtered_ = then;
+    return true;
+  }
+  return false;
+}
+
 // Two samples above the threshold in a row (once armed) flag a contact, unless the tip has given way
 // along the force's turn since the force rose while the model stayed: a load (a surface stops the
 // tip, or throws it back, while the model goes on into it; a load moves the tip). A
@@ -271,6 +295,11 @@ void ContactEstimator::detect(double t, double alpha, const ContactCycle& c, con
     }
     const double threshold = c.ringing ? kRingingThreshold * state_.threshold : state_.threshold;
     above_ = filtered_.norm() > threshold && armed ? above_ + 1 : 0;
+    if (above_ >= 2 && unlearn()) {
+      above_ = 0;
+      rising_ = false;
+      return;
+    }
     if (above_ >= 2) {
       state_.in_contact = true;
       state_.since = t;

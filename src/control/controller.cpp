@@ -11,6 +11,9 @@ namespace control {
 
 namespace {
 
+/// An approach still unsettled this fraction of its timeout in is probed as it is (approach()).
+constexpr double kProbeUnsettledAfter = 0.5;
+
 /// The reachable set of `model` with each actuator's bounds scaled by `force_fraction` (0, 1].
 std::shared_ptr<const ReachableSet> sweep_reachable_set(RobotModel model, const ControllerOptions& options,
                                                         double force_fraction) {
@@ -135,7 +138,7 @@ void Controller::start(double t) {
   contact_.reset();
   was_in_contact_ = false;
   wall_since_ = -1.0;
-  held_ = false;
+  held_off_wall_ = held_ = false;
   if (fit_waiting_) probed_ = false;  // a start before the fit came back: probe again
   fit_waiting_ = job_ready_ = fit_delivered_ = false;
   if (!commands_pending_) start_configured_path(t);
@@ -343,9 +346,10 @@ void Controller::approach(double t, ControllerOutput& out) {
   if (out.approaching && (probe_.active() || probe_pending_)) {  // the probe holds the path's clock
   } else if (out.approaching) {
     const double loop_error = geodesic_error(out.desired_direction, out.observed_direction);
+    const bool probe_first = options_.identification.probe && !probed_ && options_.mode == LoopMode::kClosed;
     switch (approach_.update(t, reference_.at_path_start(), loop_error, out.measured_direction)) {
       case ApproachMonitor::Verdict::kSettled:
-        if (options_.identification.probe && !probed_ && options_.mode == LoopMode::kClosed) {
+        if (probe_first) {
           probe_pending_ = true;  // the probe first (update), then the path
           break;
         }
@@ -357,6 +361,12 @@ void Controller::approach(double t, ControllerOutput& out) {
         reference_.hold();
         out.source = reference_.source();
         out.approaching = false;
+        break;
+      case ApproachMonitor::Verdict::kSettling:
+        // A tip that rings on the law's first guesses (a mode lighter or less damped than they
+        // say) is measured as it is, half the timeout in; the approach then starts over on the fit.
+        if (probe_first && approach_.settling_for(t) >= kProbeUnsettledAfter * options_.approach.timeout)
+          probe_pending_ = true;
         break;
       default: break;
     }
@@ -480,8 +490,9 @@ void Controller::sense_contact(const ControllerInputs& in, const rod::RodSolutio
   c.model_position = sol.tip_position;
   c.compliance = lin.ok ? lin.body_compliance : rod::Mat6::Constant(std::nan(""));
   c.inputs = out.jet_force_observed;
-  c.pressing = last_output_.contact_clip_angle > 0.0;
-  c.ringing = law_->supervisor_weight() < 1.0;
+  c.pressing = held_off_wall_;  // last cycle's: the lead cap and the rejoin move the reference too, not into the wall
+  // The weight holds its last value while the law does not run (open loop, the probe).
+  c.ringing = options_.mode == LoopMode::kClosed && !probe_.active() && law_->supervisor_weight() < 1.0;
   out.contact = contact_.update(c);
 }
 
@@ -508,6 +519,7 @@ void Controller::react_to_contact(ControllerOutput& out) {
   const ContactState& c = out.contact;
   const bool onset = c.in_contact && !was_in_contact_;
   was_in_contact_ = c.in_contact;
+  held_off_wall_ = false;
   if (!c.in_contact) {
     remember_wall(out);
     return;
@@ -545,7 +557,7 @@ void Controller::react_to_contact(ControllerOutput& out) {
   wall_d_ = d;
   wall_allowed_ = compliance * target;
   wall_since_ = t_last_;
-  hold_off_wall(out);
+  held_off_wall_ = hold_off_wall(out);
   // Whatever the normal's estimate (an uncalibrated model reads it turned), the reference leads the
   // tip by no more than max_force would turn it, in any direction.
   const Vec3 axis = x.cross(out.desired_direction);
@@ -560,7 +572,8 @@ void Controller::remember_wall(ControllerOutput& out) {
   if (wall_since_ < 0.0) return;
   wall_allowed_ += kWallRelax * std::max(t_last_ - wall_since_, 0.0);
   wall_since_ = t_last_;
-  if (!hold_off_wall(out)) wall_since_ = -1.0;  // the reference is free of it
+  held_off_wall_ = hold_off_wall(out);
+  if (!held_off_wall_) wall_since_ = -1.0;  // the reference is free of it
 }
 
 // The reference no deeper past wall_x_ along wall_d_ than wall_allowed_ (tangentially free: the tip

@@ -269,14 +269,14 @@ Vec3 ModalLaw::shaping_step(const LawCycle& c) {
   // the square of the PD gains' ratio (at 20-30 ms of latency its full gain made the law worse than
   // the paper's), but in full while a jet is held at its bound (the law has no authority to shape
   // with, and the rod rang at the reach's edge without it).
-  ModalLawOptions o = options_;
   const double lagged = std::pow(lag_ratio(options_, sample_period_, latency_, flow_lag_), 2);
-  o.damping_gain *= authority_ * lagged + (1.0 - authority_);
-  const Vec3 feedforward = w * modal_shaping(r, r.rate_now, omega_, damping_ratio(), o);
-  const Vec3 damping = w * modal_shaping(r, now_.rate(), omega_, damping_ratio(), o) - feedforward;
+  const double scale = authority_ * lagged + (1.0 - authority_);
+  const Vec3 feedforward = w * modal_shaping(r, r.rate_now, omega_, damping_ratio(), options_);
+  const Vec3 damping = w * modal_shaping(r, now_.rate(), omega_, damping_ratio(), options_) - feedforward;
   // The supervisor weighs the increments, not m: its fall-back must not kick the forces by −m. A jet
-  // held at its bound stops the feedforward (it winds up there), not the damping.
-  const Vec3 change = authority_ * (feedforward - previous_feedforward_) + (damping - previous_damping_);
+  // held at its bound stops the feedforward (it winds up there), not the damping; the damping's
+  // scale, linear in it, weighs its increments too, so a change of scale does not step the forces.
+  const Vec3 change = authority_ * (feedforward - previous_feedforward_) + scale * (damping - previous_damping_);
   const Vec3 step =
       shaping_primed_ ? Vec3(supervisor_weight_ * Vec3(c.solution->tip_rotation.col(2)).cross(change)) : Vec3::Zero();
   previous_feedforward_ = feedforward;

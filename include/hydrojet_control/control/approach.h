@@ -37,6 +37,8 @@ class ApproachMonitor {
   /// One cycle at t [s]: whether the reference is on the path's first direction, the loop's error
   /// [rad] and the measured tip direction (unit, base frame).
   Verdict update(double t, bool reference_there, double loop_error, const Vec3& measured);
+  /// [s] how long the reference has been on the first direction without the tip settling (0 before).
+  double settling_for(double t) const { return reached_ ? t - reached_at_ : 0.0; }
   /// Why it failed (after kFailed): the error and spread it saw, and the bounds.
   const std::string& failure() const { return failure_; }
 

@@ -125,6 +125,10 @@ class ContactEstimator {
   /// [s] a rise older than this (the force above half the threshold, neither flagged nor given way
   /// to) is counted afresh: the give and the rollback are of the last moments, not of seconds ago
   static constexpr double kMaxRiseAge = 0.5;
+  /// [s] a flag that the mismatch model of up to this long ago reads as free space is what the model
+  /// learned since coming off: a surface grazed under the threshold (learned as mismatch), then left.
+  static constexpr double kUnlearnLookBack = 3.0;
+  static constexpr double kSnapshotPeriod = 0.25;  ///< [s] between the mismatch model's snapshots
 
  private:
   struct ModelPose {
@@ -140,6 +144,7 @@ class ContactEstimator {
   void learn(const Eigen::VectorXd& phi, const Vec3& error, double dt);
   void detect(double t, double alpha, const ContactCycle& c, const Vec3& measured_direction,
               const Vec3& model_direction);
+  bool unlearn();
 
   ContactOptions options_;
   double input_scale_;
@@ -167,8 +172,14 @@ class ContactEstimator {
     Vec3 model;       ///< the model's tip direction
   };
   Look rise_{0.0, Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};  ///< where the give is counted from
-  std::deque<Look> looks_;                   ///< the last kGiveLookBack of samples: where the give is counted from
-  Eigen::MatrixXd rise_theta_, rise_info_;   ///< the mismatch model then (what it learned since was the load)
+  std::deque<Look> looks_;                  ///< the last kGiveLookBack of samples: where the give is counted from
+  Eigen::MatrixXd rise_theta_, rise_info_;  ///< the mismatch model then (what it learned since was the load)
+  struct Snapshot {
+    double t;
+    Eigen::MatrixXd theta, info;
+  };
+  std::deque<Snapshot> snapshots_;           ///< the mismatch model, every kSnapshotPeriod, back to kUnlearnLookBack
+  Eigen::VectorXd phi_;                      ///< the last sample's regressor
   Vec3 filtered_ = Vec3::Zero();             ///< the force beyond the mismatch and the load [N, base]
   Vec3 measured_direction_ = Vec3::UnitZ();  ///< the tracker's tip direction, low-passed as filtered_
   bool direction_known_ = false;

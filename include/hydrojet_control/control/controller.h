@@ -212,6 +212,7 @@ class Controller {
   Vec3 wall_d_ = Vec3::UnitX();                ///< the surface's free side as a turn of the tip (unit)
   double wall_allowed_ = 0.0;                  ///< [rad] how deep past wall_x_ the reference may go
   double wall_since_ = -1.0;                   ///< [s] the allowance's last update (negative: no wall)
+  bool held_off_wall_ = false;                 ///< hold_off_wall moved the reference this cycle
   static constexpr double kWallRelax = 0.25;   ///< [rad/s] the allowance's growth after a release
   static constexpr double kLoadTravel = 0.03;  ///< [rad] the least give that can tell a load (react_to_contact)
   // Where the contact last held the reference (rejoin_reference): it returns to its source from there.
