@@ -278,7 +278,7 @@ TEST(ContactEstimator, TheMismatchIsLearnedInFreeSpaceAndFrozenInContact) {
 // a pull. A snapshot of the model from before the graze reads that as free space, so the estimator
 // goes back to it: no flag, and the estimate near zero again. The graze is learned by more than
 // the threshold (checked), so the model that learned it would flag the leaving (it did, 0.28 s
-// after, before the snapshots).
+// after, before the snapshots). A surface met a second later is flagged and read as before.
 TEST(ContactEstimator, ASurfaceGrazedAndLeftIsNotFlagged) {
   Rig rig;
   std::mt19937 rng(11);
@@ -308,6 +308,16 @@ TEST(ContactEstimator, ASurfaceGrazedAndLeftIsNotFlagged) {
       EXPECT_LT(s.force.norm(), 0.5 * threshold) << "at t = " << t;
     }
   }
+  // A surface met next (within the snapshots' reach) is flagged as ever, its push read as it is.
+  const Vec3 push(0.03, 0.0, 0.0);
+  double flagged = -1.0;
+  for (const double met = t; t < met + 0.5; t += dt) {
+    const control::ContactState& s = e.update(last = rig.against(t, q_at(t), push, Vec3::Zero(), &rng));
+    if (s.in_contact && flagged < 0.0) flagged = t - met;
+  }
+  ASSERT_GE(flagged, 0.0) << "a surface met after the graze was not flagged";
+  EXPECT_LE(flagged, 0.1);
+  EXPECT_LT((e.state().force - last.measured_rotation * push).norm(), 0.006) << e.state().force.transpose();
 }
 
 // A cycle with a non-finite input or model pose (a flow sensor's NaN, a solve gone wrong) is not

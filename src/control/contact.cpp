@@ -93,6 +93,7 @@ void ContactEstimator::take_as_load(double t) {
     theta_ = rise_theta_;
     info_ = rise_info_;
     p_ = info_.inverse();
+    while (!snapshots_.empty() && snapshots_.back().t > rise_.t) snapshots_.pop_back();
   }
   load_ += filtered_;  // what is beyond the load now joins it; it settles over kLoadSettle
   filtered_.setZero();
@@ -244,17 +245,23 @@ void ContactEstimator::learn(const Eigen::VectorXd& phi, const Vec3& error, doub
 
 // A push that the mismatch model of a snapshot reads as free space (under half the threshold) is
 // what the model learned since (a surface grazed under the threshold, learned, and left): the model
-// goes back to the latest such snapshot, and the push with it.
+// goes back to the latest such snapshot, and the push with it. Only a snapshot that knew this
+// configuration (its variance here at most the residual's, kSnapshotSpread) is trusted so: a model
+// that had not seen it could read a genuine contact away.
 bool ContactEstimator::unlearn() {
   const Mat3& R = last_rotation_;
   for (auto s = snapshots_.rbegin(); s != snapshots_.rend(); ++s) {
     const Vec3 then = filtered_ + R * ((theta_ - s->theta).transpose() * phi_);
     if (!(then.norm() <= 0.5 * options_.force_threshold)) continue;
+    if (!(phi_.dot(s->info.ldlt().solve(phi_)) <= kSnapshotSpread)) continue;
     theta_ = s->theta;
     info_ = s->info;
     p_ = info_.inverse();
     snapshots_.erase(s.base(), snapshots_.end());
     filtered_ = then;
+    state_.force = load_ + filtered_;
+    state_.deflection = deflection(filtered_);
+    looks_.clear();
     return true;
   }
   return false;

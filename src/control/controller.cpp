@@ -134,7 +134,7 @@ void Controller::start(double t) {
   law_->reset();
   reset_actuation();
   probe_.cancel();
-  probe_pending_ = false;
+  probe_pending_ = probe_unsettled_ = false;
   contact_.reset();
   was_in_contact_ = false;
   wall_since_ = -1.0;
@@ -351,6 +351,7 @@ void Controller::approach(double t, ControllerOutput& out) {
       case ApproachMonitor::Verdict::kSettled:
         if (probe_first) {
           probe_pending_ = true;  // the probe first (update), then the path
+          probe_unsettled_ = false;
           break;
         }
         reference_.begin_path(t);
@@ -365,8 +366,9 @@ void Controller::approach(double t, ControllerOutput& out) {
       case ApproachMonitor::Verdict::kSettling:
         // A tip that rings on the law's first guesses (a mode lighter or less damped than they
         // say) is measured as it is, half the timeout in; the approach then starts over on the fit.
-        if (probe_first && approach_.settling_for(t) >= kProbeUnsettledAfter * options_.approach.timeout)
-          probe_pending_ = true;
+        if (probe_first && approach_.settling_for(t) >= std::max(options_.approach.settle_time,
+                                                                 kProbeUnsettledAfter * options_.approach.timeout))
+          probe_pending_ = probe_unsettled_ = true;
         break;
       default: break;
     }
@@ -490,9 +492,10 @@ void Controller::sense_contact(const ControllerInputs& in, const rod::RodSolutio
   c.model_position = sol.tip_position;
   c.compliance = lin.ok ? lin.body_compliance : rod::Mat6::Constant(std::nan(""));
   c.inputs = out.jet_force_observed;
-  c.pressing = held_off_wall_;  // last cycle's: the lead cap and the rejoin move the reference too, not into the wall
-  // The weight holds its last value while the law does not run (open loop, the probe).
-  c.ringing = options_.mode == LoopMode::kClosed && !probe_.active() && law_->supervisor_weight() < 1.0;
+  c.pressing = held_off_wall_;  // last cycle's hold_off_wall only (the lead cap and the rejoin do not press)
+  // The supervisor's weight holds its last value where it does not run (open loop, the probe and its fit).
+  c.ringing =
+      options_.mode == LoopMode::kClosed && !probe_.active() && !fit_waiting_ && law_->supervisor_weight() < 1.0;
   out.contact = contact_.update(c);
 }
 
@@ -658,7 +661,7 @@ void Controller::begin_probe(double t, const rod::RodSolution& sol, const Actuat
   }
   if (!error.empty()) {
     identity_.mode_error = "probe: " + error;
-    reference_.begin_path(t);
+    if (!probe_unsettled_) reference_.begin_path(t);  // unsettled: the approach goes on (settles or fails)
     return;
   }
   probe_inputs_ = last_inputs_;

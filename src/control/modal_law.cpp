@@ -275,7 +275,8 @@ Vec3 ModalLaw::shaping_step(const LawCycle& c) {
   const Vec3 damping = w * modal_shaping(r, now_.rate(), omega_, damping_ratio(), options_) - feedforward;
   // The supervisor weighs the increments, not m: its fall-back must not kick the forces by −m. A jet
   // held at its bound stops the feedforward (it winds up there), not the damping; the damping's
-  // scale, linear in it, weighs its increments too, so a change of scale does not step the forces.
+  // scale, linear in it, weighs its increments too, so a change of scale does not step the forces
+  // (what a lower scale held back stays, for the PD's integral to take up).
   const Vec3 change = authority_ * (feedforward - previous_feedforward_) + scale * (damping - previous_damping_);
   const Vec3 step =
       shaping_primed_ ? Vec3(supervisor_weight_ * Vec3(c.solution->tip_rotation.col(2)).cross(change)) : Vec3::Zero();

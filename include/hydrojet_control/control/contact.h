@@ -125,10 +125,12 @@ class ContactEstimator {
   /// [s] a rise older than this (the force above half the threshold, neither flagged nor given way
   /// to) is counted afresh: the give and the rollback are of the last moments, not of seconds ago
   static constexpr double kMaxRiseAge = 0.5;
-  /// [s] a flag that the mismatch model of up to this long ago reads as free space is what the model
-  /// learned since coming off: a surface grazed under the threshold (learned as mismatch), then left.
+  /// [s] a push that the mismatch model of up to this long ago reads as free space is a graze
+  /// learned as mismatch since (a surface met under the threshold), then left: not a contact.
   static constexpr double kUnlearnLookBack = 3.0;
   static constexpr double kSnapshotPeriod = 0.25;  ///< [s] between the mismatch model's snapshots
+  /// A snapshot is trusted where its model's variance is at most this many residual variances.
+  static constexpr double kSnapshotSpread = 1.0;
 
  private:
   struct ModelPose {

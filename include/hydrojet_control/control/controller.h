@@ -191,11 +191,12 @@ class Controller {
   bool duty_known_ = false;                     ///< previous_duty_ was commanded and held since
   double last_stamp_ = -1e300;                  ///< the tracker stamp last seen [s]
   ModeProbe probe_;
-  bool probe_pending_ = false;  ///< an approached path settled: the probe starts this cycle
-  bool probed_ = false;         ///< the probe has run (once per controller), or the file gave the mode
-  bool known_valves_ = false;   ///< the identification file gave every jet's lag
-  bool fit_inline_ = true;      ///< set_fit_inline
-  bool fit_waiting_ = false;    ///< the probe is over, its fit not yet adopted
+  bool probe_pending_ = false;    ///< an approached path settled: the probe starts this cycle
+  bool probe_unsettled_ = false;  ///< ... or had not settled half its timeout in
+  bool probed_ = false;           ///< the probe has run (once per controller), or the file gave the mode
+  bool known_valves_ = false;     ///< the identification file gave every jet's lag
+  bool fit_inline_ = true;        ///< set_fit_inline
+  bool fit_waiting_ = false;      ///< the probe is over, its fit not yet adopted
   double fit_wait_start_ = 0.0;
   bool job_ready_ = false;  ///< job_ waits for take_probe_job
   ProbeJob job_;
