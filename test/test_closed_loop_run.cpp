@@ -40,6 +40,13 @@ ShippedSetup shipped(const std::string& scene) {
           config::load_plant(sc, std::string(HYDROJET_SOURCE_DIR) + "/config/plant.yaml"), o.controller};
 }
 
+/// The run plan of experiment --start on-path: the path's first direction approached, then its clock.
+sim::RunPlan on_path() {
+  sim::RunPlan on;
+  on.start = sim::RunStart::kOnPath;
+  return on;
+}
+
 }  // namespace
 
 TEST(ClosedLoopRun, DeterministicForASeed) {
@@ -87,8 +94,7 @@ TEST(ClosedLoopRun, OnPathStartsTheClockOnceSettled) {
   c.path.theta_start = 0.3;
   c.path.theta_end = 0.5;
   c.path.phi_end = 3.0;
-  sim::RunPlan on;
-  on.start = sim::RunStart::kOnPath;
+  const sim::RunPlan on = on_path();
   const sim::RunResult a = sim::run_path(setup.model, c, setup.plant, 2, on);
   const sim::RunResult rest = sim::run_path(setup.model, c, setup.plant, 2, sim::RunPlan());
   ASSERT_TRUE(a.completed) << a.reason;
@@ -121,8 +127,7 @@ TEST(ClosedLoopRun, TheModalLawTracksAFastSpiralBetterThanThePapers) {
   const ShippedSetup setup = shipped("hydrojet_0deg");
   control::ControllerOptions c = setup.controller;
   c.path.duration = 20.0;
-  sim::RunPlan on;
-  on.start = sim::RunStart::kOnPath;
+  const sim::RunPlan on = on_path();
   for (int seed : {1, 2}) {
     c.control_law = control::ControlLaw::kModal;
     const sim::RunResult modal = sim::run_path(setup.model, c, setup.plant, seed, on);
@@ -143,8 +148,7 @@ TEST(ClosedLoopRun, TheModalLawTracksAFastSpiralBetterThanThePapers) {
 TEST(ClosedLoopRun, TheRoundingForceHelpsAPathThroughTheCentre) {
   const ShippedSetup setup = shipped("hydrojet_0deg");
   control::ControllerOptions c = setup.controller;
-  sim::RunPlan on;
-  on.start = sim::RunStart::kOnPath;
+  sim::RunPlan on = on_path();
   on.path = control::load_path_file(std::string(HYDROJET_SOURCE_DIR) + "/config/paths/lissajous.csv");
   ASSERT_GT(c.modal.rounding_force, 0.0);
   const sim::RunResult with = sim::run_path(setup.model, c, setup.plant, 1, on);
@@ -171,8 +175,7 @@ TEST(ClosedLoopRun, TheSupervisorActsBeforeTheAbort) {
   c.path.duration = 20.0;
   c.modal.kp = 21.0;
   c.modal.ki = 100.0;
-  sim::RunPlan on;
-  on.start = sim::RunStart::kOnPath;
+  const sim::RunPlan on = on_path();
   // The contact detector out of the way (a threshold of 0.8 N): a ringing tip reads as a force, and
   // the reaction to it would damp what this test watches the supervisor do.
   c.contact.force_threshold = 0.8;
@@ -203,8 +206,7 @@ TEST(ClosedLoopRun, ComplyHoldsAWallBelowMaxForce) {
       config::load_plant(test::scene("hydrojet_0deg"), std::string(HYDROJET_SOURCE_DIR) + "/config/plants/wall.yaml");
   control::ControllerOptions c = setup.controller;
   c.path.duration = 20.0;
-  sim::RunPlan on;
-  on.start = sim::RunStart::kOnPath;
+  const sim::RunPlan on = on_path();
   const sim::RunResult comply = sim::run_path(setup.model, c, wall, 1, on);
   c.contact.force_threshold = 0.8;  // contact ignored
   c.contact.max_force = 2.0;
@@ -234,8 +236,7 @@ TEST(ClosedLoopRun, AWallReadTurnedDoesNotRingTheRod) {
       "[-0.7071, -0.7071, 0.0], stiffness: 3000.0, damping: 0.5, friction: 0.3}]}}");
   control::ControllerOptions c = setup.controller;
   c.path.duration = 20.0;
-  sim::RunPlan on;
-  on.start = sim::RunStart::kOnPath;
+  const sim::RunPlan on = on_path();
   const sim::RunResult r = sim::run_path(setup.model, c, wall, 1, on);
   double largest_error = 0.0;
   for (const sim::RunSample& sample : r.samples) largest_error = std::max(largest_error, sample.error_geodesic);
@@ -257,8 +258,7 @@ TEST(ClosedLoopRun, ASteadyLoadIsNotTakenForASurface) {
       test::scene("hydrojet_0deg"), "plant: {external_loads: [{start: 5.0, force: [0.0, 0.03, 0.0], frame: base}]}");
   control::ControllerOptions c = setup.controller;
   c.path.duration = 20.0;
-  sim::RunPlan on;
-  on.start = sim::RunStart::kOnPath;
+  const sim::RunPlan on = on_path();
   const sim::RunResult reacting = sim::run_path(setup.model, c, loaded, 1, on);
   c.contact.force_threshold = 0.8;
   c.contact.max_force = 2.0;
@@ -299,8 +299,7 @@ TEST(ClosedLoopRun, IdentifiesThePlantPresent) {
   control::ControllerOptions c = setup.controller;
   c.path.duration = 20.0;
   c.path.theta_end = 0.3;
-  sim::RunPlan on;
-  on.start = sim::RunStart::kOnPath;
+  const sim::RunPlan on = on_path();
   const sim::RunResult r = sim::run_path(setup.model, c, p, 1, on);
   ASSERT_TRUE(r.completed) << r.reason;
   std::printf("identified: mode %.3f Hz ζ %.3f, latency %.3f s, valves", r.identified.mode_hz,
@@ -332,8 +331,7 @@ TEST(ClosedLoopRun, AnApproachThatRingsIsProbedAsItIs) {
       "tracker: {latency: 0.0}}");
   control::ControllerOptions c = setup.controller;
   c.path.duration = 10.0;
-  sim::RunPlan on;
-  on.start = sim::RunStart::kOnPath;
+  const sim::RunPlan on = on_path();
   c.identification.probe = false;
   const sim::RunResult unprobed = sim::run_path(setup.model, c, ringing, 1, on);
   c.identification.probe = true;
@@ -383,8 +381,7 @@ TEST(Identify, WritesTheFileThatTheControllerLoads) {
   const ShippedSetup setup = shipped("hydrojet_0deg");
   control::ControllerOptions c = o.controller;
   c.path.duration = 20.0;
-  sim::RunPlan on;
-  on.start = sim::RunStart::kOnPath;
+  const sim::RunPlan on = on_path();
   const sim::RunResult known = sim::run_path(setup.model, c, setup.plant, 1, on);
   c.identification = setup.controller.identification;  // no file: the probe runs
   const sim::RunResult probed = sim::run_path(setup.model, c, setup.plant, 1, on);

@@ -247,7 +247,7 @@ ControllerOutput Controller::update(const ControllerInputs& in) {
   last_inputs_ = out.jet_force_observed;
 
   if (probe_pending_) begin_probe(in.t, sol, lin);
-  if (probe_.active() || fit_waiting_)
+  if (probing())
     probe(in, sol, out);
   else if (std::string why = command_inputs(in, sol, lin, dt, out); !why.empty())
     return abort(out, why);
@@ -494,8 +494,7 @@ void Controller::sense_contact(const ControllerInputs& in, const rod::RodSolutio
   c.inputs = out.jet_force_observed;
   c.pressing = held_off_wall_;  // last cycle's hold_off_wall only (the lead cap and the rejoin do not press)
   // The supervisor's weight holds its last value where it does not run (open loop, the probe and its fit).
-  c.ringing =
-      options_.mode == LoopMode::kClosed && !probe_.active() && !fit_waiting_ && law_->supervisor_weight() < 1.0;
+  c.ringing = options_.mode == LoopMode::kClosed && !probing() && law_->supervisor_weight() < 1.0;
   out.contact = contact_.update(c);
 }
 

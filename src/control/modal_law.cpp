@@ -214,7 +214,7 @@ void ModalLaw::supervise(const LawCycle& c) {
   saturated_for_ = c.saturated ? saturated_for_ + dt : 0.0;
   if (saturated_for_ >= kSaturationHold)
     authority_ = 0.0;
-  else if (!c.saturated && !c.near_bound)
+  else if (!c.near_bound)  // near_bound includes saturated
     authority_ = std::min(1.0, authority_ + dt / kAuthorityRecovery);
   const double w0 = std::min(omega_ * dt, 2.5), alpha = 0.5 * std::sin(w0), a0 = 1.0 + alpha;
   const Vec3 x = c.measured - c.desired;

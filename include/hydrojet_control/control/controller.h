@@ -151,6 +151,8 @@ class Controller {
   static constexpr double kMaxKeepOutOffset = 0.02;  ///< [m] larger: a tracker fault, not a model error
   /// A jet commanded to its saturation (less `margin`, a fraction of its bound) or more.
   bool at_bound(const InputVector& command, double margin = 0.0) const;
+  /// The probe drives the jets, or its fit is awaited: the law does not run.
+  bool probing() const { return probe_.active() || fit_waiting_; }
   static constexpr double kNearBound = 0.1;  ///< the modal law's authority returns below 0.87 of a bound
   void begin_probe(double t, const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin);
   void probe(const ControllerInputs& in, const rod::RodSolution& sol, ControllerOutput& out);
