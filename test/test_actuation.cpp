@@ -464,6 +464,38 @@ TEST(FlowRegulator, LeadTimeCancelsAFirstOrderValveLagOnARamp) {
   EXPECT_NE(validate(bad).find("lead_time"), std::string::npos);
 }
 
+// The play's inverse: a linear valve (no lag) whose opening moves only when the duty leaves a band of
+// width p about it (the plant's hysteresis, written out here) follows a desired flow that turns back
+// and forth exactly under the feedforward alone when the regulator inverts p; without, its opening
+// trails the duty by p/2 (p/2·Q_max of flow, the band's closed form); inverting 0.8 p leaves 0.2 of
+// that. A play outside [0, 0.5) or not finite is taken as none.
+TEST(FlowRegulator, InvertingTheValvesPlayRemovesItsBand) {
+  const double q_max = 1.6e-5, p = 0.03, dt = 0.01;
+  auto worst = [&](double inverted) {
+    FlowRegulatorOptions o;
+    o.feedforward = 1.0 / q_max;
+    FlowRegulator reg(o);
+    reg.set_play(inverted);
+    double opening = 0.0, most = 0.0;
+    for (int k = 0; k < 400; ++k) {
+      const double q = q_max * (0.4 + 0.2 * std::sin(2.0 * M_PI * 0.7 * k * dt));
+      const double duty = reg.update(q, q, dt);
+      if (duty > opening + 0.5 * p) opening = duty - 0.5 * p;
+      if (duty < opening - 0.5 * p) opening = duty + 0.5 * p;
+      if (k >= 100) most = std::max(most, std::abs(q_max * opening - q));
+    }
+    return most;
+  };
+  EXPECT_NEAR(worst(0.0), 0.5 * p * q_max, 0.01 * p * q_max);
+  EXPECT_LT(worst(p), 1e-12 * q_max);
+  EXPECT_NEAR(worst(0.8 * p), 0.1 * p * q_max, 0.01 * p * q_max);
+  FlowRegulator reg;
+  for (const double bad : {-0.01, 0.5, std::nan(""), HUGE_VAL}) {
+    reg.set_play(bad);
+    EXPECT_EQ(reg.play(), 0.0) << bad;
+  }
+}
+
 // The valve curve's inverse: for a valve whose steady flow is Q_max d^γ (the plant's valves without
 // dead zone or hysteresis), the feedforward alone (no PI) gives the duty that delivers q exactly; γ = 1
 // is the linear feedforward k_ff q.

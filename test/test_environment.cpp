@@ -266,6 +266,17 @@ TEST(Environment, TheContactFiguresOfAScriptedRun) {
   EXPECT_NEAR(early.detection_delay_s, 0.0, 1e-12);
   EXPECT_DOUBLE_EQ(early.max_contact_force_after_detection_n, 0.08);
   EXPECT_NEAR(early.missed_contact_s, 0.0, 1e-12);
+  // A tap under the onset's 0.02 N that bounces off (1.00 s, gone over 1.01-1.05 s) before the
+  // contact proper (0.05 N from 1.06 s): one onset, at 1.06 s (the tap does not disarm it).
+  std::vector<hydrojet::sim::RunSample> tapped = run;
+  for (auto& s : tapped) {
+    const double t = s.t + 1e-9;
+    if (t >= 1.01 && t < 1.06) s.contact_force = 0.0;
+    s.contact_flag = t >= 1.16 && t < 2.2;
+  }
+  const auto tap = hydrojet::sim::summarise_contact(tapped, 0.01);
+  EXPECT_EQ(tap.onsets, 1);
+  EXPECT_NEAR(tap.detection_delay_s, 1.16 - 1.06, 1e-9);
   // No contact at all: no onset, nothing detected; the flag never up, nothing missed or false.
   for (auto& s : run) s.contact_force = 0.0, s.contact_flag = false;
   const auto none = hydrojet::sim::summarise_contact(run, 0.01);

@@ -119,10 +119,11 @@ TEST(ModeFit, SaysWhenThereIsNoMode) {
 TEST(ValveLag, RecoversTheLagBehindAnUnknownCurveInClosedLoop) {
   // A first-order valve (the plant's: dead zone, exponent, play, saturation) under a PI flow loop
   // following a path's setpoint after the probe's chirp, measured with the flow sensors' noise. Goal:
-  // τ within 20 %.
+  // τ within 20 %; the play, which the regulators invert (0.8 of it), within 0.008 (its grid's step is
+  // 0.005; a slow linear valve, τ 0.1 s, reads 0.0075 wide: its lag and a play trade off).
   for (const double tau : {0.03, 0.05, 0.1})
     for (const double exponent : {0.65, 1.0})
-      for (const double play : {0.0, 0.025}) {
+      for (const double play : {0.0, 0.0137, 0.025}) {
         const double dt = 0.01, max_flow = 1.6e-5, dead = 0.08;
         std::mt19937 rng(9);
         std::normal_distribution<double> n(0.0, 5e-8);
@@ -148,8 +149,7 @@ TEST(ValveLag, RecoversTheLagBehindAnUnknownCurveInClosedLoop) {
         }
         EXPECT_TRUE(e.identified()) << tau;
         EXPECT_NEAR(e.time_constant() / tau, 1.0, 0.2) << "τ " << tau << " exponent " << exponent << " play " << play;
-        EXPECT_NEAR(e.play(), play, 0.0101)  // within two steps of its grid (τ carries the goal)
-            << "τ " << tau << " exponent " << exponent;
+        EXPECT_NEAR(e.play(), play, 0.008) << "τ " << tau << " exponent " << exponent;
       }
 }
 

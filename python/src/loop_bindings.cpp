@@ -185,6 +185,7 @@ nb::dict identity_dict(const control::PlantIdentity& id, bool identified) {
   d["damping_ratio"] = id.mode_hz > 0.0 ? nb::cast(id.damping_ratio) : nb::none();
   d["valve_time_constants_s"] = id.valve_time_constants_s;
   d["tracker_latency_s"] = id.tracker_latency_s;
+  if (!id.valve_plays.empty()) d["valve_plays"] = id.valve_plays;
   if (identified) {
     d["mode_identified"] = id.mode_identified;
     d["valves_identified"] = id.valves_identified;

@@ -28,6 +28,7 @@ FlowRegulator::FlowRegulator(const FlowRegulatorOptions& params) : params_(param
 void FlowRegulator::reset() {
   integrator_ = 0.0;
   output_ = 0.0;
+  opening_ = 0.0;
   previous_desired_ = 0.0;
   primed_ = false;
   saturated_ = false;
@@ -42,6 +43,7 @@ double FlowRegulator::update(double q_des, double q_meas, double dt) {
   if (bad) {
     error_ = bad;
     output_ = 0.0;
+    move_opening();
     return output_;
   }
   error_.clear();
@@ -59,8 +61,22 @@ double FlowRegulator::update(double q_des, double q_meas, double dt) {
   const double unclamped = base + integrator_;
   saturated_ = unclamped > params_.output_max || unclamped < params_.output_min;
   output_ = std::clamp(unclamped, params_.output_min, params_.output_max);
+  if (play_ > 0.0) {  // the play's inverse: the opening moves onto u from the side it moves to
+    const double half = 0.5 * play_, u = output_;
+    if (u > opening_) output_ = std::min(u + half, params_.output_max);
+    if (u < opening_) output_ = std::max(u - half, params_.output_min);
+  }
+  move_opening();
   return output_;
 }
+
+void FlowRegulator::move_opening() {
+  const double half = 0.5 * play_;
+  if (output_ > opening_ + half) opening_ = output_ - half;
+  if (output_ < opening_ - half) opening_ = output_ + half;
+}
+
+void FlowRegulator::set_play(double width) { play_ = std::isfinite(width) && width > 0.0 && width < 0.5 ? width : 0.0; }
 
 // The duty for flow q by the inverted valve curve: k_ff q is the fraction of the flow at full duty.
 double FlowRegulator::feedforward(double q) const {

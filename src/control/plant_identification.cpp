@@ -52,7 +52,7 @@ void ValveLagEstimator::reset() {
   fitted_ = false;
   tau_ = prior_lag_;
   tau_sd_ = 1.0;
-  best_play_ = 0;
+  play_ = 0.0;
   moving_steps_ = 0;
 }
 
@@ -71,7 +71,7 @@ void ValveLagEstimator::add(double previous_flow, double duty, double flow, doub
   weight_ += growth_;
   for (int p = 0; p < kPlays; ++p) {
     Play& play = plays_[p];
-    const double half = 0.0025 * p;
+    const double half = 0.5 * kPlayStep * p;
     if (d > play.effective + half) play.effective = d - half;
     if (d < play.effective - half) play.effective = d + half;
     const int j = static_cast<int>(std::upper_bound(kKnotDuty, kKnotDuty + kKnots - 1, play.effective) - kKnotDuty) - 1;
@@ -129,7 +129,18 @@ void ValveLagEstimator::estimate() {
   for (int p = 0; p < kPlays; ++p)
     for (int l = 0; l < kLags; ++l)
       if (plays_[p].residual[l] < plays_[bp].residual[bl]) bp = p, bl = l;
-  best_play_ = bp;
+  play_ = kPlayStep * bp;
+  if (bp > 0 && bp < kPlays - 1) {      // between the grid's plays: a parabola through each one's least residual
+    const auto least = [this](int p) {  // over the lags, refined by a parabola in log τ (τ and the play trade off)
+      const auto& r = plays_[p].residual;
+      const int l = static_cast<int>(std::min_element(r.begin(), r.end()) - r.begin());
+      if (l == 0 || l == kLags - 1) return r[l];
+      const double bend = r[l - 1] - 2.0 * r[l] + r[l + 1];
+      return bend > 0.0 ? r[l] - std::pow(r[l + 1] - r[l - 1], 2) / (8.0 * bend) : r[l];
+    };
+    const double lo = least(bp - 1), mid = least(bp), hi = least(bp + 1), bend = lo - 2.0 * mid + hi;
+    if (bend > 0.0) play_ += kPlayStep * std::clamp(0.5 * (lo - hi) / bend, -0.5, 0.5);
+  }
   fitted_ = bl > 0 && bl < kLags - 1 && weight_ > 0.0;
   if (!fitted_) return;
   const auto& r = plays_[bp].residual;

@@ -77,14 +77,16 @@ double water_flow(const control::RobotModel& model, const std::vector<RunSample>
 ContactSummary summarise_contact(const std::vector<RunSample>& samples, double dt) {
   constexpr double kOnset = 0.02, kMissed = 0.03, kQuietBeforeOnset = 0.5, kQuietForFalse = 0.3, kAfterDetection = 0.3;
   ContactSummary c;
-  double quiet = 0.0;      // [s] the true normal force has been zero
-  bool armed = false;      // this contact began after kQuietBeforeOnset of none: its first kOnset is an onset
+  double quiet = 0.0;  // [s] the true normal force has been zero
+  // This contact began after kQuietBeforeOnset of none: its first kOnset is an onset (taps below kOnset
+  // that bounce off before it do not disarm it).
+  bool armed = false;
   double onset = -1.0;     // [s] of an onset not yet flagged (< 0: none)
   double detected = -1.0;  // [s] the flag was first up on this contact (< 0: not yet, or no contact)
   double err2 = 0.0;
   for (const RunSample& s : samples) {
     const bool touching = s.contact_force > 0.0;
-    if (touching && quiet > 0.0) armed = quiet >= kQuietBeforeOnset;
+    if (touching && quiet >= kQuietBeforeOnset) armed = true;
     if (touching && armed && s.contact_force > kOnset) {
       if (onset >= 0.0)  // the last one was never flagged: its delay is at least this long
         c.detection_delay_s =
@@ -246,8 +248,13 @@ control::PlantIdentity plant_truth(const plant::Plant& plant) {
   control::PlantIdentity truth;
   truth.tracker_latency_s = m.sensor_noise ? m.tracker.latency : 0.0;
   truth.valve_time_constants_s.assign(plant.input_count(), 0.0);
+  truth.valve_plays.assign(plant.input_count(), 0.0);
   for (int i = 0; i < plant.input_count(); ++i)
-    if (plant.is_jet(i)) truth.valve_time_constants_s[i] = m.valves[plant.valve_of(i) % m.valves.size()].time_constant;
+    if (plant.is_jet(i)) {
+      const plant::ValveModel& v = m.valves[plant.valve_of(i) % m.valves.size()];
+      truth.valve_time_constants_s[i] = v.time_constant;
+      truth.valve_plays[i] = v.hysteresis;
+    }
   rod::TipWrench w;
   w.force = m.external_tip_force;
   w.moment = m.external_tip_moment;
@@ -268,6 +275,8 @@ std::string identity_json(const control::PlantIdentity& id, bool identified) {
   o.add("valve_time_constants_s",
         Eigen::Map<const Eigen::VectorXd>(id.valve_time_constants_s.data(), id.valve_time_constants_s.size()));
   o.add("tracker_latency_s", id.tracker_latency_s);
+  if (!id.valve_plays.empty())
+    o.add("valve_plays", Eigen::Map<const Eigen::VectorXd>(id.valve_plays.data(), id.valve_plays.size()));
   if (identified) {  // what was measured, and what is still the controller file's first guess
     o.add("mode_identified", id.mode_identified).add("valves_identified", id.valves_identified);
     if (!id.mode_error.empty()) o.add("mode_error", id.mode_error);

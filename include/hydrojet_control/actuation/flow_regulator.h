@@ -13,6 +13,10 @@
 // keeps integrating when the error drives the output back into range. So I exceeds the headroom to
 // the limit by at most one step k_i e dt, and the loop leaves saturation as soon as the setpoint
 // becomes reachable (no wound-up integral to unwind).
+// A valve with play (backlash of width p, identified from the flow sensors: ValveLagEstimator) moves
+// its opening only once the duty leaves the band about it; set_play makes u the opening and commands
+// u ± p/2 on the side it moves to (the play's inverse), so a reversal of the flow does not wait for
+// the integral to cross the band.
 #pragma once
 
 #include <string>
@@ -50,6 +54,10 @@ class FlowRegulator {
 
   /// Zeroes the integrator and the output and clears the error.
   void reset();
+  /// The valve's play [duty] the command inverts (0: none); a width outside [0, 0.5) or not finite is
+  /// taken as 0.
+  void set_play(double width);
+  double play() const { return play_; }
 
   double output() const { return output_; }          ///< last command [1]
   double integrator() const { return integrator_; }  ///< I [1]
@@ -60,10 +68,13 @@ class FlowRegulator {
 
  private:
   double feedforward(double q) const;
+  void move_opening();  ///< opening_ after output_ was commanded
 
   FlowRegulatorOptions params_;
   double integrator_ = 0.0;
   double output_ = 0.0;
+  double play_ = 0.0;              ///< [duty] (set_play)
+  double opening_ = 0.0;           ///< the duty past the play, as the commands since reset() left it
   double previous_desired_ = 0.0;  ///< Q_des of the last valid step [m^3/s] (T_lead's rate)
   bool primed_ = false;            ///< a valid step since reset() (the first has no rate)
   bool saturated_ = false;

@@ -138,6 +138,9 @@ class Controller {
   void track_reference(const ControllerInputs& in, const rod::RodSolution& sol, double dt, ControllerOutput& out);
   void approach(double t, ControllerOutput& out);
   void observe_plant(const ControllerInputs& in, double dt);
+  /// The share of a valve's identified play its regulator inverts: an inverted play wider than the
+  /// valve's acts as a relay and hunts (an exact inversion did, near the valves' dead zones).
+  static constexpr double kPlayInverted = 0.8;
   void learn_reach(double dt, const ControllerOutput& out);
   void sense_contact(const ControllerInputs& in, const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin,
                      ControllerOutput& out);

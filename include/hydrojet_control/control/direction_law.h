@@ -60,6 +60,9 @@ class DirectionLaw {
   /// What has been measured of the plant (the controller, every cycle), and the flow regulators
   /// that close the loop on the valves (flow_regulator/*). The paper's law assumes nothing of it.
   virtual void adopt(const PlantIdentity& /*identity*/, const actuation::FlowRegulatorOptions& /*flow*/) {}
+  /// The flow regulators invert the valves' identified play under this law now (the paper's: as
+  /// published, they do not).
+  virtual bool inverts_play() const { return false; }
   /// The supervisor's share of the law's own terms in [0, 1] (0: the paper's law acts), and the mode's
   /// swing it watches [rad]; the paper's law has neither.
   virtual double supervisor_weight() const { return 1.0; }

@@ -37,6 +37,8 @@ class JetActuation {
                        double dt);
   /// Zeroes the regulators' integrators.
   void reset();
+  /// Jet i's valve has this play [duty] (identified): its regulator inverts it.
+  void set_play(int i, double width) { regulators_[i].set_play(width); }
   /// The jets' flow regulator (the same for every actuator).
   const actuation::FlowRegulatorOptions& flow_regulator() const { return regulators_.front().options(); }
 

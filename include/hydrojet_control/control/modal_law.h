@@ -140,6 +140,9 @@ class ModalLaw : public DirectionLaw {
   /// The identified fill and damping time replace modal/tip_mass_scale and modal/damping_time (their
   /// first guesses).
   void adopt(const PlantIdentity& identity, const actuation::FlowRegulatorOptions& flow) override;
+  /// Where it drives (closed loop, on a path whose clock runs): near the dead zones, where the jets
+  /// sit on an approach or a hold, the inverted play hunted (the path keeps a common flow).
+  bool inverts_play() const override { return drives_; }
   const ModalLawOptions& options() const { return options_; }
   const ModalEstimator& estimator() const { return estimator_; }
   /// The tracking error's swing at the mode's frequency [rad] (the supervisor's measure).

@@ -26,6 +26,7 @@ struct PlantIdentity {
   double damping_ratio = 0.0;                  ///< its damping ratio ζ [-]
   std::vector<double> valve_time_constants_s;  ///< per actuator: the flow's lag behind the duty [s] (0: not a jet)
   double tracker_latency_s = 0.0;              ///< from a pose's measurement to its arrival [s]
+  std::vector<double> valve_plays;             ///< per actuator: the valve's play (backlash) [duty] (0: none known)
   // What the modal law takes from them.
   bool mode_identified = false;  ///< the probe's fit holds (else: the first guess)
   /// Why the probe's fit, or the dynamic rod's, did not hold (empty: both did, or no probe yet).
@@ -109,7 +110,8 @@ class ValveLagEstimator {
   static constexpr int kKnots = 14;
   static constexpr double kKnotDuty[kKnots] = {0.0,  0.02, 0.04, 0.06, 0.08, 0.1,  0.13,
                                                0.17, 0.22, 0.3,  0.4,  0.55, 0.75, 1.0};
-  static constexpr int kPlays = 9;                          ///< play widths 0, 0.005, ..., 0.04 [duty]
+  static constexpr int kPlays = 9;                          ///< play widths 0, kPlayStep, ..., 0.04 [duty]
+  static constexpr double kPlayStep = 0.005;                ///< [duty]
   static constexpr int kLags = 12;                          ///< τ on a log grid from kMinLag to kMaxLag
   static constexpr double kMinLag = 0.015, kMaxLag = 0.25;  ///< [s]
   static constexpr int kRefreshEvery = 4;                   ///< one play's solves every this many samples
@@ -121,7 +123,8 @@ class ValveLagEstimator {
   void add(double previous_flow, double duty, double flow, double dt);
   /// τ [s]: the fit's once identified(), the prior's until then.
   double time_constant() const { return identified() ? tau_ : prior_lag_; }
-  double play() const { return best_play_ * 0.005; }  ///< the play's width that fits best [duty]
+  /// The play's width that fits best [duty]: the grid's, refined by a parabola through its neighbours.
+  double play() const { return play_; }
   /// Enough data: 50 steps where the flow moved by at least 0.5 % of max_flow, the least residual
   /// inside the lag grid, and τ's standard deviation (from the residual's curvature) within 10 % of τ.
   bool identified() const;
@@ -152,7 +155,7 @@ class ValveLagEstimator {
   int next_refresh_ = 0, refreshed_ = 0, calls_ = 0;
   bool fitted_ = false;
   double tau_ = 0.0, tau_sd_ = 1.0;  ///< [s], and its relative standard deviation
-  int best_play_ = 0;
+  double play_ = 0.0;                ///< [duty] (play())
   int moving_steps_ = 0;
 };
 
