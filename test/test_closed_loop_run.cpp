@@ -399,6 +399,15 @@ TEST(Identify, WritesTheFileThatTheControllerLoads) {
   EXPECT_TRUE(id.mode_identified);
   EXPECT_NEAR(id.mode_hz, mode, 1e-4 * mode);
   EXPECT_EQ(id.valve_time_constants_s.size(), 3u);
+  // The valves' plays, written and read back: the shipped valves' play is 0.02 of the duty each
+  // (the bench's tolerance, ValveLag.RecoversTheLagBehindAnUnknownCurveInClosedLoop).
+  const std::vector<double> plays = test::array_field(test::object_field(json, "identified"), "valve_plays");
+  ASSERT_EQ(id.valve_plays.size(), 3u);
+  ASSERT_EQ(plays.size(), 3u);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(id.valve_plays[i], plays[i], 1e-5) << "jet " << i;
+    EXPECT_NEAR(id.valve_plays[i], 0.02, 0.008) << "jet " << i;
+  }
   // A controller file next to it that names it relatively.
   std::ifstream shipped_file(src + "/config/controller.yaml");
   std::string text((std::istreambuf_iterator<char>(shipped_file)), std::istreambuf_iterator<char>());
@@ -420,6 +429,8 @@ TEST(Identify, WritesTheFileThatTheControllerLoads) {
   ASSERT_TRUE(probed.completed) << probed.reason;
   EXPECT_TRUE(known.identified.mode_identified);
   EXPECT_NEAR(known.identified.tip_mass_scale, id.tip_mass_scale, 1e-9);
+  ASSERT_EQ(known.identified.valve_plays.size(), 3u);  // the file's, or the flows' own since
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(known.identified.valve_plays[i], 0.02, 0.008) << "jet " << i;
   EXPECT_LT(known.approach_time, probed.approach_time - 2.0);
 }
 
@@ -431,6 +442,8 @@ TEST(Identify, ABrokenFileIsRefusedNamingTheKey) {
       "tracker_latency_s: 0.01, mode_hz: 3.2, damping_ratio: 0.2}\n";
   std::ofstream(path) << good;
   EXPECT_NEAR(config::load_identification(path).tip_mass_scale, 2.5, 1e-12);
+  // A file written before the plays were measured: none known, none inverted.
+  EXPECT_EQ(config::load_identification(path).valve_plays, std::vector<double>(3, 0.0));
   const std::pair<std::string, std::string> bad[] = {
       {"identification: {tip_mass_scale: 2.5}\n", "identification/damping_time"},
       {"identification: {tip_mass_scale: .nan, damping_time: 0.02, valve_time_constants_s: [0.04], "
@@ -442,6 +455,12 @@ TEST(Identify, ABrokenFileIsRefusedNamingTheKey) {
       {"identification: {tip_mass_scale: 2.5, damping_time: 0.02, valve_time_constants_s: [0.04], "
        "tracker_latency_s: 0, mode_hz: 3, damping_ratio: 0.2, extra: 1}\n",
        "identification/extra"},
+      {"identification: {tip_mass_scale: 2.5, damping_time: 0.02, valve_time_constants_s: [0.04, 0.05], "
+       "valve_plays: [0.02, 0.5], tracker_latency_s: 0, mode_hz: 3, damping_ratio: 0.2}\n",
+       "identification/valve_plays"},
+      {"identification: {tip_mass_scale: 2.5, damping_time: 0.02, valve_time_constants_s: [0.04, 0.05], "
+       "valve_plays: [0.02], tracker_latency_s: 0, mode_hz: 3, damping_ratio: 0.2}\n",
+       "identification/valve_plays"},
       {"[1, 2\n", "identification/file"},
   };
   for (const auto& [text, key] : bad) {

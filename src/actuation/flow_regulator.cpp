@@ -43,7 +43,7 @@ double FlowRegulator::update(double q_des, double q_meas, double dt) {
   if (bad) {
     error_ = bad;
     output_ = 0.0;
-    move_opening();
+    opening_ = play_opening(opening_, output_, play_);
     return output_;
   }
   error_.clear();
@@ -66,14 +66,15 @@ double FlowRegulator::update(double q_des, double q_meas, double dt) {
     if (u > opening_) output_ = std::min(u + half, params_.output_max);
     if (u < opening_) output_ = std::max(u - half, params_.output_min);
   }
-  move_opening();
+  opening_ = play_opening(opening_, output_, play_);
   return output_;
 }
 
-void FlowRegulator::move_opening() {
-  const double half = 0.5 * play_;
-  if (output_ > opening_ + half) opening_ = output_ - half;
-  if (output_ < opening_ - half) opening_ = output_ + half;
+double play_opening(double opening, double command, double width) {
+  const double half = 0.5 * width;
+  if (command > opening + half) return command - half;
+  if (command < opening - half) return command + half;
+  return opening;
 }
 
 void FlowRegulator::set_play(double width) { play_ = std::isfinite(width) && width > 0.0 && width < 0.5 ? width : 0.0; }

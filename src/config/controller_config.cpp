@@ -271,6 +271,14 @@ control::PlantIdentity load_identification(const std::string& path) {
   id.valve_time_constants_s = p.number_list("identification/valve_time_constants_s", 1, 8);
   for (const double tau : id.valve_time_constants_s)
     if (!(tau >= 0.0 && tau <= 1.0)) p.fail("identification/valve_time_constants_s", "each must lie in [0, 1] s");
+  // The valves' plays (a file written before identify measured them has none: zero, not inverted).
+  if (p.has("identification/valve_plays")) {
+    id.valve_plays = p.numbers("identification/valve_plays", id.valve_time_constants_s.size());
+    for (const double play : id.valve_plays)
+      if (!(play >= 0.0 && play <= 0.2)) p.fail("identification/valve_plays", "each must lie in [0, 0.2] of the duty");
+  } else {
+    id.valve_plays.assign(id.valve_time_constants_s.size(), 0.0);
+  }
   id.valves_identified = p.boolean("identification/valves_identified", true);
   p.reject_unknown();
   id.mode_identified = true;

@@ -99,6 +99,8 @@ Controller::Controller(const RobotModel& model, const ControllerOptions& options
                              std::max(top_flows[i], 1e-9));
   identity_.valve_time_constants_s.assign(jets_.input_count(), 0.0);
   identity_.valve_plays.assign(jets_.input_count(), 0.0);
+  if (known_valves && known.valves_identified && known.valve_plays.size() == known.valve_time_constants_s.size())
+    identity_.valve_plays = known.valve_plays;  // inverted from the start, until the flows name them again
   identity_.tip_mass_scale = options.modal.tip_mass_scale;
   identity_.damping_time = options.modal.damping_time;
   if (known.mode_identified) {  // measured on this rig already: not probed again
@@ -467,10 +469,9 @@ void Controller::observe_plant(const ControllerInputs& in, double dt) {
     if (!jets_.is_jet(i)) continue;
     if (duty_known_) valve_lags_[i].add(previous_flows_[i], previous_duty_[i], in.flows[i], dt);
     identity_.valve_time_constants_s[i] = valve_lags_[i].time_constant();
-    if (valve_lags_[i].identified()) {
-      identity_.valve_plays[i] = valve_lags_[i].play();
+    if (valve_lags_[i].identified()) identity_.valve_plays[i] = valve_lags_[i].play();
+    if (valve_lags_[i].identified() || known_valves_)
       jets_.set_play(i, law_->inverts_play() ? kPlayInverted * identity_.valve_plays[i] : 0.0);
-    }
     identified = identified && valve_lags_[i].identified();
   }
   identity_.valves_identified = identified || known_valves_;

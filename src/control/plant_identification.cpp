@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "hydrojet_control/actuation/flow_regulator.h"
 #include "hydrojet_control/identification/free_vibration.h"
 #include "hydrojet_control/util/format.h"
 
@@ -71,9 +72,7 @@ void ValveLagEstimator::add(double previous_flow, double duty, double flow, doub
   weight_ += growth_;
   for (int p = 0; p < kPlays; ++p) {
     Play& play = plays_[p];
-    const double half = 0.5 * kPlayStep * p;
-    if (d > play.effective + half) play.effective = d - half;
-    if (d < play.effective - half) play.effective = d + half;
+    play.effective = actuation::play_opening(play.effective, d, kPlayStep * p);
     const int j = static_cast<int>(std::upper_bound(kKnotDuty, kKnotDuty + kKnots - 1, play.effective) - kKnotDuty) - 1;
     const double w = (play.effective - kKnotDuty[j]) / (kKnotDuty[j + 1] - kKnotDuty[j]);
     for (int l = 0; l < kLags; ++l) {
@@ -121,6 +120,26 @@ void ValveLagEstimator::refresh(int p) {
   }
 }
 
+namespace {
+// The parabola through three values a grid step apart (at −1, 0, 1): its least's abscissa, clamped
+// to half a step (the middle value is the grid's least), and its value there; false where it does
+// not bend upward.
+struct Vertex {
+  double at = 0.0;
+  double value = 0.0;
+  double bend = 0.0;  ///< the second difference
+  bool ok = false;
+};
+Vertex parabola_vertex(double lo, double mid, double hi) {
+  Vertex v{0.0, mid, lo - 2.0 * mid + hi, false};
+  if (!(v.bend > 0.0)) return v;
+  v.at = std::clamp(0.5 * (lo - hi) / v.bend, -0.5, 0.5);
+  v.value = mid + 0.5 * (hi - lo) * v.at + 0.5 * v.bend * v.at * v.at;
+  v.ok = true;
+  return v;
+}
+}  // namespace
+
 // The play and lag of least residual; τ from a parabola through it and its neighbours in log τ, its
 // spread from the parabola's curvature against the residual's variance (one standard deviation
 // raises the residual sum, the samples' count times its mean square, by about that variance).
@@ -134,26 +153,23 @@ void ValveLagEstimator::estimate() {
     const auto least = [this](int p) {  // over the lags, refined by a parabola in log τ (τ and the play trade off)
       const auto& r = plays_[p].residual;
       const int l = static_cast<int>(std::min_element(r.begin(), r.end()) - r.begin());
-      if (l == 0 || l == kLags - 1) return r[l];
-      const double bend = r[l - 1] - 2.0 * r[l] + r[l + 1];
-      return bend > 0.0 ? r[l] - std::pow(r[l + 1] - r[l - 1], 2) / (8.0 * bend) : r[l];
+      return l == 0 || l == kLags - 1 ? r[l] : parabola_vertex(r[l - 1], r[l], r[l + 1]).value;
     };
-    const double lo = least(bp - 1), mid = least(bp), hi = least(bp + 1), bend = lo - 2.0 * mid + hi;
-    if (bend > 0.0) play_ += kPlayStep * std::clamp(0.5 * (lo - hi) / bend, -0.5, 0.5);
+    const Vertex v = parabola_vertex(least(bp - 1), least(bp), least(bp + 1));
+    play_ += kPlayStep * v.at;
   }
   fitted_ = bl > 0 && bl < kLags - 1 && weight_ > 0.0;
   if (!fitted_) return;
   const auto& r = plays_[bp].residual;
-  const double h = std::log(kMaxLag / kMinLag) / (kLags - 1);  // the grid's step in log τ
-  const double curvature = (r[bl - 1] - 2.0 * r[bl] + r[bl + 1]) / (h * h);
-  if (!(curvature > 0.0)) {
+  const Vertex v = parabola_vertex(r[bl - 1], r[bl], r[bl + 1]);
+  if (!v.ok) {
     fitted_ = false;
     return;
   }
-  const double shift = std::clamp(-0.5 * h * (r[bl + 1] - r[bl - 1]) / (h * h * curvature), -0.5 * h, 0.5 * h);
-  tau_ = lag_at(bl) * std::exp(shift);
+  const double h = std::log(kMaxLag / kMinLag) / (kLags - 1);  // the grid's step in log τ
+  tau_ = lag_at(bl) * std::exp(h * v.at);
   const double samples = weight_ / growth_;  // the forgotten count
-  tau_sd_ = std::sqrt(2.0 * r[bl] / (samples * curvature));
+  tau_sd_ = std::sqrt(2.0 * r[bl] * h * h / (samples * v.bend));
 }
 
 rod::DynamicRodModel robot_dynamics(const rod::RodModel& robot, double tip_mass_scale, double damping_time) {

@@ -2,8 +2,8 @@
 // the first mode there (mode_probe.h: a chirp of the jets, fitted with Ceres), then takes the tip
 // round four directions 0.3 rad out (the valves' lags learn from the flows meanwhile), and writes
 // what it measured to a file that the controller file loads (identification/file):
-//   identification: {tip_mass_scale, damping_time, valve_time_constants_s, tracker_latency_s,
-//                    mode_hz, damping_ratio}
+//   identification: {tip_mass_scale, damping_time, valve_time_constants_s, valve_plays,
+//                    tracker_latency_s, mode_hz, damping_ratio}
 // The last line of stdout is one JSON object: {"identified": {...}, "plant_truth": {...}, "out": FILE}
 // (plant_truth: the simulated plant's own, sim::plant_truth, at the same equilibrium).
 //   identify --scene FILE --plant FILE --controller FILE [--seed N] [--out FILE.yaml]
@@ -115,12 +115,14 @@ bool write_file(const std::string& out, const std::string& plant_file, unsigned 
                 "  tip_mass_scale: %.6g    # the capsule's effective fill: the model's first mode is the one measured\n"
                 "  damping_time: %.6g      # [s] Kelvin-Voigt time of that mode's damping\n"
                 "  valve_time_constants_s: %s  # [s] per actuator (0: not a jet)\n"
+                "  valve_plays: %s  # [duty] per actuator: each valve's play (backlash)\n"
                 "  tracker_latency_s: %.6g # [s]\n"
                 "  mode_hz: %.6g           # [Hz] at the run's end (rest)\n"
                 "  damping_ratio: %.6g     # there\n"
                 "  valves_identified: %s\n",
                 plant_file.c_str(), seed, id.tip_mass_scale, id.damping_time, list(id.valve_time_constants_s).c_str(),
-                id.tracker_latency_s, id.mode_hz, id.damping_ratio, id.valves_identified ? "true" : "false");
+                list(id.valve_plays).c_str(), id.tracker_latency_s, id.mode_hz, id.damping_ratio,
+                id.valves_identified ? "true" : "false");
   f << buf;
   f.close();
   return static_cast<bool>(f);

@@ -40,6 +40,11 @@ struct FlowRegulatorOptions {
 /// within 0 ≤ output_min ≤ output_max ≤ 1).
 std::string validate(const FlowRegulatorOptions& p);
 
+/// A valve's opening with play (backlash) of `width` [duty] after `command`: it moves only when the
+/// command leaves the band of half the width about it (the regulator's model of its valve, and the
+/// flow sensors' fit of the play).
+double play_opening(double opening, double command, double width);
+
 /// PI flow regulator for one jet.
 class FlowRegulator {
  public:
@@ -68,7 +73,6 @@ class FlowRegulator {
 
  private:
   double feedforward(double q) const;
-  void move_opening();  ///< opening_ after output_ was commanded
 
   FlowRegulatorOptions params_;
   double integrator_ = 0.0;
