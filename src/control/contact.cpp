@@ -4,7 +4,9 @@
 #include <cmath>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
 
+#include "hydrojet_control/rod/so3.h"
 #include "hydrojet_control/util/format.h"
 
 namespace hydrojet {
@@ -95,7 +97,7 @@ void ContactEstimator::take_as_load(double t) {
     p_ = info_.inverse();
     while (!snapshots_.empty() && snapshots_.back().t > rise_.t) snapshots_.pop_back();
   }
-  load_ += filtered_;  // what is beyond the load now joins it; it settles over kLoadSettle
+  load_ += to_force_ * filtered_;  // what is beyond the load now joins it; it settles over kLoadSettle
   filtered_.setZero();
   state_.force = load_;
   state_.load = load_;
@@ -124,6 +126,38 @@ const ContactEstimator::ModelPose* ContactEstimator::pose_at(double stamp) const
   return best;
 }
 
+// How the mismatch model reads a force f that the jets take up: (I + G) f, G = (dm/dq) B⁺, dm/dq the
+// model's growth with the inputs (its regressors follow the model's pose, which the inputs turn:
+// C^b's rotation rows times each input's wrench), B the inputs' tip forces. Learned in free space,
+// dm/dq is C_m⁻¹ (C_plant − C_m) B: a plant stiffer or softer than the model, or a capsule whose
+// weight the model does not carry, reads f as C_m⁻¹ C_plant f. G's mean over the jets' forces is
+// taken (a compliance's ratio, not a misaligned jet's turn, which stays with the inputs under a
+// load too), bounded to [kMinReadingGain, kMaxReadingGain]; a model that has learned nothing reads 1.
+Mat3 ContactEstimator::reading_gain(const ModelPose& pose) const {
+  const int n = static_cast<int>(pose.inputs.size());
+  if (pose.wrenches.cols() != n || n == 0) return Mat3::Identity();
+  Eigen::Matrix<double, 3, Eigen::Dynamic> dm(3, n);
+  for (int i = 0; i < n; ++i) {
+    const Vec3 turn = pose.compliance.block<3, 6>(3, 0) * pose.wrenches.col(i);
+    const Mat3 dR = pose.rotation * so3::hat(turn);
+    Eigen::VectorXd dphi = Eigen::VectorXd::Zero(theta_.rows());
+    dphi.segment<9>(1) = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(dR.data());
+    if (i + 10 < dphi.size()) dphi[i + 10] = 1.0 / input_scale_;
+    dm.col(i) = theta_.transpose() * dphi;
+  }
+  const Eigen::Matrix<double, 3, Eigen::Dynamic> B = pose.wrenches.topRows<3>();
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(B, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::MatrixXd pinv = Eigen::MatrixXd::Zero(n, 3);
+  const double top = svd.singularValues().size() ? svd.singularValues()[0] : 0.0;
+  for (int k = 0; k < svd.singularValues().size(); ++k)
+    if (svd.singularValues()[k] > 1e-3 * top)
+      pinv += svd.matrixV().col(k) * svd.matrixU().col(k).transpose() / svd.singularValues()[k];
+  const Mat3 P = B * pinv;  // the projector on the forces the jets make
+  const double ratio = 1.0 + (dm * pinv).trace() / std::max(1.0, P.trace());
+  if (!std::isfinite(ratio)) return Mat3::Identity();
+  return Mat3::Identity() + (std::clamp(ratio, kMinReadingGain, kMaxReadingGain) - 1.0) * P;
+}
+
 Vec3 ContactEstimator::deflection(const Vec3& force) const {
   const Vec3 turn = last_compliance_.block<3, 3>(3, 0) * (last_rotation_.transpose() * force);
   return last_rotation_ * Vec3(turn.y(), -turn.x(), 0.0);  // (θ × e3) in the tip frame
@@ -132,7 +166,10 @@ Vec3 ContactEstimator::deflection(const Vec3& force) const {
 const ContactState& ContactEstimator::update(const ContactCycle& c) {
   if (c.model_rotation.allFinite() && c.model_position.allFinite() && c.compliance.allFinite() &&
       c.inputs.size() + 10 == theta_.rows() && c.inputs.allFinite())
-    history_.push_back({c.t, c.model_rotation, c.model_position, c.compliance, c.inputs});
+    history_.push_back({c.t, c.model_rotation, c.model_position, c.compliance, c.inputs,
+                        c.input_wrenches.cols() == c.inputs.size() && c.input_wrenches.allFinite()
+                            ? c.input_wrenches
+                            : rod::ActuationJacobian::Zero(6, 0)});
   while (!history_.empty() && history_.front().t < c.t - kHistory) history_.pop_front();
   const ModelPose* pose = c.new_sample ? pose_at(c.stamp) : nullptr;
   Vec3 raw;
@@ -144,7 +181,12 @@ const ContactState& ContactEstimator::update(const ContactCycle& c) {
   if (first_sample_t_ < 0.0) first_sample_t_ = c.t;
   const Mat3& R = pose->rotation;
   const Eigen::VectorXd phi = regressor(R, pose->inputs);
-  const Vec3 error = raw - theta_.transpose() * phi - R.transpose() * load_;  // beyond mismatch and load, tip frame
+  // Beyond the mismatch and the load (tip frame), as the model reads it: a force f that the jets
+  // take up reads (I + G) f (reading_gain). The detector compares that reading, as before; the
+  // force reported, and the load, are the reading divided by it.
+  const Mat3 gain = reading_gain(*pose);
+  to_force_ = R * gain.inverse() * R.transpose();
+  const Vec3 error = raw - theta_.transpose() * phi - gain * (R.transpose() * load_);
   const double spread = phi.dot(p_ * phi);  // the mismatch model's uncertainty here, in residual variances
   // The threshold, or 3σ of what the mismatch model leaves (its residual, wider where it has not
   // seen the configuration): a plant far from its model is read less finely rather than falsely.
@@ -154,7 +196,7 @@ const ContactState& ContactEstimator::update(const ContactCycle& c) {
   // kept; long enough after a contact the mismatch is learned beside it.
   const bool settling = load_held_ && c.t - load_since_ < kLoadSettle;
   if (!state_.in_contact && dt > 0.0) {
-    if (settling) load_ += dt / (kLoadTime + dt) * (R * error);
+    if (settling) load_ += dt / (kLoadTime + dt) * (to_force_ * (R * error));
     if (load_held_ && !settling && load_.norm() < 0.5 * options_.force_threshold) {
       load_held_ = false;  // the load went away
       load_.setZero();
@@ -174,7 +216,7 @@ const ContactState& ContactEstimator::update(const ContactCycle& c) {
   last_rotation_ = R;
   last_compliance_ = pose->compliance;
   const Mat3 mismatch_cov = (residual_var_ * spread).asDiagonal();
-  state_.force = load_ + filtered_;
+  state_.force = load_ + to_force_ * filtered_;
   state_.load = load_;
   state_.covariance = R * (raw_cov * (alpha / (2.0 - alpha)) + mismatch_cov) * R.transpose();
   state_.threshold = threshold;
@@ -259,7 +301,7 @@ bool ContactEstimator::unlearn() {
     p_ = info_.inverse();
     snapshots_.erase(s.base(), snapshots_.end());
     filtered_ = then;
-    state_.force = load_ + filtered_;
+    state_.force = load_ + to_force_ * filtered_;
     state_.deflection = deflection(filtered_);
     looks_.clear();
     return true;

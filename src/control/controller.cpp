@@ -498,6 +498,7 @@ void Controller::sense_contact(const ControllerInputs& in, const rod::RodSolutio
   c.model_position = sol.tip_position;
   c.compliance = lin.ok ? lin.body_compliance : rod::Mat6::Constant(std::nan(""));
   c.inputs = out.jet_force_observed;
+  if (lin.ok) c.input_wrenches = lin.wrenches;
   c.pressing = held_off_wall_;  // last cycle's hold_off_wall only (the lead cap and the rejoin do not press)
   // The supervisor's weight holds its last value where it does not run (open loop, the probe and its fit).
   c.ringing = options_.mode == LoopMode::kClosed && !probing() && law_->supervisor_weight() < 1.0;

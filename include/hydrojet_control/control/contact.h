@@ -72,6 +72,9 @@ struct ContactCycle {
   Vec3 model_position = Vec3::Zero();                     ///< [m]
   rod::Mat6 compliance = rod::Mat6::Zero();               ///< C^b there
   InputVector inputs;                                     ///< q_obs [N]
+  /// The inputs' unit tip wrenches there (body frame; the linearisation's): how the model's pose,
+  /// and so the mismatch model's reading, turns as the jets take up a force.
+  rod::ActuationJacobian input_wrenches = rod::ActuationJacobian::Zero(6, 0);
   /// The reference was held back from the surface last cycle (the tip still presses on: a weak
   /// estimate then does not release the contact before kHeldRelease).
   bool pressing = false;
@@ -131,6 +134,10 @@ class ContactEstimator {
   static constexpr double kSnapshotPeriod = 0.25;  ///< [s] between the mismatch model's snapshots
   /// A snapshot is trusted where its model's variance is at most this many residual variances.
   static constexpr double kSnapshotSpread = 1.0;
+  /// The reading's gain (the plant's compliance over the model's along the jets' forces) is held to
+  /// these bounds: a mismatch model that has learned little reads 1.
+  static constexpr double kMinReadingGain = 0.5;
+  static constexpr double kMaxReadingGain = 2.0;
 
  private:
   struct ModelPose {
@@ -139,10 +146,12 @@ class ContactEstimator {
     Vec3 position;
     rod::Mat6 compliance;
     InputVector inputs;
+    rod::ActuationJacobian wrenches;
   };
   const ModelPose* pose_at(double stamp) const;
   Eigen::VectorXd regressor(const Mat3& rotation, const InputVector& q) const;
   bool deflection_force(const ContactCycle& c, const ModelPose& pose, Vec3* force, Mat3* cov) const;
+  Mat3 reading_gain(const ModelPose& pose) const;
   void learn(const Eigen::VectorXd& phi, const Vec3& error, double dt);
   void detect(double t, double alpha, const ContactCycle& c, const Vec3& measured_direction,
               const Vec3& model_direction);
@@ -186,6 +195,7 @@ class ContactEstimator {
   Vec3 measured_direction_ = Vec3::UnitZ();  ///< the tracker's tip direction, low-passed as filtered_
   bool direction_known_ = false;
   Mat3 last_rotation_ = Mat3::Identity();
+  Mat3 to_force_ = Mat3::Identity();  ///< the reading (base frame) to the force: R (I + G)⁻¹ Rᵀ (reading_gain)
   rod::Mat6 last_compliance_ = rod::Mat6::Zero();
   ContactState state_;
 };
