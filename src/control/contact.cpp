@@ -100,6 +100,7 @@ void ContactEstimator::take_as_load(double t) {
   load_ += to_force_ * filtered_;  // what is beyond the load now joins it; it settles over kLoadSettle
   filtered_.setZero();
   state_.force = load_;
+  state_.reading.setZero();
   state_.load = load_;
   state_.deflection.setZero();
   rising_ = false;
@@ -217,8 +218,10 @@ const ContactState& ContactEstimator::update(const ContactCycle& c) {
   last_compliance_ = pose->compliance;
   const Mat3 mismatch_cov = (residual_var_ * spread).asDiagonal();
   state_.force = load_ + to_force_ * filtered_;
+  state_.reading = filtered_;
   state_.load = load_;
-  state_.covariance = R * (raw_cov * (alpha / (2.0 - alpha)) + mismatch_cov) * R.transpose();
+  state_.covariance =
+      to_force_ * R * (raw_cov * (alpha / (2.0 - alpha)) + mismatch_cov) * R.transpose() * to_force_.transpose();
   state_.threshold = threshold;
   state_.deflection = deflection(filtered_);
   state_.ready = true;
@@ -302,6 +305,7 @@ bool ContactEstimator::unlearn() {
     snapshots_.erase(s.base(), snapshots_.end());
     filtered_ = then;
     state_.force = load_ + to_force_ * filtered_;
+    state_.reading = filtered_;
     state_.deflection = deflection(filtered_);
     looks_.clear();
     return true;

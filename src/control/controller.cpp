@@ -133,7 +133,6 @@ void Controller::start(double t) {
   t_start_ = t;
   t_last_ = t;
   first_cycle_ = true;
-  clock_rate_ = 1.0;
   monitor_.reset();
   law_->reset();
   reset_actuation();
@@ -331,7 +330,6 @@ void Controller::track_reference(const ControllerInputs& in, const rod::RodSolut
     reference_.start(out.observed_direction, t_start_);
     approach_.reset();
   }
-  pace_path(dt);
   out.desired_direction = reference_.advance(in.t, dt, tip_frame);
   out.source = reference_.source();
   out.clipped = reference_.clipped();
@@ -542,7 +540,7 @@ void Controller::react_to_contact(ControllerOutput& out) {
   if (!(compliance > 1e-9)) return;            // a force along the tip's axis: nothing to turn away from
   const Vec3 d = free_side / compliance;
   const double target = ContactOptions::kComplyFraction * options_.contact.max_force;
-  const double push = std::max((c.force - c.load).dot(c.normal), 0.0);
+  const double push = std::max(c.reading.dot(c.normal), 0.0);  // as the detector reads it: the model's turn
   if (onset) {
     contact_onset_ = x;
     if (options_.contact.reaction != ContactReaction::kComply) {
@@ -624,16 +622,6 @@ void Controller::set_desired(ControllerOutput& out, const Vec3& direction) {
   out.desired_direction = direction;
   out.error_geodesic = geodesic_error(out.desired_direction, out.measured_direction);
   out.error_pitch_yaw = pitch_yaw_error(out.desired_direction, out.measured_direction);
-}
-
-// A path that asks more of the jets than they have: while a jet is at its bound where the law paces
-// the path (the modal law, driving), its clock slows (time scaling, as a trajectory executor does at
-// a torque limit): the path later rather than beyond reach. Back to its own pace once none is.
-void Controller::pace_path(double dt) {
-  const bool bound = !first_cycle_ && law_->paces_path() && at_bound(previous_command_) && law_->swing() < kCalmSwing;
-  if (dt > 0.0)
-    clock_rate_ += ((bound ? kSlowClock : 1.0) - clock_rate_) * std::min(1.0, dt / (bound ? kSlowTime : kPaceRecovery));
-  reference_.set_clock_rate(clock_rate_);
 }
 
 // A jet commanded to the learned reach's saturation (97 % of its q_max) or more: the forces have no

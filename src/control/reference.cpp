@@ -122,18 +122,13 @@ Vec3 Reference::preview(double t, double lead) const {
 // inside it counts). The first advance on a path that was jumped onto starts the clock at t.
 void Reference::advance_clock(double t, double dt) {
   const double as_written = t - path_start_ - slowed_;  // the clock's next time at the path's own pace
-  time_scale_now_ = 1.0 / clock_rate_;
+  time_scale_now_ = 1.0;
   const double limit = max_path_rate_ * dt;
   const Vec3 from = path_->direction_at(path_clock_);
-  double step = (as_written - path_clock_) * clock_rate_;
+  double step = as_written - path_clock_;
   double turn = geodesic_error(from, path_->direction_at(path_clock_ + step));
   if (!(step > 0.0) || !(turn > limit)) {
-    if (clock_rate_ < 1.0 && step > 0.0) {
-      path_clock_ += step;
-      slowed_ = t - path_start_ - path_clock_;
-    } else {
-      path_clock_ = as_written;
-    }
+    path_clock_ = as_written;
     return;
   }
   // The longest step of the path that turns by at most the limit: bisection between 0 (no turn) and

@@ -53,6 +53,9 @@ struct ContactState {
   Vec3 force = Vec3::Zero();       ///< external tip force, the model's mismatch taken off [N]
   Vec3 load = Vec3::Zero();        ///< the steady load in `force` (a tether, a fold: not a surface) [N]
   Mat3 covariance = Mat3::Zero();  ///< of `force` [N^2]: the tracker's noise and the mismatch model's
+  /// The force beyond the load as the model reads it (base) [N]: what the detector compares with
+  /// `threshold`; `force` less `load` is it divided by the reading's gain (ContactEstimator::reading_gain).
+  Vec3 reading = Vec3::Zero();
   double threshold = 0.0;          ///< the detector's threshold this cycle [N]
   bool in_contact = false;         ///< the detector's flag
   double since = 0.0;              ///< [s] when the present contact was detected
@@ -191,11 +194,11 @@ class ContactEstimator {
   };
   std::deque<Snapshot> snapshots_;           ///< the mismatch model, every kSnapshotPeriod, back to kUnlearnLookBack
   Eigen::VectorXd phi_;                      ///< the last sample's regressor
-  Vec3 filtered_ = Vec3::Zero();             ///< the force beyond the mismatch and the load [N, base]
+  Vec3 filtered_ = Vec3::Zero();             ///< the reading beyond the mismatch and the load [N, base]
   Vec3 measured_direction_ = Vec3::UnitZ();  ///< the tracker's tip direction, low-passed as filtered_
   bool direction_known_ = false;
   Mat3 last_rotation_ = Mat3::Identity();
-  Mat3 to_force_ = Mat3::Identity();  ///< the reading (base frame) to the force: R (I + G)⁻¹ Rᵀ (reading_gain)
+  Mat3 to_force_ = Mat3::Identity();  ///< the reading (base frame) to the force: R gain⁻¹ Rᵀ (reading_gain)
   rod::Mat6 last_compliance_ = rod::Mat6::Zero();
   ContactState state_;
 };

@@ -126,15 +126,6 @@ class Controller {
   /// The model's forward kinematics at inputs q [N] (for open-loop prediction and tests).
   rod::RodSolution model_fk(const InputVector& q);
 
-  /// While a jet is at its bound the path's clock runs at this share of its pace, reached within
-  /// kSlowTime; at its own pace again within kPaceRecovery once none is (pace_path).
-  static constexpr double kSlowClock = 0.35;
-  static constexpr double kSlowTime = 0.2;      ///< [s]
-  static constexpr double kPaceRecovery = 1.0;  ///< [s]
-  /// [rad] ... and only while the mode's swing is under this: the jets' bound is where a follower
-  /// load flutters, and a rod that rings there must pass through, not linger.
-  static constexpr double kCalmSwing = 0.02;
-
  private:
   // The steps of update(), in order. Those returning a string return the abort reason (empty: go on).
   ControllerOutput resting_output() const;
@@ -151,7 +142,6 @@ class Controller {
   /// valve's acts as a relay and hunts (an exact inversion did, near the valves' dead zones).
   static constexpr double kPlayInverted = 0.8;
   void learn_reach(double dt, const ControllerOutput& out);
-  void pace_path(double dt);
   void sense_contact(const ControllerInputs& in, const rod::RodSolution& sol, const ActuatedModel::Linearisation& lin,
                      ControllerOutput& out);
   void react_to_contact(ControllerOutput& out);
@@ -195,7 +185,6 @@ class Controller {
   std::string abort_reason_;
   double t_start_ = 0.0;
   double t_last_ = 0.0;
-  double clock_rate_ = 1.0;       ///< the path clock's share of its own pace (pace_path)
   bool first_cycle_ = true;       ///< no complete cycle since start(): dt = sample_period, the step's base from q_obs
   ControllerOutput last_output_;  ///< returned again for a repeated tick at the same time
 

@@ -63,9 +63,6 @@ class DirectionLaw {
   /// The flow regulators invert the valves' identified play under this law now (the paper's: as
   /// published, they do not).
   virtual bool inverts_play() const { return false; }
-  /// A path's clock slows while a jet is at its bound under this law now (Controller::pace_path; the
-  /// paper's law, as published, follows the clock as written).
-  virtual bool paces_path() const { return false; }
   /// The supervisor's share of the law's own terms in [0, 1] (0: the paper's law acts), and the mode's
   /// swing it watches [rad]; the paper's law has neither.
   virtual double supervisor_weight() const { return 1.0; }

@@ -22,10 +22,7 @@ struct LearnedReachOptions {
   double hold_time = 0.2;     ///< [s] ... this long before the reach is learned there
   double relax_rate = 0.02;   ///< [rad/s] a learned limit moves back out at this rate while no jet saturates
   double tighten_rate = 0.2;  ///< [rad/s] a new limit takes effect from where the target was at this rate
-  /// [rad/rad] a bin's limit widens by this per radian of azimuth away from it: smooth along a path
-  /// that sweeps the bins (at 1, bins learned at a swing's dip and at its crest made the clipped
-  /// reference jump by 2–3° from one bin to the next, and the tip chased it)
-  double slope = 0.3;
+  double slope = 1.0;         ///< [rad/rad] a bin's limit widens by this per radian of azimuth away from it
 };
 
 class LearnedReach {

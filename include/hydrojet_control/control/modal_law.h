@@ -143,7 +143,6 @@ class ModalLaw : public DirectionLaw {
   /// Where it drives (closed loop, on a path whose clock runs): near the dead zones, where the jets
   /// sit on an approach or a hold, the inverted play hunted (the path keeps a common flow).
   bool inverts_play() const override { return drives_; }
-  bool paces_path() const override { return drives_; }
   const ModalLawOptions& options() const { return options_; }
   const ModalEstimator& estimator() const { return estimator_; }
   /// The tracking error's swing at the mode's frequency [rad] (the supervisor's measure).

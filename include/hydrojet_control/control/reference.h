@@ -24,8 +24,6 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <algorithm>
-#include <cmath>
 #include <limits>
 #include <memory>
 
@@ -53,9 +51,6 @@ class Reference {
   /// A path's clock runs slower where the path would turn the reference faster than `rate` [rad/s]
   /// (time scaling: the path as written, later). Infinity: as written.
   void set_max_path_rate(double rate) { max_path_rate_ = rate; }
-  /// A path's clock runs at this fraction of its own pace (clamped to [0.1, 1]; 1: as written), e.g.
-  /// while the jets are at their bounds (Controller::pace_path): the path, later, within reach.
-  void set_clock_rate(double rate) { clock_rate_ = std::isfinite(rate) ? std::clamp(rate, 0.1, 1.0) : 1.0; }
   /// The reach the jets have shown (it clips every target that a set clips, after the set); the
   /// controller teaches it (LearnedReach::update).
   LearnedReach& learned_reach() { return learned_; }
@@ -153,7 +148,6 @@ class Reference {
   bool kept_out_ = false;
   std::shared_ptr<const KeepOut> keep_out_;
   Vec3 keep_out_offset_ = Vec3::Zero();
-  double clock_rate_ = 1.0;                         ///< set_clock_rate
   double time_scale_now_ = 1.0;                     ///< the clock's slowing at the last advance (1: as written)
   std::shared_ptr<const ReachableSet> target_set_;  ///< with reserve: fixed and rate targets
   std::shared_ptr<const ReachableSet> path_set_;    ///< full force: path points
