@@ -227,3 +227,39 @@ TEST(LearnedReach, LimitsWhereTheJetsSaturateGraduallyAndRelaxesWhenTheyDoNot) {
   for (int k = 0; k < 100; ++k) reach.update(false, measured, measured, 0.01);
   EXPECT_NEAR(reach.limit(desired), 0.52, 1e-9);
 }
+
+// A plant that rings under the paper's law: from the desired direction's angle the reach closes in at
+// ring_rate at every azimuth while it rings, and stays where it stopped (no relaxing); reset forgets.
+TEST(LearnedReach, ClosesInAtEveryAzimuthWhileThePlantRings) {
+  control::LearnedReach reach(Vec3::UnitZ(), 72);
+  const Vec3 desired = control::direction(0.6, 0.3);
+  for (int k = 0; k < 100; ++k) reach.ring(false, desired, 0.01);
+  EXPECT_FALSE(reach.learned());
+  reach.ring(true, desired, 0.01);
+  ASSERT_TRUE(reach.learned());
+  EXPECT_NEAR(reach.ring_limit(), 0.6 - 0.01 * reach.options().ring_rate, 1e-12);  // from where the target was
+  for (int k = 0; k < 49; ++k) reach.ring(true, desired, 0.01);
+  const double after = 0.6 - 0.5 * reach.options().ring_rate;  // 0.5 s of ringing
+  EXPECT_NEAR(reach.ring_limit(), after, 1e-9);
+  for (int k = 0; k < 300; ++k) {  // calm, no jet saturated: it stays
+    reach.ring(false, desired, 0.01);
+    reach.update(false, desired, desired, 0.01);
+  }
+  EXPECT_NEAR(reach.ring_limit(), after, 1e-9);
+  for (const double azimuth : {0.3, 1.9, -2.8}) {  // every azimuth, pulled in along its own
+    double moved = 0.0;
+    const Vec3 clipped = reach.clip(control::direction(0.9, azimuth), &moved);
+    EXPECT_NEAR(control::bend_angle(clipped), after, 1e-9) << azimuth;
+    EXPECT_NEAR(moved, 0.9 - after, 1e-9) << azimuth;
+    EXPECT_EQ(reach.clip(control::direction(after - 0.1, azimuth)), control::direction(after - 0.1, azimuth));
+  }
+  // Ringing again further in closes in from that target; further out, from the limit.
+  reach.ring(true, control::direction(0.2, 1.0), 0.01);
+  EXPECT_NEAR(reach.ring_limit(), 0.2 - 0.01 * reach.options().ring_rate, 1e-9);
+  reach.ring(false, desired, 0.01);
+  reach.ring(true, control::direction(0.9, 1.0), 0.01);
+  EXPECT_NEAR(reach.ring_limit(), 0.2 - 0.02 * reach.options().ring_rate, 1e-9);
+  reach.reset();
+  EXPECT_FALSE(reach.learned());
+  EXPECT_EQ(reach.clip(control::direction(0.9, 0.3)), control::direction(0.9, 0.3));
+}

@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include <Eigen/Eigenvalues>
-#include <Eigen/SVD>
+#include <Eigen/QR>
 
 #include "hydrojet_control/rod/so3.h"
 #include "hydrojet_control/util/format.h"
@@ -140,23 +140,25 @@ Mat3 ContactEstimator::reading_gain(const ModelPose& pose) const {
   Eigen::Matrix<double, 3, Eigen::Dynamic> dm(3, n);
   for (int i = 0; i < n; ++i) {
     const Vec3 turn = pose.compliance.block<3, 6>(3, 0) * pose.wrenches.col(i);
-    const Mat3 dR = pose.rotation * so3::hat(turn);
-    Eigen::VectorXd dphi = Eigen::VectorXd::Zero(theta_.rows());
-    dphi.segment<9>(1) = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(dR.data());
-    if (i + 10 < dphi.size()) dphi[i + 10] = 1.0 / input_scale_;
-    dm.col(i) = theta_.transpose() * dphi;
+    dm.col(i) = mismatch_change(pose.rotation * so3::hat(turn), i);
   }
   const Eigen::Matrix<double, 3, Eigen::Dynamic> B = pose.wrenches.topRows<3>();
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(B, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::MatrixXd pinv = Eigen::MatrixXd::Zero(n, 3);
-  const double top = svd.singularValues().size() ? svd.singularValues()[0] : 0.0;
-  for (int k = 0; k < svd.singularValues().size(); ++k)
-    if (svd.singularValues()[k] > 1e-3 * top)
-      pinv += svd.matrixV().col(k) * svd.matrixU().col(k).transpose() / svd.singularValues()[k];
+  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(B.rows(), B.cols());
+  cod.setThreshold(1e-3);  // relative to the largest pivot: the HydroJet's jets make no axial force
+  cod.compute(B);
+  const Eigen::MatrixXd pinv = cod.pseudoInverse();
   const Mat3 P = B * pinv;  // the projector on the forces the jets make
   const double ratio = 1.0 + (dm * pinv).trace() / std::max(1.0, P.trace());
   if (!std::isfinite(ratio)) return Mat3::Identity();
   return Mat3::Identity() + (std::clamp(ratio, kMinReadingGain, kMaxReadingGain) - 1.0) * P;
+}
+
+// The regressor is affine in (R, q): the mismatch model's change along (dR, one unit of input i) is
+// Θᵀ [0; vec(dR); e_i / input_scale].
+Vec3 ContactEstimator::mismatch_change(const Mat3& dR, int input) const {
+  Vec3 d = theta_.middleRows(1, 9).transpose() * Eigen::Map<const Eigen::Matrix<double, 9, 1>>(dR.data());
+  if (input + 10 < theta_.rows()) d += theta_.row(input + 10).transpose() / input_scale_;
+  return d;
 }
 
 Vec3 ContactEstimator::deflection(const Vec3& force) const {

@@ -479,10 +479,11 @@ void Controller::observe_plant(const ControllerInputs& in, double dt) {
 }
 
 // The reach the jets show (closed loop, not while probing): a jet at its top with the error staying
-// outward limits the reference there (learned_reach.h).
+// outward limits the reference there, a plant ringing under the paper's law everywhere (learned_reach.h).
 void Controller::learn_reach(double dt, const ControllerOutput& out) {
   if (options_.mode != LoopMode::kClosed || probe_.active()) return;
   reference_.learned_reach().update(at_bound(out.jet_force_command), out.measured_direction, out.desired_direction, dt);
+  reference_.learned_reach().ring(law_->plant_rings(), out.desired_direction, dt);
 }
 
 // The external tip force from the tracker's pose against the model's, and the detector (contact.h).

@@ -21,6 +21,8 @@ void LearnedReach::reset() {
   std::fill(limits_.begin(), limits_.end(), kNone);
   std::fill(effective_.begin(), effective_.end(), kNone);
   saturated_for_ = 0.0;
+  ring_limit_ = kNone;
+  ringing_ = false;
 }
 
 double LearnedReach::angle_from_center(const Vec3& d) const { return geodesic_error(center_, d); }
@@ -33,11 +35,11 @@ int LearnedReach::bin_of(const Vec3& d) const {
 }
 
 // The least of the bins' effective limits, each widened by `slope` per radian of azimuth beyond the
-// bin: continuous in azimuth.
+// bin: continuous in azimuth; and the ringing's limit at every azimuth.
 double LearnedReach::limit(const Vec3& direction) const {
   const int n = static_cast<int>(limits_.size());
   const double a = azimuth(direction);
-  double best = kNone;
+  double best = ring_limit_;
   for (int k = 0; k < n; ++k) {
     if (effective_[k] == kNone) continue;
     const double centre = -M_PI + (k + 0.5) * 2.0 * M_PI / n;
@@ -80,6 +82,15 @@ void LearnedReach::update(bool saturated, const Vec3& measured, const Vec3& desi
   }
 }
 
+void LearnedReach::ring(bool rings, const Vec3& desired, double dt) {
+  if (!(dt > 0.0) || !desired.allFinite()) return;
+  if (rings && !ringing_) {  // from where the target is (or the limit, when that is tighter)
+    ring_limit_ = std::min(angle_from_center(desired), limit(desired));
+  }
+  ringing_ = rings;
+  if (rings) ring_limit_ = std::max(0.0, ring_limit_ - options_.ring_rate * dt);
+}
+
 Vec3 LearnedReach::clip(const Vec3& target, double* moved) const {
   const double angle = angle_from_center(target), bound = limit(target);
   if (!(angle > bound)) {
@@ -92,7 +103,7 @@ Vec3 LearnedReach::clip(const Vec3& target, double* moved) const {
 }
 
 bool LearnedReach::learned() const {
-  return std::any_of(effective_.begin(), effective_.end(), [](double l) { return l < kNone; });
+  return ring_limit_ < kNone || std::any_of(effective_.begin(), effective_.end(), [](double l) { return l < kNone; });
 }
 
 }  // namespace control

@@ -12,6 +12,8 @@ namespace control {
 namespace {
 constexpr double kSaturationHold = 0.2;     ///< [s] a jet at its bound this long: the law has no authority
 constexpr double kAuthorityRecovery = 0.5;  ///< [s] ... and takes it back over this once none is
+constexpr double kRingsWindow = 0.25;       ///< [s] under the fallback: the swing's peak per window, ...
+constexpr double kRingsAbove = 1.2;         ///< ... grown and past this many ring_amplitude: the plant rings
 }  // namespace
 
 std::string ModalLawOptions::validate() const {
@@ -99,7 +101,9 @@ void ModalLaw::reset() {
   swing_ = band_power_ = 0.0;
   band_x_[0] = band_x_[1] = band_y_[0] = band_y_[1] = Vec3::Zero();
   supervisor_weight_ = authority_ = 1.0;
-  calm_for_ = saturated_for_ = 0.0;
+  calm_for_ = saturated_for_ = fallen_for_ = 0.0;
+  window_peak_ = last_window_peak_ = 0.0;
+  plant_rings_ = false;
 }
 
 void ModalLaw::adopt(const PlantIdentity& identity, const actuation::FlowRegulatorOptions& flow) {
@@ -224,6 +228,7 @@ void ModalLaw::supervise(const LawCycle& c) {
   const double keep = std::exp(-dt / 0.1);
   band_power_ = keep * band_power_ + (1.0 - keep) * y.squaredNorm();
   swing_ = std::sqrt(2.0 * band_power_);
+  watch_fallback(dt);
   if (swing_ > options_.ring_amplitude) {
     supervisor_weight_ = 0.0;
     calm_for_ = 0.0;
@@ -233,6 +238,27 @@ void ModalLaw::supervise(const LawCycle& c) {
   if (calm_for_ >= options_.recover_time)
     supervisor_weight_ =
         options_.recover_time > 0.0 ? std::min(1.0, supervisor_weight_ + dt / options_.recover_time) : 1.0;
+}
+
+// Under the fallback the paper's law has the cycle: a swing that a step or a kick left decays under
+// it; one whose peak grows from window to window past kRingsAbove × ring_amplitude rings at these
+// jets' forces under the paper's law too, and is reported through the next window (or until the
+// swing is below ring_amplitude, or the modal law takes the cycle back).
+void ModalLaw::watch_fallback(double dt) {
+  if (swing_ < options_.ring_amplitude) plant_rings_ = false;
+  if (supervisor_weight_ > 0.0) {
+    fallen_for_ = window_peak_ = last_window_peak_ = 0.0;
+    plant_rings_ = false;
+    return;
+  }
+  fallen_for_ += dt;
+  window_peak_ = std::max(window_peak_, swing_);
+  if (fallen_for_ < kRingsWindow) return;
+  plant_rings_ = last_window_peak_ > 0.0 && window_peak_ > last_window_peak_ &&
+                 window_peak_ > kRingsAbove * options_.ring_amplitude;
+  last_window_peak_ = window_peak_;
+  window_peak_ = 0.0;
+  fallen_for_ = 0.0;
 }
 
 // Steps `e` from time `from` to `to` [s] through the model's directions held since the cycles that

@@ -155,6 +155,7 @@ class ContactEstimator {
   Eigen::VectorXd regressor(const Mat3& rotation, const InputVector& q) const;
   bool deflection_force(const ContactCycle& c, const ModelPose& pose, Vec3* force, Mat3* cov) const;
   Mat3 reading_gain(const ModelPose& pose) const;
+  Vec3 mismatch_change(const Mat3& dR, int input) const;
   void learn(const Eigen::VectorXd& phi, const Vec3& error, double dt);
   void detect(double t, double alpha, const ContactCycle& c, const Vec3& measured_direction,
               const Vec3& model_direction);

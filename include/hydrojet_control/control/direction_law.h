@@ -67,6 +67,9 @@ class DirectionLaw {
   /// swing it watches [rad]; the paper's law has neither.
   virtual double supervisor_weight() const { return 1.0; }
   virtual double swing() const { return 0.0; }
+  /// The mode goes on growing after the supervisor fell back to the paper's law: the plant itself
+  /// rings at these forces (the controller closes the reach in, LearnedReach::ring).
+  virtual bool plant_rings() const { return false; }
 
  protected:
   /// std::invalid_argument naming the field when `pd` is not valid.

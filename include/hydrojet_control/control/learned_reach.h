@@ -5,7 +5,8 @@
 // in azimuth (a bin's limit widens by `slope` per radian of azimuth away from it) and takes effect
 // gradually (from where the target was, at tighten_rate), so a path is never made to jump. It relaxes
 // outward slowly once the jets have authority again, so a plant that was only briefly short is given
-// its reach back. ROS-free (Eigen).
+// its reach back. A plant that rings even under the paper's law (a follower load past its flutter
+// load) closes the reach in at every azimuth while it rings, and keeps it. ROS-free (Eigen).
 #pragma once
 
 #include <limits>
@@ -23,6 +24,7 @@ struct LearnedReachOptions {
   double relax_rate = 0.02;   ///< [rad/s] a learned limit moves back out at this rate while no jet saturates
   double tighten_rate = 0.2;  ///< [rad/s] a new limit takes effect from where the target was at this rate
   double slope = 1.0;         ///< [rad/rad] a bin's limit widens by this per radian of azimuth away from it
+  double ring_rate = 0.5;     ///< [rad/s] the reach at every azimuth closes in at this rate while the plant rings
 };
 
 class LearnedReach {
@@ -34,6 +36,13 @@ class LearnedReach {
   void reset();
   /// One cycle of dt [s]: whether a jet is saturated, the measured and the desired tip directions.
   void update(bool saturated, const Vec3& measured, const Vec3& desired, double dt);
+  /// One cycle of dt [s]: while `rings` (the mode grows under the paper's law: the jets' force is past
+  /// what the plant holds still), the reach at every azimuth closes in at ring_rate from the desired
+  /// direction's angle where the ringing began; it stays where it stopped (the path would ask for
+  /// that force again further on).
+  void ring(bool rings, const Vec3& desired, double dt);
+  /// [rad from the centre] the reach at every azimuth the ringing left (infinity: none).
+  double ring_limit() const { return ring_limit_; }
   /// `target` within the limit that clips now; *moved the angle it was pulled in by [rad] (0: inside).
   Vec3 clip(const Vec3& target, double* moved = nullptr) const;
   /// Some azimuth has a limit.
@@ -55,6 +64,8 @@ class LearnedReach {
   std::vector<double> limits_;     ///< learned, per bin [rad from the centre] (infinity: none)
   std::vector<double> effective_;  ///< what clips now: follows limits_, tightening at tighten_rate
   double saturated_for_ = 0.0;     ///< [s] saturated with the error staying outward
+  double ring_limit_ = std::numeric_limits<double>::infinity();  ///< (ring_limit())
+  bool ringing_ = false;                                         ///< rang at the last ring()
 };
 
 }  // namespace control

@@ -150,10 +150,14 @@ class ModalLaw : public DirectionLaw {
   /// The supervisor's share of the modal law in [0, 1]: 0 fell back to the paper's law (the mode
   /// rang, or a jet is at its bound).
   double supervisor_weight() const override { return supervisor_weight_ * authority_; }
+  /// Fallen back to the paper's law, the swing's peak grew over the last 0.25 s window, past 1.2
+  /// ring_amplitude: the paper's law does not calm it either (watch_fallback).
+  bool plant_rings() const override { return plant_rings_; }
 
  private:
   void estimate(const LawCycle& c);
   void supervise(const LawCycle& c);
+  void watch_fallback(double dt);
   void advance(ModalEstimator& e, double from, double to, const Vec3& z) const;
   double damping_ratio() const;
   double gain_weight() const;
@@ -180,6 +184,10 @@ class ModalLaw : public DirectionLaw {
   double authority_ = 1.0;                    ///< 0 while a jet is held at its bound (supervise)
   double saturated_for_ = 0.0;                ///< [s] a jet has been at its bound
   double calm_for_ = 0.0;                     ///< [s] the swing has stayed below half of ring_amplitude
+  double fallen_for_ = 0.0;                   ///< [s] into the current window of the fallback (watch_fallback)
+  double window_peak_ = 0.0;                  ///< [rad] the swing's peak in the current window
+  double last_window_peak_ = 0.0;             ///< [rad] ... and in the last (0: none yet)
+  bool plant_rings_ = false;                  ///< (plant_rings())
 };
 
 }  // namespace control
