@@ -202,7 +202,7 @@ TEST(ClosedLoopRun, TheSupervisorActsBeforeTheAbort) {
 // turns the jets' follower force is past what it holds still, and the rod rings however it is
 // steered. The paper's law rings it into the oscillation abort; the default law without its
 // supervisor damps the mode but rings at 0.04 rad. With it, the law falls back to the paper's, sees the
-// mode grow on, closes the reach in until it is calm, and completes, the clipped time reported.
+// mode grow on, closes the reach in while it grows, and completes, the clipped time reported.
 TEST(ClosedLoopRun, APlantThatRingsUnderThePapersLawHasItsReachClosedIn) {
   const ShippedSetup setup = shipped("hydrojet_0deg");
   const plant::PlantModel fluttering = config::make_plant(test::scene("hydrojet_0deg"), R"(plant:

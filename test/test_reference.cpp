@@ -229,7 +229,8 @@ TEST(LearnedReach, LimitsWhereTheJetsSaturateGraduallyAndRelaxesWhenTheyDoNot) {
 }
 
 // A plant that rings under the paper's law: from the desired direction's angle the reach closes in at
-// ring_rate at every azimuth while it rings, and stays where it stopped (no relaxing); reset forgets.
+// ring_rate at every azimuth while it rings, and relaxes outward at relax_rate once it does not;
+// reset forgets.
 TEST(LearnedReach, ClosesInAtEveryAzimuthWhileThePlantRings) {
   control::LearnedReach reach(Vec3::UnitZ(), 72);
   const Vec3 desired = control::direction(0.6, 0.3);
@@ -241,25 +242,31 @@ TEST(LearnedReach, ClosesInAtEveryAzimuthWhileThePlantRings) {
   for (int k = 0; k < 49; ++k) reach.ring(true, desired, 0.01);
   const double after = 0.6 - 0.5 * reach.options().ring_rate;  // 0.5 s of ringing
   EXPECT_NEAR(reach.ring_limit(), after, 1e-9);
-  for (int k = 0; k < 300; ++k) {  // calm, no jet saturated: it stays
-    reach.ring(false, desired, 0.01);
-    reach.update(false, desired, desired, 0.01);
-  }
-  EXPECT_NEAR(reach.ring_limit(), after, 1e-9);
+  reach.ring(false, desired, 0.01);  // calm: 0.01 s relaxed
+  const double relaxed = after + 0.01 * reach.options().relax_rate;
+  EXPECT_NEAR(reach.ring_limit(), relaxed, 1e-9);
   for (const double azimuth : {0.3, 1.9, -2.8}) {  // every azimuth, pulled in along its own
     double moved = 0.0;
     const Vec3 clipped = reach.clip(control::direction(0.9, azimuth), &moved);
-    EXPECT_NEAR(control::bend_angle(clipped), after, 1e-9) << azimuth;
-    EXPECT_NEAR(moved, 0.9 - after, 1e-9) << azimuth;
-    EXPECT_EQ(reach.clip(control::direction(after - 0.1, azimuth)), control::direction(after - 0.1, azimuth));
+    EXPECT_NEAR(control::bend_angle(clipped), relaxed, 1e-9) << azimuth;
+    EXPECT_NEAR(moved, 0.9 - relaxed, 1e-9) << azimuth;
+    EXPECT_EQ(reach.clip(control::direction(relaxed - 0.1, azimuth)), control::direction(relaxed - 0.1, azimuth));
   }
+  for (int k = 0; k < 299; ++k) reach.ring(false, desired, 0.01);  // 3 s of calm in all
+  EXPECT_NEAR(reach.ring_limit(), after + 3.0 * reach.options().relax_rate, 1e-9);
   // Ringing again further in closes in from that target; further out, from the limit.
   reach.ring(true, control::direction(0.2, 1.0), 0.01);
   EXPECT_NEAR(reach.ring_limit(), 0.2 - 0.01 * reach.options().ring_rate, 1e-9);
   reach.ring(false, desired, 0.01);
   reach.ring(true, control::direction(0.9, 1.0), 0.01);
-  EXPECT_NEAR(reach.ring_limit(), 0.2 - 0.02 * reach.options().ring_rate, 1e-9);
+  EXPECT_NEAR(reach.ring_limit(), 0.2 + 0.01 * reach.options().relax_rate - 0.02 * reach.options().ring_rate, 1e-9);
+  // Reset while ringing: no limit, and the next ringing starts afresh from its target.
   reach.reset();
   EXPECT_FALSE(reach.learned());
   EXPECT_EQ(reach.clip(control::direction(0.9, 0.3)), control::direction(0.9, 0.3));
+  reach.ring(true, desired, 0.01);
+  EXPECT_NEAR(reach.ring_limit(), 0.6 - 0.01 * reach.options().ring_rate, 1e-9);
+  // Relaxed past π: no limit.
+  for (int k = 0; k < 20000; ++k) reach.ring(false, desired, 0.01);
+  EXPECT_FALSE(reach.learned());
 }

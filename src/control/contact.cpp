@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include <Eigen/Eigenvalues>
-#include <Eigen/QR>
+#include <Eigen/SVD>
 
 #include "hydrojet_control/rod/so3.h"
 #include "hydrojet_control/util/format.h"
@@ -143,10 +143,9 @@ Mat3 ContactEstimator::reading_gain(const ModelPose& pose) const {
     dm.col(i) = mismatch_change(pose.rotation * so3::hat(turn), i);
   }
   const Eigen::Matrix<double, 3, Eigen::Dynamic> B = pose.wrenches.topRows<3>();
-  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(B.rows(), B.cols());
-  cod.setThreshold(1e-3);  // relative to the largest pivot: the HydroJet's jets make no axial force
-  cod.compute(B);
-  const Eigen::MatrixXd pinv = cod.pseudoInverse();
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(B.rows(), B.cols(), Eigen::ComputeThinU | Eigen::ComputeThinV);
+  svd.setThreshold(1e-3);  // of the largest singular value: the HydroJet's jets make no axial force
+  const Eigen::MatrixXd pinv = svd.compute(B).solve(Eigen::Matrix3d::Identity());  // B⁺, least norm
   const Mat3 P = B * pinv;  // the projector on the forces the jets make
   const double ratio = 1.0 + (dm * pinv).trace() / std::max(1.0, P.trace());
   if (!std::isfinite(ratio)) return Mat3::Identity();

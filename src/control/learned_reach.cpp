@@ -88,7 +88,10 @@ void LearnedReach::ring(bool rings, const Vec3& desired, double dt) {
     ring_limit_ = std::min(angle_from_center(desired), limit(desired));
   }
   ringing_ = rings;
-  if (rings) ring_limit_ = std::max(0.0, ring_limit_ - options_.ring_rate * dt);
+  if (rings)
+    ring_limit_ = std::max(0.0, ring_limit_ - options_.ring_rate * dt);
+  else if (ring_limit_ < kNone)
+    ring_limit_ = ring_limit_ + options_.relax_rate * dt > M_PI ? kNone : ring_limit_ + options_.relax_rate * dt;
 }
 
 Vec3 LearnedReach::clip(const Vec3& target, double* moved) const {

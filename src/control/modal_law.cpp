@@ -12,7 +12,7 @@ namespace control {
 namespace {
 constexpr double kSaturationHold = 0.2;     ///< [s] a jet at its bound this long: the law has no authority
 constexpr double kAuthorityRecovery = 0.5;  ///< [s] ... and takes it back over this once none is
-constexpr double kRingsWindow = 0.25;       ///< [s] under the fallback: the swing's peak per window, ...
+constexpr double kRingsWindow = 0.25;       ///< [s] under the fall-back: the swing's peak per window, ...
 constexpr double kRingsAbove = 1.2;         ///< ... grown and past this many ring_amplitude: the plant rings
 }  // namespace
 
@@ -103,7 +103,7 @@ void ModalLaw::reset() {
   supervisor_weight_ = authority_ = 1.0;
   calm_for_ = saturated_for_ = fallen_for_ = 0.0;
   window_peak_ = last_window_peak_ = 0.0;
-  plant_rings_ = false;
+  plant_rings_ = rings_ = false;
 }
 
 void ModalLaw::adopt(const PlantIdentity& identity, const actuation::FlowRegulatorOptions& flow) {
@@ -173,6 +173,7 @@ Vec3 ModalLaw::correction(const LawCycle& c) {
 // tracker's direction. Open loop: none (it starts afresh when the loop closes again).
 void ModalLaw::estimate(const LawCycle& c) {
   drives_ = false;
+  plant_rings_ = false;  // until this cycle's supervise says otherwise
   if (!c.closed_loop) {
     estimator_.reset();
     inputs_.clear();
@@ -240,25 +241,27 @@ void ModalLaw::supervise(const LawCycle& c) {
         options_.recover_time > 0.0 ? std::min(1.0, supervisor_weight_ + dt / options_.recover_time) : 1.0;
 }
 
-// Under the fallback the paper's law has the cycle: a swing that a step or a kick left decays under
+// Under the fall-back the paper's law has the cycle: a swing that a step or a kick left decays under
 // it; one whose peak grows from window to window past kRingsAbove × ring_amplitude rings at these
 // jets' forces under the paper's law too, and is reported through the next window (or until the
 // swing is below ring_amplitude, or the modal law takes the cycle back).
 void ModalLaw::watch_fallback(double dt) {
-  if (swing_ < options_.ring_amplitude) plant_rings_ = false;
   if (supervisor_weight_ > 0.0) {
     fallen_for_ = window_peak_ = last_window_peak_ = 0.0;
-    plant_rings_ = false;
+    rings_ = false;
     return;
   }
   fallen_for_ += dt;
   window_peak_ = std::max(window_peak_, swing_);
-  if (fallen_for_ < kRingsWindow) return;
-  plant_rings_ = last_window_peak_ > 0.0 && window_peak_ > last_window_peak_ &&
-                 window_peak_ > kRingsAbove * options_.ring_amplitude;
-  last_window_peak_ = window_peak_;
-  window_peak_ = 0.0;
-  fallen_for_ = 0.0;
+  if (fallen_for_ >= kRingsWindow) {
+    rings_ = last_window_peak_ > 0.0 && window_peak_ > last_window_peak_ &&
+             window_peak_ > kRingsAbove * options_.ring_amplitude;
+    last_window_peak_ = window_peak_;
+    window_peak_ = 0.0;
+    fallen_for_ -= kRingsWindow;
+  }
+  if (swing_ < options_.ring_amplitude) rings_ = false;
+  plant_rings_ = rings_;
 }
 
 // Steps `e` from time `from` to `to` [s] through the model's directions held since the cycles that

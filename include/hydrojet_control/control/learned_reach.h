@@ -6,7 +6,8 @@
 // gradually (from where the target was, at tighten_rate), so a path is never made to jump. It relaxes
 // outward slowly once the jets have authority again, so a plant that was only briefly short is given
 // its reach back. A plant that rings even under the paper's law (a follower load past its flutter
-// load) closes the reach in at every azimuth while it rings, and keeps it. ROS-free (Eigen).
+// load) closes the reach in at every azimuth while its ringing grows; that limit relaxes outward
+// as slowly. ROS-free (Eigen).
 #pragma once
 
 #include <limits>
@@ -21,7 +22,7 @@ struct LearnedReachOptions {
   double saturation = 0.97;   ///< a jet at this fraction of its q_max or more is saturated [-]
   double min_error = 0.02;    ///< [rad] the error that must stay, outward, while saturated ...
   double hold_time = 0.2;     ///< [s] ... this long before the reach is learned there
-  double relax_rate = 0.02;   ///< [rad/s] a learned limit moves back out at this rate while no jet saturates
+  double relax_rate = 0.02;   ///< [rad/s] a limit moves back out at this rate once its cause is gone
   double tighten_rate = 0.2;  ///< [rad/s] a new limit takes effect from where the target was at this rate
   double slope = 1.0;         ///< [rad/rad] a bin's limit widens by this per radian of azimuth away from it
   double ring_rate = 0.5;     ///< [rad/s] the reach at every azimuth closes in at this rate while the plant rings
@@ -38,8 +39,8 @@ class LearnedReach {
   void update(bool saturated, const Vec3& measured, const Vec3& desired, double dt);
   /// One cycle of dt [s]: while `rings` (the mode grows under the paper's law: the jets' force is past
   /// what the plant holds still), the reach at every azimuth closes in at ring_rate from the desired
-  /// direction's angle where the ringing began; it stays where it stopped (the path would ask for
-  /// that force again further on).
+  /// direction's angle where the ringing began; otherwise it relaxes outward at relax_rate (slowly: a
+  /// reach given back at once would ring the plant again).
   void ring(bool rings, const Vec3& desired, double dt);
   /// [rad from the centre] the reach at every azimuth the ringing left (infinity: none).
   double ring_limit() const { return ring_limit_; }

@@ -184,10 +184,11 @@ class ModalLaw : public DirectionLaw {
   double authority_ = 1.0;                    ///< 0 while a jet is held at its bound (supervise)
   double saturated_for_ = 0.0;                ///< [s] a jet has been at its bound
   double calm_for_ = 0.0;                     ///< [s] the swing has stayed below half of ring_amplitude
-  double fallen_for_ = 0.0;                   ///< [s] into the current window of the fallback (watch_fallback)
+  double fallen_for_ = 0.0;                   ///< [s] into the current window of the fall-back (watch_fallback)
   double window_peak_ = 0.0;                  ///< [rad] the swing's peak in the current window
   double last_window_peak_ = 0.0;             ///< [rad] ... and in the last (0: none yet)
-  bool plant_rings_ = false;                  ///< (plant_rings())
+  bool rings_ = false;                        ///< the last window's verdict (watch_fallback)
+  bool plant_rings_ = false;                  ///< (plant_rings()): this cycle's
 };
 
 }  // namespace control
