@@ -57,6 +57,12 @@ Vec3 LearnedReach::at_angle(const Vec3& d, double angle) const {
   return (std::cos(angle) * center_ + std::sin(angle) * radial).normalized();
 }
 
+// A limit moved out by relax_rate over dt; past π it is none.
+double LearnedReach::relaxed(double limit, double dt) const {
+  if (limit == kNone) return kNone;
+  return limit + options_.relax_rate * dt > M_PI ? kNone : limit + options_.relax_rate * dt;
+}
+
 void LearnedReach::update(bool saturated, const Vec3& measured, const Vec3& desired, double dt) {
   if (!(dt > 0.0) || !measured.allFinite() || !desired.allFinite()) return;
   const double reached = angle_from_center(measured);
@@ -69,8 +75,7 @@ void LearnedReach::update(bool saturated, const Vec3& measured, const Vec3& desi
     if (effective_[k] == kNone)  // from where the target is (other bins' widened limits may lie far beyond it)
       effective_[k] = std::max(reached, std::min(angle_from_center(desired), limit(desired)));
   } else if (!saturated) {
-    for (double& l : limits_)
-      if (l < kNone) l = l + options_.relax_rate * dt > M_PI ? kNone : l + options_.relax_rate * dt;
+    for (double& l : limits_) l = relaxed(l, dt);
   }
   for (size_t k = 0; k < limits_.size(); ++k) {  // what clips follows the limits, tightening gradually
     if (limits_[k] == kNone)
@@ -90,8 +95,8 @@ void LearnedReach::ring(bool rings, const Vec3& desired, double dt) {
   ringing_ = rings;
   if (rings)
     ring_limit_ = std::max(0.0, ring_limit_ - options_.ring_rate * dt);
-  else if (ring_limit_ < kNone)
-    ring_limit_ = ring_limit_ + options_.relax_rate * dt > M_PI ? kNone : ring_limit_ + options_.relax_rate * dt;
+  else
+    ring_limit_ = relaxed(ring_limit_, dt);
 }
 
 Vec3 LearnedReach::clip(const Vec3& target, double* moved) const {

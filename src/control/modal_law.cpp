@@ -101,9 +101,8 @@ void ModalLaw::reset() {
   swing_ = band_power_ = 0.0;
   band_x_[0] = band_x_[1] = band_y_[0] = band_y_[1] = Vec3::Zero();
   supervisor_weight_ = authority_ = 1.0;
-  calm_for_ = saturated_for_ = fallen_for_ = 0.0;
-  window_peak_ = last_window_peak_ = 0.0;
-  plant_rings_ = rings_ = false;
+  calm_for_ = saturated_for_ = 0.0;
+  forget_fallback();
 }
 
 void ModalLaw::adopt(const PlantIdentity& identity, const actuation::FlowRegulatorOptions& flow) {
@@ -173,10 +172,10 @@ Vec3 ModalLaw::correction(const LawCycle& c) {
 // tracker's direction. Open loop: none (it starts afresh when the loop closes again).
 void ModalLaw::estimate(const LawCycle& c) {
   drives_ = false;
-  plant_rings_ = false;  // until this cycle's supervise says otherwise
   if (!c.closed_loop) {
     estimator_.reset();
     inputs_.clear();
+    forget_fallback();
     return;
   }
   const ActuatedModel& model = *c.model;
@@ -247,21 +246,24 @@ void ModalLaw::supervise(const LawCycle& c) {
 // swing is below ring_amplitude, or the modal law takes the cycle back).
 void ModalLaw::watch_fallback(double dt) {
   if (supervisor_weight_ > 0.0) {
-    fallen_for_ = window_peak_ = last_window_peak_ = 0.0;
-    rings_ = false;
+    forget_fallback();
     return;
   }
   fallen_for_ += dt;
   window_peak_ = std::max(window_peak_, swing_);
   if (fallen_for_ >= kRingsWindow) {
-    rings_ = last_window_peak_ > 0.0 && window_peak_ > last_window_peak_ &&
-             window_peak_ > kRingsAbove * options_.ring_amplitude;
+    plant_rings_ = last_window_peak_ > 0.0 && window_peak_ > last_window_peak_ &&
+                   window_peak_ > kRingsAbove * options_.ring_amplitude;
     last_window_peak_ = window_peak_;
     window_peak_ = 0.0;
     fallen_for_ -= kRingsWindow;
   }
-  if (swing_ < options_.ring_amplitude) rings_ = false;
-  plant_rings_ = rings_;
+  if (swing_ < options_.ring_amplitude) plant_rings_ = false;
+}
+
+void ModalLaw::forget_fallback() {
+  fallen_for_ = window_peak_ = last_window_peak_ = 0.0;
+  plant_rings_ = false;
 }
 
 // Steps `e` from time `from` to `to` [s] through the model's directions held since the cycles that

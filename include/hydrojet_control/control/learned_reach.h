@@ -58,6 +58,7 @@ class LearnedReach {
   int bin_of(const Vec3& d) const;
   double angle_from_center(const Vec3& d) const;
   Vec3 at_angle(const Vec3& d, double angle) const;
+  double relaxed(double limit, double dt) const;
 
   LearnedReachOptions options_;
   Vec3 center_;

@@ -158,6 +158,7 @@ class ModalLaw : public DirectionLaw {
   void estimate(const LawCycle& c);
   void supervise(const LawCycle& c);
   void watch_fallback(double dt);
+  void forget_fallback();
   void advance(ModalEstimator& e, double from, double to, const Vec3& z) const;
   double damping_ratio() const;
   double gain_weight() const;
@@ -187,8 +188,7 @@ class ModalLaw : public DirectionLaw {
   double fallen_for_ = 0.0;                   ///< [s] into the current window of the fall-back (watch_fallback)
   double window_peak_ = 0.0;                  ///< [rad] the swing's peak in the current window
   double last_window_peak_ = 0.0;             ///< [rad] ... and in the last (0: none yet)
-  bool rings_ = false;                        ///< the last window's verdict (watch_fallback)
-  bool plant_rings_ = false;                  ///< (plant_rings()): this cycle's
+  bool plant_rings_ = false;                  ///< (plant_rings()): the last window's verdict (watch_fallback)
 };
 
 }  // namespace control
