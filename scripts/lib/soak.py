@@ -186,7 +186,7 @@ class Monitor:
         rospy.Subscriber("/jets/command", JetCommand, self.on_command, queue_size=1000)
         rospy.Subscriber("/tracker/tip_pose", PoseStamped, self.on_tip, queue_size=1000)
         rospy.Subscriber("/jets/state", JetState, self.on_state, queue_size=1000)
-        rospy.Subscriber("/plant/fault_applied", PlantFault, self.applied.append, queue_size=100)
+        self.applied_sub = rospy.Subscriber("/plant/fault_applied", PlantFault, self.applied.append, queue_size=100)
 
     def on_state(self, m):
         self.last_state = max(self.last_state, m.header.stamp.to_sec())
@@ -357,6 +357,11 @@ class Soak:
         if NOT_RECOVERED and n == 0:
             duration = 1e6
         m = PlantFault(kind=kind, actuator=p["jet"], duration=duration, value=p.get("value", 0.0))
+        # A restarted plant connects its fault subscriber and its echo's publisher anew: a fault sent
+        # before both are up is lost, or applied unheard.
+        if not self.wait_until(lambda: self.fault_pub.get_num_connections() > 0
+                               and self.mon.applied_sub.get_num_connections() > 0, 10.0):
+            raise RuntimeError("the plant's /plant/fault or /plant/fault_applied is not connected")
         self.fault_pub.publish(m)
         if not self.wait_until(lambda: len(self.mon.applied) > n, 10.0):
             raise RuntimeError("the plant did not apply %s" % kind)
