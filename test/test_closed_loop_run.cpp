@@ -206,14 +206,15 @@ TEST(ClosedLoopRun, TheSupervisorActsBeforeTheAbort) {
 TEST(ClosedLoopRun, APlantThatRingsUnderThePapersLawHasItsReachClosedIn) {
   const ShippedSetup setup = shipped("hydrojet_0deg");
   const plant::PlantModel fluttering = config::make_plant(test::scene("hydrojet_0deg"), R"(plant:
-  mismatch: {tip_mass_scale: 2.63, bending_stiffness_scale: 1.0, torsional_stiffness_scale: 0.81, base_tilt_offset: -0.19,
-             precurvature_offset: [-1.8, 1.68, 0.0], misalignment_offset: [0.069, -0.104, -0.046]}
-  dynamics: {kelvin_voigt_time: 0.0135}
+  mismatch: {tip_mass_scale: 2.63408, bending_stiffness_scale: 0.99706, torsional_stiffness_scale: 0.80783,
+             base_tilt_offset: -0.19217, precurvature_offset: [-1.79928, 1.67855, 0.0],
+             misalignment_offset: [0.06865, -0.10378, -0.04629]}
+  dynamics: {kelvin_voigt_time: 0.01347}
   tracker: {latency: 0.01}
   valves:
-  - {dead_zone: 0.032, exponent: 0.77, hysteresis: 0.0275, max_flow: 1.54e-05, saturation: 1.5e-05, time_constant: 0.038}
-  - {dead_zone: 0.095, exponent: 0.87, hysteresis: 0.002, max_flow: 1.55e-05, saturation: 1.5e-05, time_constant: 0.037}
-  - {dead_zone: 0.059, exponent: 0.83, hysteresis: 0.0013, max_flow: 1.69e-05, saturation: 1.5e-05, time_constant: 0.092}
+  - {dead_zone: 0.03187, exponent: 0.76711, hysteresis: 0.0275, max_flow: 1.5425e-05, saturation: 1.5e-05, time_constant: 0.03834}
+  - {dead_zone: 0.09504, exponent: 0.87407, hysteresis: 0.00205, max_flow: 1.5467e-05, saturation: 1.5e-05, time_constant: 0.03726}
+  - {dead_zone: 0.05866, exponent: 0.8267, hysteresis: 0.00132, max_flow: 1.6939e-05, saturation: 1.5e-05, time_constant: 0.092}
 )");
   control::ControllerOptions c = setup.controller;
   c.path.duration = 60.0;

@@ -188,6 +188,13 @@ const ContactState& ContactEstimator::update(const ContactCycle& c) {
   // force reported, and the load, are the reading divided by it.
   const Mat3 gain = reading_gain(*pose);
   to_force_ = R * gain.inverse() * R.transpose();
+  // A held load that, with the push beyond it, no longer fits (load_fits) goes back to the reading:
+  // the detector judges the whole push.
+  if (load_held_ && !load_fits()) {
+    filtered_ += R * gain * R.transpose() * load_;
+    load_.setZero();
+    load_held_ = learning_load_ = false;
+  }
   const Vec3 error = raw - theta_.transpose() * phi - gain * (R.transpose() * load_);
   const double spread = phi.dot(p_ * phi);  // the mismatch model's uncertainty here, in residual variances
   // The threshold, or 3σ of what the mismatch model leaves (its residual, wider where it has not
@@ -341,7 +348,8 @@ void ContactEstimator::detect(double t, double alpha, const ContactCycle& c, con
     if (rising_ && armed) {
       const Vec3 growth = state_.deflection - rise_.deflection;
       const double turn = growth.norm();
-      if (turn >= kMinGiveTurn && (measured_direction - rise_.measured).dot(growth) >= kGiveFraction * turn * turn &&
+      if (turn >= kMinGiveTurn && load_fits() &&
+          (measured_direction - rise_.measured).dot(growth) >= kGiveFraction * turn * turn &&
           (model_direction - rise_.model).dot(growth) >= -kPressFraction * turn * turn) {
         take_as_load(t);
         return;

@@ -555,7 +555,7 @@ void Controller::react_to_contact(ControllerOutput& out) {
     }
   }
   const double give = (x - contact_onset_).dot(d);  // the tip's give to the free side since the onset
-  if (push > 0.5 * c.threshold && give > std::max(kLoadTravel, 0.5 * compliance * push)) {
+  if (push > 0.5 * c.threshold && give > std::max(kLoadTravel, 0.5 * compliance * push) && contact_.load_fits()) {
     contact_.take_as_load(t_last_);
     out.contact = contact_.state();
     was_in_contact_ = false;
