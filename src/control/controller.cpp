@@ -14,6 +14,10 @@ namespace {
 /// An approach still unsettled this fraction of its timeout in is probed as it is (approach()).
 constexpr double kProbeUnsettledAfter = 0.5;
 
+/// Probes at most (a fit refused, as when a load's step disturbed the record, is probed once more
+/// once the tip has settled again).
+constexpr int kProbeRuns = 2;
+
 /// The reachable set of `model` with each actuator's bounds scaled by `force_fraction` (0, 1].
 std::shared_ptr<const ReachableSet> sweep_reachable_set(RobotModel model, const ControllerOptions& options,
                                                         double force_fraction) {
@@ -672,6 +676,7 @@ void Controller::begin_probe(double t, const rod::RodSolution& sol, const Actuat
     return;
   }
   probe_inputs_ = last_inputs_;
+  ++probe_runs_;
   probe_.begin(t, previous_command_, turns, model_.lower(), model_.upper(), sol.tip_rotation, modes.frequency(0));
 }
 
@@ -726,6 +731,7 @@ void Controller::adopt_probe_result(const ProbeJob::Result& result) {
   fit_waiting_ = job_ready_ = fit_delivered_ = false;
   identity_.mode_identified = fit.ok;
   identity_.mode_error = fit.ok ? "" : "probe: " + fit.error;
+  if (!fit.ok && probe_runs_ < kProbeRuns) probed_ = false;  // again, once the approach has settled
   if (fit.ok) {
     identity_.tip_mass_scale = result.tip_mass_scale;
     identity_.damping_time = result.damping_time;

@@ -183,6 +183,11 @@ rod::DynamicRodModel robot_dynamics(const rod::RodModel& robot, double tip_mass_
 ProbeJob::Result ProbeJob::run() const {
   Result r;
   r.mode = identification::fit_mode(record, omega_guess);
+  if (r.mode.ok && !(r.mode.rms_residual <= kMaxResidual)) {
+    r.mode.ok = false;
+    r.mode.error = "the fit leaves " + util::num(r.mode.rms_residual) + " rad of the record unexplained (at most " +
+                   util::num(kMaxResidual) + "): the tip was disturbed during the probe";
+  }
   if (!r.mode.ok) return r;
   const double scale = r.mode.omega / omega_guess;
   r.tip_mass_scale = tip_mass_scale / (scale * scale);

@@ -64,6 +64,10 @@ struct ProbeJob {
     double rod_tip_mass_scale = 0.0, rod_damping_time = 0.0;
   };
   Result run() const;
+  /// [rad] the most of the record a fit may leave unexplained: three times the tracker's specified
+  /// noise per axis (Aurora, 0.3°). A fit of an undisturbed probe leaves the noise (0.007–0.008 rad
+  /// on the simulated plant); a load's step during the record leaves 0.02–0.05 rad.
+  static constexpr double kMaxResidual = 3.0 * 0.3 * M_PI / 180.0;
 };
 
 /// The identification (`identification/` in the controller file).
