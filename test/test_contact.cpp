@@ -247,8 +247,9 @@ TEST(ContactEstimator, ATipThatGivesWayIsALoadAndATipThatStopsIsASurface) {
 }
 
 // A push the tip gives way to that keeps growing (a soft wall the law presses into, read as a load
-// at first) is a load only up to kMaxLoad × max_force: past it, the load goes back to the detector
-// and the push is flagged; the load held never exceeds that bound by more than a sample's settling.
+// at first) is held as a load only up to kMaxLoad × max_force: past it, the load goes back to the
+// detector and the push is flagged; the load held never exceeds that bound by more than a sample's
+// settling.
 TEST(ContactEstimator, APushHeldHarderThanALoadIsFlagged) {
   Rig rig;
   const control::InputVector q = inputs(0.04, 0.02, 0.03);
@@ -260,13 +261,15 @@ TEST(ContactEstimator, APushHeldHarderThanALoadIsFlagged) {
   double t = 0.0;
   for (; t < 3.0; t += dt) ASSERT_FALSE(e.update(rig.cycle(t, q, Vec3::Zero(), &rng)).in_contact);
   const double onset = t;
-  double flagged_at = -1.0;
+  double flagged_at = -1.0, held = 0.0;
   for (; t < onset + 2.0 && flagged_at < 0.0; t += dt) {
     const double push = rate * (t - onset);
     const control::ContactState& s = e.update(rig.cycle(t, q, Vec3(0.0, push, 0.0), &rng));
     ASSERT_LE(s.load.norm(), most + 0.005) << "at a push of " << push << " N";
+    held = std::max(held, s.load.norm());
     if (s.in_contact) flagged_at = push;
   }
+  EXPECT_GT(held, 0.5 * most) << "the push was never held as a load: the bound was not what flagged it";
   ASSERT_GE(flagged_at, 0.0) << "a push grown to " << rate * 2.0 << " N was never flagged";
   EXPECT_LT(flagged_at, most + 0.02);  // the reading's lag behind the push: 0.03 s filter and two samples
 }

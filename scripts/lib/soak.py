@@ -360,7 +360,8 @@ class Soak:
         # A restarted plant connects its fault subscriber and its echo's publisher anew: a fault sent
         # before both are up is lost, or applied unheard.
         if not self.wait_until(lambda: self.fault_pub.get_num_connections() > 0
-                               and self.mon.applied_sub.get_num_connections() > 0, 10.0):
+                               and self.mon.applied_sub.get_num_connections() > 0
+                               and self.plant_connected_for_faults(), 10.0):
             raise RuntimeError("the plant's /plant/fault or /plant/fault_applied is not connected")
         self.fault_pub.publish(m)
         if not self.wait_until(lambda: len(self.mon.applied) > n, 10.0):
@@ -452,6 +453,20 @@ class Soak:
         if not row["ok"]:
             self.failures.append(row)
         self.say(row)
+
+    def plant_connected_for_faults(self):
+        """The running plant has its /plant/fault subscription and its /plant/fault_applied publication
+        connected, asked of the plant itself (this side's counts keep a dead plant's connection until
+        the next publish on it)."""
+        try:
+            master = rosgraph.Master("/soak")
+            node = xmlrpc.client.ServerProxy(master.lookupNode("/plant"))
+            _, _, bus = node.getBusInfo("/soak")
+        except Exception:  # not (yet) registered, or busy: ask again
+            return False
+        # bus info: [connection id, peer, direction, transport, topic, ...]
+        links = {(c[2], c[4]) for c in bus if len(c) > 4}
+        return ("i", "/plant/fault") in links and ("o", "/plant/fault_applied") in links
 
     def controller_hears_plant(self):
         """The controller node has received messages from the running plant on each of its sensor

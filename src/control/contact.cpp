@@ -188,9 +188,9 @@ const ContactState& ContactEstimator::update(const ContactCycle& c) {
   // force reported, and the load, are the reading divided by it.
   const Mat3 gain = reading_gain(*pose);
   to_force_ = R * gain.inverse() * R.transpose();
-  // A held load that, with the push beyond it, no longer fits (load_fits) goes back to the reading:
+  // A held load that, with the push beyond it, passes kMaxLoad × max_force goes back to the reading:
   // the detector judges the whole push.
-  if (load_held_ && !load_fits()) {
+  if (load_held_ && !((load_ + to_force_ * filtered_).norm() <= kMaxLoad * options_.max_force)) {
     filtered_ += R * gain * R.transpose() * load_;
     load_.setZero();
     load_held_ = learning_load_ = false;

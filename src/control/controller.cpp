@@ -14,8 +14,8 @@ namespace {
 /// An approach still unsettled this fraction of its timeout in is probed as it is (approach()).
 constexpr double kProbeUnsettledAfter = 0.5;
 
-/// Probes at most (a fit refused, as when a load's step disturbed the record, is probed once more
-/// once the tip has settled again).
+/// Probes at most (a fit refused, as when a load's step disturbed the record, is probed once more when
+/// the approach probes next: settled again, or half its timeout in).
 constexpr int kProbeRuns = 2;
 
 /// The reachable set of `model` with each actuator's bounds scaled by `force_fraction` (0, 1].
@@ -692,6 +692,7 @@ void Controller::probe(const ControllerInputs& in, const rod::RodSolution& sol, 
       job.robot = model_.rod();
       job.inputs = probe_inputs_;
       job.tip_mass_scale = identity_.tip_mass_scale;
+      job.index = probe_runs_;
       if (fit_inline_) {
         adopt_probe_result(job.run());
       } else {
@@ -718,7 +719,7 @@ bool Controller::take_probe_job(ProbeJob* job) {
 }
 
 void Controller::deliver_probe_result(const ProbeJob::Result& result) {
-  if (!fit_waiting_) return;  // a restart since: the fit is of nothing now
+  if (!fit_waiting_ || result.index != probe_runs_) return;  // a restart or a new probe since: of nothing now
   delivered_result_ = result;
   fit_delivered_ = true;
 }
@@ -731,7 +732,7 @@ void Controller::adopt_probe_result(const ProbeJob::Result& result) {
   fit_waiting_ = job_ready_ = fit_delivered_ = false;
   identity_.mode_identified = fit.ok;
   identity_.mode_error = fit.ok ? "" : "probe: " + fit.error;
-  if (!fit.ok && probe_runs_ < kProbeRuns) probed_ = false;  // again, once the approach has settled
+  if (!fit.ok && probe_runs_ < kProbeRuns) probed_ = false;  // again, when the approach probes next
   if (fit.ok) {
     identity_.tip_mass_scale = result.tip_mass_scale;
     identity_.damping_time = result.damping_time;

@@ -182,6 +182,7 @@ rod::DynamicRodModel robot_dynamics(const rod::RodModel& robot, double tip_mass_
 
 ProbeJob::Result ProbeJob::run() const {
   Result r;
+  r.index = index;
   r.mode = identification::fit_mode(record, omega_guess);
   if (r.mode.ok && !(r.mode.rms_residual <= kMaxResidual)) {
     r.mode.ok = false;

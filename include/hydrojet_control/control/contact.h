@@ -95,10 +95,10 @@ class ContactEstimator {
   /// added to the load (settled over kLoadSettle, the mismatch model frozen meanwhile); no new flag
   /// until the force beyond the load has come down below half the threshold (kLoadLearnTime at most).
   void take_as_load(double t);
-  /// Whether the present push, with the load held, is at most kMaxLoad times contact/max_force: the
-  /// law holds a load against the tip, and a push held much harder than comply would press may be
-  /// tissue (a soft wall that gives way), so it is not taken for a load.
-  bool load_fits() const { return (load_ + to_force_ * filtered_).norm() <= kMaxLoad * options_.max_force; }
+  /// Whether the present push, with the load held, may be taken for a load: at most kTakeLoad times
+  /// contact/max_force. The law holds a load against the tip, and a push held much harder than comply
+  /// would press may be tissue (a soft wall that gives way); a held load is given back past kMaxLoad.
+  bool load_fits() const { return (load_ + to_force_ * filtered_).norm() <= kTakeLoad * options_.max_force; }
   /// Forgets the present contact and the filters; the learned mismatch is kept (a restart on the same rig).
   void reset();
   /// One control cycle: the model's pose is remembered (for the tracker's latency); a new tracker sample
@@ -122,7 +122,8 @@ class ContactEstimator {
   static constexpr double kRelearnDelay = 1.0;   ///< [s] after a release before the mismatch learns again
   static constexpr double kLoadSettle = 1.0;     ///< [s] after take_as_load the load follows the force, then is kept
   static constexpr double kLoadTime = 0.2;       ///< [s] the load's averaging time while it settles
-  static constexpr double kMaxLoad = 2.5;        ///< a load is at most this times max_force (load_fits)
+  static constexpr double kMaxLoad = 2.5;        ///< a held load is given back past this times max_force
+  static constexpr double kTakeLoad = 2.0;  ///< ... and taken up to this (the gap: no taking and giving back in turn)
   /// A flag where the tip has given way along the force's turn by at least this fraction of the turn's
   /// growth since the force rose, the model having gone against it by at most kPressFraction (a
   /// surface stops the tip or throws it back while the model goes on into it; a load moves the tip

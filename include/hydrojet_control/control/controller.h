@@ -199,7 +199,7 @@ class Controller {
   bool probe_pending_ = false;    ///< an approached path settled: the probe starts this cycle
   bool probe_unsettled_ = false;  ///< ... or had not settled half its timeout in
   bool probed_ = false;           ///< the probe has run (once per controller), or the file gave the mode
-  int probe_runs_ = 0;            ///< probes begun (a failed fit is probed once more)
+  int probe_runs_ = 0;            ///< probes begun, a restart's included (a refused fit is probed once more)
   bool known_valves_ = false;     ///< the identification file gave every jet's lag
   bool fit_inline_ = true;        ///< set_fit_inline
   bool fit_waiting_ = false;      ///< the probe is over, its fit not yet adopted

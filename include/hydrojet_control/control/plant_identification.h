@@ -55,7 +55,9 @@ struct ProbeJob {
   rod::RodModel robot;          ///< the controller's model
   rod::InputVector inputs;      ///< the jets' measured forces as the probe began [N]
   double tip_mass_scale = 0.0;  ///< the fill omega_guess was computed with
+  int index = 0;                ///< which of the controller's probes (a late result of an earlier one is dropped)
   struct Result {
+    int index = 0;                 ///< the job's
     identification::ModeFit mode;  ///< the record's
     /// What the modal law takes when the mode holds: the fill and damping time of the modal model.
     double tip_mass_scale = 0.0, damping_time = 0.0;
