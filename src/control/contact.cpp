@@ -190,7 +190,7 @@ const ContactState& ContactEstimator::update(const ContactCycle& c) {
   to_force_ = R * gain.inverse() * R.transpose();
   // A held load that, with the push beyond it, passes kMaxLoad × max_force goes back to the reading:
   // the detector judges the whole push.
-  if (load_held_ && !((load_ + to_force_ * filtered_).norm() <= kMaxLoad * options_.max_force)) {
+  if (load_held_ && !(held_push() <= kMaxLoad * options_.max_force)) {
     filtered_ += R * gain * R.transpose() * load_;
     load_.setZero();
     load_held_ = learning_load_ = false;

@@ -98,7 +98,7 @@ class ContactEstimator {
   /// Whether the present push, with the load held, may be taken for a load: at most kTakeLoad times
   /// contact/max_force. The law holds a load against the tip, and a push held much harder than comply
   /// would press may be tissue (a soft wall that gives way); a held load is given back past kMaxLoad.
-  bool load_fits() const { return (load_ + to_force_ * filtered_).norm() <= kTakeLoad * options_.max_force; }
+  bool load_fits() const { return held_push() <= kTakeLoad * options_.max_force; }
   /// Forgets the present contact and the filters; the learned mismatch is kept (a restart on the same rig).
   void reset();
   /// One control cycle: the model's pose is remembered (for the tracker's latency); a new tracker sample
@@ -149,6 +149,8 @@ class ContactEstimator {
   static constexpr double kMaxReadingGain = 2.0;
 
  private:
+  /// [N] the push with the load held: the load plus the force beyond it.
+  double held_push() const { return (load_ + to_force_ * filtered_).norm(); }
   struct ModelPose {
     double t;
     Mat3 rotation;
