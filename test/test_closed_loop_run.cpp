@@ -241,6 +241,41 @@ TEST(ClosedLoopRun, APlantThatRingsUnderThePapersLawHasItsReachClosedIn) {
   EXPECT_LT(modal.rms, 0.8 * unsupervised.rms);
 }
 
+// A plant drawn for the robustness map (draw seed 2026, draw 11: stiffer than the model, precurvature
+// offsets of 1.7 and 0.8 1/m): on the 20 s spiral's outer turn jet 2 sits at its bound, where the
+// path leaves this plant's reach, and the tip falls inward. The modal law's integral does not wind
+// along what the bounds took (DirectionPd::hold_integral): 0.86 times the paper's law. Wound, it threw
+// the tip outward past the path when the jets had authority again: 0.94 times (1.025 times with the
+// learned reach's earlier slope of 1).
+TEST(ClosedLoopRun, AtTheEdgeOfReachTheIntegralDoesNotWindUp) {
+  const ShippedSetup setup = shipped("hydrojet_0deg");
+  const plant::PlantModel stiff = config::make_plant(test::scene("hydrojet_0deg"), R"(plant:
+  mismatch: {tip_mass_scale: 3.009, bending_stiffness_scale: 1.0348, torsional_stiffness_scale: 1.1075,
+             base_tilt_offset: -0.0238, precurvature_offset: [-1.7373, 0.8221, 0.0],
+             misalignment_offset: [0.0302, 0.046, 0.0461]}
+  dynamics: {kelvin_voigt_time: 0.02126}
+  tracker: {latency: 0.0}
+  valves:
+  - {dead_zone: 0.0763, exponent: 0.989, hysteresis: 0.009, max_flow: 1.5046e-05, saturation: 1.5e-05, time_constant: 0.03715}
+  - {dead_zone: 0.0524, exponent: 0.7085, hysteresis: 0.0185, max_flow: 1.5722e-05, saturation: 1.5e-05, time_constant: 0.0948}
+  - {dead_zone: 0.0636, exponent: 0.8102, hysteresis: 0.0013, max_flow: 1.5605e-05, saturation: 1.5e-05, time_constant: 0.03901}
+)");
+  control::ControllerOptions c = setup.controller;
+  c.path.duration = 20.0;
+  c.contact.force_threshold = 0.8;  // the contact layer ignored, as the robustness map runs both laws
+  c.contact.max_force = 2.0;
+  const sim::RunPlan on = on_path();
+  const sim::RunResult modal = sim::run_path(setup.model, c, stiff, 1, on);
+  c.control_law = control::ControlLaw::kPapers;
+  const sim::RunResult papers = sim::run_path(setup.model, c, stiff, 1, on);
+  std::printf("at the edge of reach: the default law %.4f rad, the paper's law %.4f rad (ratio %.3f), %.2f s clipped\n",
+              modal.rms, papers.rms, modal.rms / papers.rms, modal.reach_limited_s);
+  ASSERT_TRUE(modal.completed) << modal.reason;
+  ASSERT_TRUE(papers.completed) << papers.reason;
+  EXPECT_GE(modal.supervisor_fallbacks, 1);  // a jet was held at its bound
+  EXPECT_LT(modal.rms, 0.9 * papers.rms);
+}
+
 // A wall across the spiral (config/plants/wall.yaml, 10³ N/m): the detector flags the contact and
 // comply holds the true force (the plant's) under contact/max_force's 0.04 N and the 10 mN the
 // wall's damping and the estimate's lag add; ignored, the same run presses over three times harder.

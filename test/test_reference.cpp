@@ -180,7 +180,7 @@ TEST(Reference, APathWithinTheRateBoundRunsAsWritten) {
 
 // The learned reach: a jet saturated with the error staying outward for 0.2 s limits that azimuth to
 // where the tip got, taking effect from where the target was at 0.1 rad/s (no jump); beyond the bin
-// the limit widens by 1 rad per rad of azimuth; a target beyond it is pulled in radially and
+// the limit widens by `slope` (0.3) rad per rad of azimuth; a target beyond it is pulled in radially and
 // reported; the limit relaxes outward at 0.02 rad/s once no jet saturates.
 TEST(LearnedReach, LimitsWhereTheJetsSaturateGraduallyAndRelaxesWhenTheyDoNot) {
   control::LearnedReach reach(Vec3::UnitZ(), 72);
@@ -201,9 +201,9 @@ TEST(LearnedReach, LimitsWhereTheJetsSaturateGraduallyAndRelaxesWhenTheyDoNot) {
   const Vec3 clipped = reach.clip(control::direction(0.8, 0.3), &moved);
   EXPECT_NEAR(control::bend_angle(clipped), 0.5, 1e-9);
   EXPECT_NEAR(moved, 0.3, 1e-9);
-  // Continuous in azimuth: 0.2 rad of azimuth beyond the bin's edge, 0.2 rad wider.
-  const double edge = M_PI / 72;
-  EXPECT_NEAR(reach.limit(control::direction(0.8, 0.3 + 0.2 + 2 * edge)), 0.7, 2 * edge + 1e-9);
+  // Continuous in azimuth: 0.2 rad of azimuth beyond the bin's edge, slope · 0.2 rad wider.
+  const double edge = M_PI / 72, slope = reach.options().slope;
+  EXPECT_NEAR(reach.limit(control::direction(0.8, 0.3 + 0.2 + 2 * edge)), 0.5 + slope * 0.2, slope * 2 * edge + 1e-9);
   EXPECT_EQ(reach.clip(control::direction(0.8, 0.3 + M_PI)), control::direction(0.8, 0.3 + M_PI));  // far: free
   EXPECT_EQ(reach.clip(control::direction(0.4, 0.3), &moved), control::direction(0.4, 0.3));
   EXPECT_EQ(moved, 0.0);
@@ -213,12 +213,12 @@ TEST(LearnedReach, LimitsWhereTheJetsSaturateGraduallyAndRelaxesWhenTheyDoNot) {
   for (int k = 0; k < 100; ++k) other.update(true, measured, control::direction(0.51, 0.3), 0.01);
   EXPECT_FALSE(other.learned());
   // A second azimuth, 2 rad round: where the first bin's limit, widened, lies far beyond the target,
-  // the new limit still takes effect from where the target is (not from 2.5 rad).
+  // the new limit still takes effect from where the target is (not from 0.5 + 2 slope rad).
   control::LearnedReach two(Vec3::UnitZ(), 72);
   for (int k = 0; k < 200; ++k) two.update(true, measured, desired, 0.01);
   const Vec3 measured2 = control::direction(0.5, 2.3), desired2 = control::direction(0.6, 2.3);
   two.update(false, measured2, desired2, 0.01);
-  EXPECT_GT(two.limit(desired2), 2.0);
+  EXPECT_GT(two.limit(desired2), 0.5 + 1.9 * slope);
   for (int k = 0; k < 20; ++k) two.update(true, measured2, desired2, 0.01);
   EXPECT_NEAR(two.limit(desired2), 0.6 - 0.01 * two.options().tighten_rate, 1e-9);
   for (int k = 0; k < 100; ++k) two.update(true, measured2, desired2, 0.01);

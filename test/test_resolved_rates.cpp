@@ -85,6 +85,48 @@ TEST(DirectionPd, TheIntegralIsWeightedByTheReferenceSpeedAndLeaksWhenItStops) {
   EXPECT_NEAR(x.y(), g.kp * dt * e + g.ki * dt * before * (1.0 - g.kp * dt), 1e-9);
 }
 
+// Conditional integration (the integral's anti-windup at the inputs' bounds): along a held axis the
+// error is not integrated where it would grow the integral that way, and is where it would shrink
+// it; across the axis the integral accumulates as before. Holding nothing (zero) holds nothing.
+TEST(DirectionPd, AHeldAxisIsNotIntegratedOutward) {
+  control::PdOptions g = pd_terms(0.0, 2.0, 0.0);
+  g.max_integral = 1.0;
+  g.fast_path_rate = 0.0;  // unscheduled: every step integrates the whole error
+  const double dt = 0.01;
+  const Vec3 x_axis = Vec3::UnitX(), y_axis = Vec3::UnitY();
+  // An error of 0.02 rad about +y (dir(a) turns about +y) and 0.01 about +x.
+  auto err_dir = [](double about_x, double about_y) {
+    return Vec3((Eigen::AngleAxisd(about_x, Vec3::UnitX()) * Eigen::AngleAxisd(about_y, Vec3::UnitY())) *
+                Vec3::UnitZ());
+  };
+  const Vec3 desired = err_dir(0.01, 0.02);
+  control::DirectionPd free_pd, held;
+  Vec3 free_x, held_x;
+  for (int n = 1; n <= 5; ++n) {
+    free_x = free_pd.correction(Vec3::UnitZ(), desired, dt, g);
+    held.hold_integral(3.0 * y_axis);  // any length: its direction counts
+    held_x = held.correction(Vec3::UnitZ(), desired, dt, g);
+  }
+  const Vec3 e = control::rotation_between(Vec3::UnitZ(), desired);
+  EXPECT_NEAR(free_x.y(), g.ki * dt * 5 * dt * e.y(), 1e-12);
+  EXPECT_NEAR(held_x.y(), 0.0, 1e-15) << "not integrated along the held axis";
+  EXPECT_NEAR(held_x.x(), free_x.x(), 1e-15) << "across it as before";
+  // Held against the error's sign (the bounds took motion the other way): the error is integrated.
+  control::DirectionPd against;
+  for (int n = 1; n <= 5; ++n) {
+    against.hold_integral(-y_axis);
+    held_x = against.correction(Vec3::UnitZ(), desired, dt, g);
+  }
+  EXPECT_NEAR((held_x - free_x).norm(), 0.0, 1e-15);
+  // Holding zero is holding nothing; reset() forgets a held axis.
+  control::DirectionPd none;
+  none.hold_integral(Vec3::Zero());
+  EXPECT_NEAR((none.correction(Vec3::UnitZ(), desired, dt, g) - g.ki * dt * dt * e).norm(), 0.0, 1e-15);
+  none.hold_integral(x_axis);
+  none.reset();
+  EXPECT_NEAR((none.correction(Vec3::UnitZ(), desired, dt, g) - g.ki * dt * dt * e).norm(), 0.0, 1e-15);
+}
+
 // A cycle without a correction (the controller held while the model did not converge, the reference on
 // a path, which moves with time; Controller::hold skips only then): the reference's speed is its
 // motion over both cycles, not over the last one (which would double it), and the
@@ -155,6 +197,7 @@ TEST(InputStep, OnTheHydroJetIsEquationNineteenThenTwenty) {
   ASSERT_TRUE(ref.ok);
   EXPECT_NEAR((q - ref.q).norm(), 0.0, 1e-6) << "the smallest jet forces for that force";
   EXPECT_LE(step.bound_cost, 1e-6);
+  EXPECT_LE(step.lost.norm(), 1e-6 * x_cntr.norm()) << "within the bounds the step loses nothing (λ's ~1e-6)";
 }
 
 TEST(InputStep, StepAndMagnitudeAreLimitedInTipForce) {
@@ -207,6 +250,13 @@ TEST(InputStep, AtTheBoundsTheBestAllowedStepAndItsCost) {
     for (int j = 0; j <= 40; ++j)
       for (int k = 0; k <= 40; ++k) best = std::min(best, task(Eigen::Vector3d(i, j, k).cwiseProduct(h.upper) / 40.0));
   EXPECT_LE(task(q), best + 1e-4);
+  // What the bounds took: the unbounded damped step of eq. (19) in closed form, δf = (MᵀM + μ²)⁻¹Mᵀ dd,
+  // less what the bounded step's force change makes of the tip direction.
+  const Eigen::Vector2d df =
+      (M.transpose() * M + o.damping * o.damping * Eigen::Matrix2d::Identity()).ldlt().solve(M.transpose() * dd);
+  const Vec3 lost = M * (df - jets.planar() * (q - q0));
+  EXPECT_GT(lost.norm(), 0.1 * dd.norm());
+  EXPECT_NEAR((s.lost - lost).norm(), 0.0, 1e-6 * lost.norm()) << s.lost.transpose() << " / " << lost.transpose();
 }
 
 // --- The rounded allocation ----------------------------------------------------------------------

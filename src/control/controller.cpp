@@ -418,6 +418,7 @@ std::string Controller::command_inputs(const ControllerInputs& in, const rod::Ro
   const InputStep step =
       input_step(sol.tip_rotation, lin, x_cntr, previous_command_, model_.lower(), model_.upper(), o);
   if (!step.ok) return step.message;
+  law_->bounded(step.lost, sol.tip_rotation.col(2));
   previous_command_ = step.q;
   CornerRounding::Cycle rounding;
   rounding.speed_weight = law_->fast_path_weight();

@@ -167,6 +167,12 @@ Vec3 ModalLaw::correction(const LawCycle& c) {
   return pd_.correction(c.observed, c.desired, c.dt, gains) + shaping;
 }
 
+// The lost change δd of the tip direction is the rotation d × δd (δd ⊥ d); under kHeldLoss (the QP's
+// own residue) nothing is held.
+void ModalLaw::bounded(const Vec3& lost, const Vec3& d) {
+  pd_.hold_integral(lost.norm() > kHeldLoss ? Vec3(d.cross(lost)) : Vec3::Zero());
+}
+
 // The estimator (closed loop): the first mode at this equilibrium (with the capsule's expected
 // fill), then one filter step with the model's direction at the last measured inputs and the
 // tracker's direction. Open loop: none (it starts afresh when the loop closes again).

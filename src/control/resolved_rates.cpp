@@ -61,7 +61,9 @@ Vec3 DirectionPd::correction(const Vec3& observed, const Vec3& desired, double d
   skipped_ = 0.0;
   if (gains.ki > 0.0) {
     const double w = fast_path_weight(speed_, gains.fast_path_rate);
-    integral_ += dt * w * err - std::min(1.0, dt * (1.0 - w) * gains.kp) * integral_;
+    Vec3 increment = dt * w * err;
+    if (const double along = increment.dot(held_axis_); along > 0.0) increment -= along * held_axis_;
+    integral_ += increment - std::min(1.0, dt * (1.0 - w) * gains.kp) * integral_;
     if (integral_.norm() > gains.max_integral) integral_ *= gains.max_integral / integral_.norm();
   }
   const Vec3 x_cntr =
@@ -174,6 +176,7 @@ InputStep input_step(const Mat3& tip_rotation, const ActuatedModel::Linearisatio
   const InputVector q_free = H.ldlt().solve(g);
   out.bound_cost = (W.topRows<3>() * (qp.q - q_free)).norm();
   out.q = limit(qp.q, base, W, lower, upper, o);
+  out.lost = M * (q_free - out.q);
   out.ok = out.q.allFinite();
   if (!out.ok) {
     out.message = "control: non-finite input command";

@@ -70,6 +70,9 @@ class DirectionLaw {
   /// The mode goes on growing after the supervisor fell back to the paper's law: the plant itself
   /// rings at these forces (the controller closes the reach in, LearnedReach::ring).
   virtual bool plant_rings() const { return false; }
+  /// The step's inputs lost `lost` [rad, base frame] of the tip direction's change to their bounds
+  /// (InputStep::lost) at the model's tip direction `d`. The paper's law, as published, ignores it.
+  virtual void bounded(const Vec3& /*lost*/, const Vec3& /*d*/) {}
 
  protected:
   /// std::invalid_argument naming the field when `pd` is not valid.

@@ -24,8 +24,10 @@ struct LearnedReachOptions {
   double hold_time = 0.2;     ///< [s] ... this long before the reach is learned there
   double relax_rate = 0.02;   ///< [rad/s] a limit moves back out at this rate once its cause is gone
   double tighten_rate = 0.2;  ///< [rad/s] a new limit takes effect from where the target was at this rate
-  double slope = 1.0;         ///< [rad/rad] a bin's limit widens by this per radian of azimuth away from it
-  double ring_rate = 0.5;     ///< [rad/s] the reach at every azimuth closes in at this rate while the plant rings
+  /// [rad/rad] a bin's limit widens by this per radian of azimuth away from it: at 0.3 a limit learned
+  /// on a spiral's outer turn still clips the next azimuths it sweeps (at 1 it had widened past them)
+  double slope = 0.3;
+  double ring_rate = 0.5;  ///< [rad/s] the reach at every azimuth closes in at this rate while the plant rings
 };
 
 class LearnedReach {

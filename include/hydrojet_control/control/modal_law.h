@@ -153,6 +153,10 @@ class ModalLaw : public DirectionLaw {
   /// Fallen back to the paper's law, the swing's peak grew over the last 0.25 s window, past 1.2
   /// ring_amplitude: the paper's law does not calm it either (watch_fallback).
   bool plant_rings() const override { return plant_rings_; }
+  /// Its PD's integral does not wind along what the bounds took (DirectionPd::hold_integral).
+  void bounded(const Vec3& lost, const Vec3& d) override;
+  /// [rad] a step's loss to the bounds under this is the box QP's own residue: nothing is held.
+  static constexpr double kHeldLoss = 1e-7;
 
  private:
   void estimate(const LawCycle& c);

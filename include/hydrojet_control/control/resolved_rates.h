@@ -42,6 +42,7 @@ class DirectionPd {
     primed_ = false;
     speed_ = 0.0;
     skipped_ = 0.0;
+    held_axis_.setZero();
   }
 
   /// A cycle of dt [s] without a correction (the controller held its inputs): x_des's motion over it
@@ -58,6 +59,10 @@ class DirectionPd {
   /// of x_des's speed; the integral leaks at (1 − w) K_p. The gains are `gains`' (the modal law passes
   /// its own K_p and K_i).
   Vec3 correction(const Vec3& observed, const Vec3& desired, double dt, const PdOptions& gains);
+  /// From the next correction() on, the error is not integrated outward along `axis` (a rotation
+  /// vector; zero: along none): the inputs' bounds took that motion from the last step (conditional
+  /// integration, the integral's anti-windup at a jet's bound). The controller sets it every step.
+  void hold_integral(const Vec3& axis) { held_axis_ = axis.norm() > 0.0 ? Vec3(axis.normalized()) : Vec3::Zero(); }
   /// The reference's speed over the last correction() [rad/s] (0 before the second).
   double speed() const { return speed_; }
 
@@ -65,9 +70,10 @@ class DirectionPd {
   bool primed_ = false;
   Vec3 prev_error_ = Vec3::Zero();
   Vec3 prev_desired_ = Vec3::UnitZ();
-  Vec3 integral_ = Vec3::Zero();  ///< ∫ w x_err dt [rad s]
-  double speed_ = 0.0;            ///< x_des's speed over the last step [rad/s]
-  double skipped_ = 0.0;          ///< time since the last correction, before this step [s] (skip)
+  Vec3 integral_ = Vec3::Zero();   ///< ∫ w x_err dt [rad s]
+  double speed_ = 0.0;             ///< x_des's speed over the last step [rad/s]
+  double skipped_ = 0.0;           ///< time since the last correction, before this step [s] (skip)
+  Vec3 held_axis_ = Vec3::Zero();  ///< hold_integral
 };
 
 /// For allocation_smoothing: the jets' common mode of the linearised rod: inputs on the jets
@@ -152,6 +158,9 @@ struct InputStep {
   /// Tip force [N] that the input bounds cost: ‖W_f (q − q_free)‖ with q_free the step without
   /// bounds (0 when the step lies within reach; compared with unreachable_tolerance).
   double bound_cost = 0.0;
+  /// The tip direction's change the bounds and limits took from the step [rad, base frame, ⊥ the
+  /// tip direction]: M (q_free − q).
+  Vec3 lost = Vec3::Zero();
   bool ok = false;
   std::string message;  ///< why not ok (the inputs are then the base, clamped into the bounds)
 };
