@@ -217,7 +217,7 @@ TEST(ClosedLoopRun, APlantThatRingsUnderThePapersLawHasItsReachClosedIn) {
 )");
   control::ControllerOptions c = setup.controller;
   c.path.duration = 60.0;
-  // The contact layer ignored (as the robustness map runs both laws): it reads the ringing tip as a
+  // The contact layer ignored (as the robustness map runs the paper's law): it reads the ringing tip as a
   // force, and its reactions change how the paper's law rings (with them it completes this plant).
   c.contact.force_threshold = 0.8;
   c.contact.max_force = 2.0;
@@ -262,7 +262,7 @@ TEST(ClosedLoopRun, AtTheEdgeOfReachTheIntegralDoesNotWindUp) {
 )");
   control::ControllerOptions c = setup.controller;
   c.path.duration = 20.0;
-  c.contact.force_threshold = 0.8;  // the contact layer ignored, as the robustness map runs both laws
+  c.contact.force_threshold = 0.8;  // the contact layer ignored for both laws (as the map runs the paper's)
   c.contact.max_force = 2.0;
   const sim::RunPlan on = on_path();
   const sim::RunResult modal = sim::run_path(setup.model, c, stiff, 1, on);

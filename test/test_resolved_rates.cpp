@@ -7,6 +7,7 @@
 
 #include "hydrojet_control/actuation/allocation.h"
 #include "hydrojet_control/actuation/jet_map.h"
+#include "hydrojet_control/control/modal_law.h"
 #include "hydrojet_control/control/resolved_rates.h"
 #include "hydrojet_control/rod/so3.h"
 #include "controller_fixtures.h"
@@ -197,7 +198,9 @@ TEST(InputStep, OnTheHydroJetIsEquationNineteenThenTwenty) {
   ASSERT_TRUE(ref.ok);
   EXPECT_NEAR((q - ref.q).norm(), 0.0, 1e-6) << "the smallest jet forces for that force";
   EXPECT_LE(step.bound_cost, 1e-6);
-  EXPECT_LE(step.lost.norm(), 1e-6 * x_cntr.norm()) << "within the bounds the step loses nothing (λ's ~1e-6)";
+  // No jet at its top: what the step loses is λ's pull on the jets' common mode through their lower
+  // bounds (a few 1e-9 rad here), far under what the modal law holds.
+  EXPECT_LT(step.lost.norm(), 0.01 * control::ModalLaw::kHeldLoss);
 }
 
 TEST(InputStep, StepAndMagnitudeAreLimitedInTipForce) {

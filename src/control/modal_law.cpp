@@ -167,8 +167,8 @@ Vec3 ModalLaw::correction(const LawCycle& c) {
   return pd_.correction(c.observed, c.desired, c.dt, gains) + shaping;
 }
 
-// The lost change δd of the tip direction is the rotation d × δd (δd ⊥ d); under kHeldLoss (the QP's
-// own residue) nothing is held.
+// The lost change δd of the tip direction is the rotation d × δd (δd ⊥ d); under kHeldLoss (λ's pull
+// through the lower bounds) nothing is held.
 void ModalLaw::bounded(const Vec3& lost, const Vec3& d) {
   pd_.hold_integral(lost.norm() > kHeldLoss ? Vec3(d.cross(lost)) : Vec3::Zero());
 }

@@ -71,7 +71,8 @@ class DirectionLaw {
   /// rings at these forces (the controller closes the reach in, LearnedReach::ring).
   virtual bool plant_rings() const { return false; }
   /// The step's inputs lost `lost` [rad, base frame] of the tip direction's change to their bounds
-  /// (InputStep::lost) at the model's tip direction `d`. The paper's law, as published, ignores it.
+  /// and the force limits (InputStep::lost) at the model's tip direction `d`. The paper's law
+  /// (control_law: papers), as published, ignores it.
   virtual void bounded(const Vec3& /*lost*/, const Vec3& /*d*/) {}
 
  protected:

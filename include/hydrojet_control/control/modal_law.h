@@ -153,10 +153,13 @@ class ModalLaw : public DirectionLaw {
   /// Fallen back to the paper's law, the swing's peak grew over the last 0.25 s window, past 1.2
   /// ring_amplitude: the paper's law does not calm it either (watch_fallback).
   bool plant_rings() const override { return plant_rings_; }
-  /// Its PD's integral does not wind along what the bounds took (DirectionPd::hold_integral).
+  /// Its PD's integral does not wind along what the bounds took (DirectionPd::hold_integral), under
+  /// its own gains and the paper's alike (the supervisor's fall-back keeps the hold).
   void bounded(const Vec3& lost, const Vec3& d) override;
-  /// [rad] a step's loss to the bounds under this is the box QP's own residue: nothing is held.
-  static constexpr double kHeldLoss = 1e-7;
+  /// [rad] a step's loss under this is not held: eq. (20)'s λ pulls the jets' common mode onto
+  /// their lower bounds every step, which shifts the tip's step by some 1e-8 rad (λ 1e-6; 1e-7 at
+  /// 1e-5); a jet at its top loses ~1e-3 rad a step at the reach's edge.
+  static constexpr double kHeldLoss = 1e-5;
 
  private:
   void estimate(const LawCycle& c);

@@ -60,8 +60,8 @@ class DirectionPd {
   /// its own K_p and K_i).
   Vec3 correction(const Vec3& observed, const Vec3& desired, double dt, const PdOptions& gains);
   /// From the next correction() on, the error is not integrated outward along `axis` (a rotation
-  /// vector; zero: along none): the inputs' bounds took that motion from the last step (conditional
-  /// integration, the integral's anti-windup at a jet's bound). The controller sets it every step.
+  /// vector; zero: along none): the inputs' bounds or the force limits took that motion from the last
+  /// step (conditional integration, the integral's anti-windup at a jet's bound). Set every step.
   void hold_integral(const Vec3& axis) { held_axis_ = axis.norm() > 0.0 ? Vec3(axis.normalized()) : Vec3::Zero(); }
   /// The reference's speed over the last correction() [rad/s] (0 before the second).
   double speed() const { return speed_; }
